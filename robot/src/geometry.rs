@@ -1,0 +1,105 @@
+//! Small geometric helpers shared by the models.
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3, Vector6};
+
+/// Rigid transform `T_a_b` (see `docs/conventions.md`).
+pub type Pose = Isometry3<f64>;
+
+/// Rotation about x by `angle_rad`.
+pub fn rot_x(angle_rad: f64) -> Pose {
+    Isometry3::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), angle_rad),
+    )
+}
+
+/// Rotation about y by `angle_rad`.
+pub fn rot_y(angle_rad: f64) -> Pose {
+    Isometry3::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), angle_rad),
+    )
+}
+
+/// Rotation about z by `angle_rad`.
+pub fn rot_z(angle_rad: f64) -> Pose {
+    Isometry3::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle_rad),
+    )
+}
+
+/// Translation by `(x, y, z)` metres.
+pub fn trans(x_m: f64, y_m: f64, z_m: f64) -> Pose {
+    Isometry3::translation(x_m, y_m, z_m)
+}
+
+/// URDF roll-pitch-yaw: `Rz(yaw) Ry(pitch) Rx(roll)`.
+pub fn rpy(roll_rad: f64, pitch_rad: f64, yaw_rad: f64) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_euler_angles(roll_rad, pitch_rad, yaw_rad)
+}
+
+/// Pose from a translation and a rotation vector (axis times angle).
+pub fn pose_from_vectors(t_m: &Vector3<f64>, rotvec_rad: &Vector3<f64>) -> Pose {
+    Isometry3::from_parts(
+        Translation3::from(*t_m),
+        UnitQuaternion::from_scaled_axis(*rotvec_rad),
+    )
+}
+
+/// The 6-vector `(t, rotation vector)` of a pose.
+pub fn pose_to_vector(pose: &Pose) -> Vector6<f64> {
+    let t = pose.translation.vector;
+    let r = pose.rotation.scaled_axis();
+    Vector6::new(t.x, t.y, t.z, r.x, r.y, r.z)
+}
+
+/// Pose error `(position, orientation)` of `actual` relative to `target`, expressed in the frame
+/// both poses are given in: `dp = p_target - p_actual`, `dr = log(R_target R_actual^T)`.
+/// Applying a small motion `(dp, dr)` to `actual` yields `target` to first order.
+pub fn pose_error(target: &Pose, actual: &Pose) -> Vector6<f64> {
+    let dp = target.translation.vector - actual.translation.vector;
+    let dr = (target.rotation * actual.rotation.inverse()).scaled_axis();
+    Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
+}
+
+/// Wraps an angle to `(-pi, pi]`.
+pub fn wrap_angle(angle_rad: f64) -> f64 {
+    let two_pi = std::f64::consts::TAU;
+    let mut a = angle_rad % two_pi;
+    if a <= -std::f64::consts::PI {
+        a += two_pi;
+    } else if a > std::f64::consts::PI {
+        a -= two_pi;
+    }
+    a
+}
+
+/// Skew-symmetric (cross-product) matrix of `v`.
+pub fn skew(v: &Vector3<f64>) -> nalgebra::Matrix3<f64> {
+    nalgebra::Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rpy_matches_urdf_definition() {
+        let (r, p, y) = (0.3, -0.7, 1.1);
+        let q = rpy(r, p, y);
+        let expect = rot_z(y).rotation * rot_y(p).rotation * rot_x(r).rotation;
+        assert!(q.angle_to(&expect) < 1e-14);
+    }
+
+    #[test]
+    fn wrap_angle_range() {
+        for k in -20..20 {
+            let a = 0.37 * k as f64;
+            let w = wrap_angle(a);
+            assert!(w > -std::f64::consts::PI && w <= std::f64::consts::PI);
+            assert!(((a - w) / std::f64::consts::TAU).fract().abs() < 1e-9
+                || ((a - w) / std::f64::consts::TAU).fract().abs() > 1.0 - 1e-9);
+        }
+    }
+}

@@ -1,0 +1,618 @@
+//! Serial chains: DH, modified DH and URDF joints behind one type.
+
+mod urdf;
+
+pub use urdf::{parse_urdf, parse_urdf_str, UrdfOptions};
+
+use nalgebra::{DMatrix, Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, RobotError};
+use crate::geometry::{pose_error, pose_from_vectors, pose_to_vector, rot_x, rot_y, rot_z, rpy, Pose};
+use crate::kinematics::{check_len, default_gravity, JointKind, JointLimits, Kinematics, Mobility};
+use crate::params::{check_values, ParamInfo, Parameterized, Unit};
+
+/// The geometry of one joint: where its axis sits relative to the previous frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "convention", rename_all = "snake_case")]
+pub enum JointGeometry {
+    /// Standard DH: `Rz(theta) Tz(d) Tx(a) Rx(alpha)`, axis = z of the previous frame.
+    Dh {
+        /// Link length.
+        a_m: f64,
+        /// Link twist.
+        alpha_rad: f64,
+        /// Link offset (added to `q` for prismatic joints).
+        d_m: f64,
+        /// Joint angle offset (added to `q` for revolute joints).
+        theta_offset_rad: f64,
+    },
+    /// Modified DH (Craig) with Hayati's beta: `Rx(alpha) Ry(beta) Tx(a) Rz(theta) Tz(d)`.
+    Mdh {
+        /// Length of the previous link.
+        a_m: f64,
+        /// Twist of the previous link.
+        alpha_rad: f64,
+        /// Rotation about y (zero for the plain MDH convention).
+        beta_rad: f64,
+        /// Link offset.
+        d_m: f64,
+        /// Joint angle offset.
+        theta_offset_rad: f64,
+    },
+    /// URDF: `origin(xyz, rpy) * motion(axis, q)`.
+    Origin {
+        /// Origin translation.
+        xyz_m: [f64; 3],
+        /// Origin rotation, roll-pitch-yaw.
+        rpy_rad: [f64; 3],
+        /// Unit axis in the joint frame.
+        axis: [f64; 3],
+    },
+}
+
+/// A rigid body's mass properties in its own frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Inertial {
+    /// Mass.
+    pub mass_kg: f64,
+    /// Centre of mass in the link frame.
+    pub com_m: [f64; 3],
+    /// Inertia about the centre of mass, link-frame axes, row-major 3x3 (kg m^2).
+    pub inertia_kgm2: [f64; 9],
+}
+
+/// One actuated joint with the link it moves.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Joint {
+    /// Name used in reports and errors.
+    pub name: String,
+    /// Revolute or prismatic.
+    pub kind: JointKind,
+    /// Axis placement.
+    pub geometry: JointGeometry,
+    /// Limits (rad or m).
+    pub limits: JointLimits,
+    /// Mass properties of the link this joint moves (expressed in the joint's frame after
+    /// motion), if known.
+    pub inertial: Option<Inertial>,
+}
+
+impl Joint {
+    /// Splits the joint transform into `pre * motion(axis, q) * post`; returns `(pre, axis, post)`.
+    fn split(&self) -> (Pose, Vector3<f64>, Pose) {
+        match (&self.geometry, self.kind) {
+            (
+                JointGeometry::Dh {
+                    a_m,
+                    alpha_rad,
+                    d_m,
+                    theta_offset_rad,
+                },
+                kind,
+            ) => {
+                let tail = Isometry3::translation(*a_m, 0.0, 0.0) * rot_x(*alpha_rad);
+                match kind {
+                    JointKind::Revolute => (
+                        rot_z(*theta_offset_rad),
+                        Vector3::z(),
+                        Isometry3::translation(0.0, 0.0, *d_m) * tail,
+                    ),
+                    JointKind::Prismatic => (
+                        rot_z(*theta_offset_rad) * Isometry3::translation(0.0, 0.0, *d_m),
+                        Vector3::z(),
+                        tail,
+                    ),
+                }
+            }
+            (
+                JointGeometry::Mdh {
+                    a_m,
+                    alpha_rad,
+                    beta_rad,
+                    d_m,
+                    theta_offset_rad,
+                },
+                kind,
+            ) => {
+                let head = rot_x(*alpha_rad) * rot_y(*beta_rad) * Isometry3::translation(*a_m, 0.0, 0.0);
+                match kind {
+                    JointKind::Revolute => (
+                        head * rot_z(*theta_offset_rad),
+                        Vector3::z(),
+                        Isometry3::translation(0.0, 0.0, *d_m),
+                    ),
+                    JointKind::Prismatic => (
+                        head * rot_z(*theta_offset_rad) * Isometry3::translation(0.0, 0.0, *d_m),
+                        Vector3::z(),
+                        Isometry3::identity(),
+                    ),
+                }
+            }
+            (JointGeometry::Origin { xyz_m, rpy_rad, axis }, _) => (
+                Isometry3::from_parts(
+                    Translation3::new(xyz_m[0], xyz_m[1], xyz_m[2]),
+                    rpy(rpy_rad[0], rpy_rad[1], rpy_rad[2]),
+                ),
+                Vector3::new(axis[0], axis[1], axis[2]),
+                Isometry3::identity(),
+            ),
+        }
+    }
+
+    fn motion(&self, axis: &Vector3<f64>, q: f64) -> Pose {
+        match self.kind {
+            JointKind::Revolute => Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_scaled_axis(axis * q),
+            ),
+            JointKind::Prismatic => Isometry3::from_parts(Translation3::from(axis * q), UnitQuaternion::identity()),
+        }
+    }
+
+    fn geometry_params(&self, prefix: &str, out: &mut Vec<ParamInfo>) {
+        let p = |n: &str, u, v| ParamInfo::new(format!("{prefix}.{n}"), u, v);
+        match &self.geometry {
+            JointGeometry::Dh {
+                a_m,
+                alpha_rad,
+                d_m,
+                theta_offset_rad,
+            } => {
+                out.push(p("a_m", Unit::Metre, *a_m));
+                out.push(p("alpha_rad", Unit::Radian, *alpha_rad));
+                out.push(p("d_m", Unit::Metre, *d_m));
+                out.push(p("theta_offset_rad", Unit::Radian, *theta_offset_rad));
+            }
+            JointGeometry::Mdh {
+                a_m,
+                alpha_rad,
+                beta_rad,
+                d_m,
+                theta_offset_rad,
+            } => {
+                out.push(p("a_m", Unit::Metre, *a_m));
+                out.push(p("alpha_rad", Unit::Radian, *alpha_rad));
+                out.push(p("beta_rad", Unit::Radian, *beta_rad));
+                out.push(p("d_m", Unit::Metre, *d_m));
+                out.push(p("theta_offset_rad", Unit::Radian, *theta_offset_rad));
+            }
+            JointGeometry::Origin { xyz_m, rpy_rad, .. } => {
+                for (n, v) in ["x_m", "y_m", "z_m"].iter().zip(xyz_m) {
+                    out.push(p(n, Unit::Metre, *v));
+                }
+                for (n, v) in ["roll_rad", "pitch_rad", "yaw_rad"].iter().zip(rpy_rad) {
+                    out.push(p(n, Unit::Radian, *v));
+                }
+            }
+        }
+    }
+
+    fn set_geometry_params(&mut self, v: &[f64]) -> usize {
+        match &mut self.geometry {
+            JointGeometry::Dh {
+                a_m,
+                alpha_rad,
+                d_m,
+                theta_offset_rad,
+            } => {
+                (*a_m, *alpha_rad, *d_m, *theta_offset_rad) = (v[0], v[1], v[2], v[3]);
+                4
+            }
+            JointGeometry::Mdh {
+                a_m,
+                alpha_rad,
+                beta_rad,
+                d_m,
+                theta_offset_rad,
+            } => {
+                (*a_m, *alpha_rad, *beta_rad, *d_m, *theta_offset_rad) = (v[0], v[1], v[2], v[3], v[4]);
+                5
+            }
+            JointGeometry::Origin { xyz_m, rpy_rad, .. } => {
+                xyz_m.copy_from_slice(&v[0..3]);
+                rpy_rad.copy_from_slice(&v[3..6]);
+                6
+            }
+        }
+    }
+}
+
+/// Frames of a serial chain at one joint configuration.
+#[derive(Clone, Debug)]
+pub struct ChainFrames {
+    /// `T_base_frame_i` after each joint's motion (frame i is the link moved by joint i), i = 1..n.
+    pub links: Vec<Pose>,
+    /// Joint axes in the base frame (unit vectors), one per joint.
+    pub axes: Vec<Vector3<f64>>,
+    /// A point on each joint axis, base frame.
+    pub axis_points: Vec<Point3<f64>>,
+    /// `T_base_flange` (the last link frame).
+    pub flange: Pose,
+    /// `T_base_tool`.
+    pub tool: Pose,
+}
+
+/// An open serial chain of revolute and prismatic joints.
+///
+/// `T_world_tool = base * J_1(q_1) * ... * J_n(q_n) * tool`; [`Kinematics::forward`] returns
+/// `T_base_tool` with `base` included, so `base` is the place for a device-to-robot frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SerialChain {
+    /// Model name.
+    pub name: String,
+    /// `T_world_base`: pose of the robot base (identity unless placed).
+    pub base: Pose,
+    /// The actuated joints, base to tip.
+    pub joints: Vec<Joint>,
+    /// `T_flange_tool`: pose of the tool point in the flange (last link) frame.
+    pub tool: Pose,
+    /// Gravity in the base frame, m/s^2.
+    pub gravity_m_s2: [f64; 3],
+}
+
+/// Options of the damped-least-squares inverse kinematics.
+#[derive(Clone, Copy, Debug)]
+pub struct IkOptions {
+    /// Maximum iterations.
+    pub max_iterations: usize,
+    /// Position tolerance.
+    pub tol_m: f64,
+    /// Orientation tolerance.
+    pub tol_rad: f64,
+    /// Initial damping (Levenberg-Marquardt lambda, in m^2-equivalent units).
+    pub damping: f64,
+    /// Length that converts rotations to translations in the error norm.
+    pub characteristic_length_m: f64,
+    /// Whether the result must respect joint limits.
+    pub enforce_limits: bool,
+}
+
+impl Default for IkOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 200,
+            tol_m: 1e-12,
+            tol_rad: 1e-12,
+            damping: 1e-6,
+            characteristic_length_m: 0.5,
+            enforce_limits: true,
+        }
+    }
+}
+
+impl SerialChain {
+    /// A chain from a standard DH table (`a`, `alpha`, `d`, `theta offset` per joint), all revolute.
+    pub fn from_dh(name: &str, a_m: &[f64], alpha_rad: &[f64], d_m: &[f64], theta_offset_rad: &[f64]) -> Self {
+        let joints = (0..a_m.len())
+            .map(|i| Joint {
+                name: format!("joint{}", i + 1),
+                kind: JointKind::Revolute,
+                geometry: JointGeometry::Dh {
+                    a_m: a_m[i],
+                    alpha_rad: alpha_rad[i],
+                    d_m: d_m[i],
+                    theta_offset_rad: theta_offset_rad[i],
+                },
+                limits: JointLimits::UNBOUNDED,
+                inertial: None,
+            })
+            .collect();
+        Self::new(name, joints)
+    }
+
+    /// A chain from a modified DH table, all revolute, beta = 0.
+    pub fn from_mdh(name: &str, a_m: &[f64], alpha_rad: &[f64], d_m: &[f64], theta_offset_rad: &[f64]) -> Self {
+        let joints = (0..a_m.len())
+            .map(|i| Joint {
+                name: format!("joint{}", i + 1),
+                kind: JointKind::Revolute,
+                geometry: JointGeometry::Mdh {
+                    a_m: a_m[i],
+                    alpha_rad: alpha_rad[i],
+                    beta_rad: 0.0,
+                    d_m: d_m[i],
+                    theta_offset_rad: theta_offset_rad[i],
+                },
+                limits: JointLimits::UNBOUNDED,
+                inertial: None,
+            })
+            .collect();
+        Self::new(name, joints)
+    }
+
+    /// A chain with identity base and tool and standard gravity.
+    pub fn new(name: &str, joints: Vec<Joint>) -> Self {
+        let g = default_gravity();
+        Self {
+            name: name.to_string(),
+            base: Pose::identity(),
+            joints,
+            tool: Pose::identity(),
+            gravity_m_s2: [g.x, g.y, g.z],
+        }
+    }
+
+    /// Sets every joint's limits (same for all), checked.
+    pub fn with_limits(mut self, lower: f64, upper: f64) -> Result<Self> {
+        for j in &mut self.joints {
+            j.limits = JointLimits::new(&j.name, lower, upper)?;
+        }
+        Ok(self)
+    }
+
+    /// All frames at `q`.
+    pub fn frames(&self, q: &[f64]) -> Result<ChainFrames> {
+        check_len(q, self.joints.len())?;
+        let n = self.joints.len();
+        let mut links = Vec::with_capacity(n);
+        let mut axes = Vec::with_capacity(n);
+        let mut axis_points = Vec::with_capacity(n);
+        let mut t = self.base;
+        for (j, qi) in self.joints.iter().zip(q) {
+            let (pre, axis, post) = j.split();
+            let before = t * pre;
+            let a = before.rotation * axis;
+            axes.push(a.normalize());
+            axis_points.push(Point3::from(before.translation.vector));
+            t = before * j.motion(&axis, *qi) * post;
+            links.push(t);
+        }
+        let flange = t;
+        Ok(ChainFrames {
+            links,
+            axes,
+            axis_points,
+            flange,
+            tool: flange * self.tool,
+        })
+    }
+
+    /// Geometric Jacobian of an arbitrary point `p_base` rigidly attached to link `link`
+    /// (0-based; joints after it do not move it). 6 x n.
+    pub fn point_jacobian(frames: &ChainFrames, kinds: &[JointKind], link: usize, p_base: &Point3<f64>) -> DMatrix<f64> {
+        let n = frames.axes.len();
+        let mut jac = DMatrix::zeros(6, n);
+        for i in 0..=link.min(n - 1) {
+            let z = frames.axes[i];
+            match kinds[i] {
+                JointKind::Revolute => {
+                    let r = p_base - frames.axis_points[i];
+                    let v = z.cross(&r);
+                    jac.fixed_view_mut::<3, 1>(0, i).copy_from(&v);
+                    jac.fixed_view_mut::<3, 1>(3, i).copy_from(&z);
+                }
+                JointKind::Prismatic => {
+                    jac.fixed_view_mut::<3, 1>(0, i).copy_from(&z);
+                }
+            }
+        }
+        jac
+    }
+
+    /// Damped-least-squares inverse kinematics with explicit options.
+    pub fn inverse_with(&self, target: &Pose, seed: &[f64], opts: &IkOptions) -> Result<Vec<f64>> {
+        check_len(seed, self.joints.len())?;
+        let n = self.joints.len();
+        let w = opts.characteristic_length_m;
+        let mut q: Vec<f64> = seed.to_vec();
+        let mut lambda = opts.damping;
+        let err_of = |q: &[f64]| -> Result<(nalgebra::Vector6<f64>, f64)> {
+            let t = self.forward(q)?;
+            let e = pose_error(target, &t);
+            let scaled = e.fixed_rows::<3>(0).norm_squared() + (w * w) * e.fixed_rows::<3>(3).norm_squared();
+            Ok((e, scaled))
+        };
+        let (mut e, mut cost) = err_of(&q)?;
+        for it in 0..opts.max_iterations {
+            if e.fixed_rows::<3>(0).norm() <= opts.tol_m && e.fixed_rows::<3>(3).norm() <= opts.tol_rad {
+                return self.finish_ik(q, opts);
+            }
+            let mut jac = self.jacobian(&q)?;
+            // Scale angular rows so both parts count in metres.
+            for c in 0..n {
+                for r in 3..6 {
+                    jac[(r, c)] *= w;
+                }
+            }
+            let mut es = e;
+            for r in 3..6 {
+                es[r] *= w;
+            }
+            let jt = jac.transpose();
+            let jtj = &jt * &jac;
+            let g = &jt * nalgebra::DVector::from_column_slice(es.as_slice());
+            let mut improved = false;
+            for _ in 0..30 {
+                let mut a = jtj.clone();
+                for d in 0..n {
+                    a[(d, d)] += lambda * (1.0 + jtj[(d, d)]);
+                }
+                let Some(step) = a.cholesky().map(|c| c.solve(&g)) else {
+                    lambda *= 10.0;
+                    continue;
+                };
+                let q_new: Vec<f64> = q.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+                let (e_new, cost_new) = err_of(&q_new)?;
+                if cost_new < cost || cost_new == 0.0 {
+                    q = q_new;
+                    e = e_new;
+                    cost = cost_new;
+                    lambda = (lambda * 0.1).max(1e-15);
+                    improved = true;
+                    break;
+                }
+                lambda *= 10.0;
+            }
+            if !improved {
+                // Converged as far as floating point allows, or stuck.
+                let res_m = e.fixed_rows::<3>(0).norm();
+                let res_rad = e.fixed_rows::<3>(3).norm();
+                if res_m < 1e-10 && res_rad < 1e-10 {
+                    return self.finish_ik(q, opts);
+                }
+                return Err(RobotError::IkNotConverged {
+                    iterations: it + 1,
+                    residual_m: res_m,
+                    residual_rad: res_rad,
+                });
+            }
+        }
+        let res_m = e.fixed_rows::<3>(0).norm();
+        let res_rad = e.fixed_rows::<3>(3).norm();
+        if res_m < 1e-10 && res_rad < 1e-10 {
+            return self.finish_ik(q, opts);
+        }
+        Err(RobotError::IkNotConverged {
+            iterations: opts.max_iterations,
+            residual_m: res_m,
+            residual_rad: res_rad,
+        })
+    }
+
+    fn finish_ik(&self, mut q: Vec<f64>, opts: &IkOptions) -> Result<Vec<f64>> {
+        // Bring revolute joints into their limits by whole turns where that helps.
+        for (v, j) in q.iter_mut().zip(&self.joints) {
+            if j.kind == JointKind::Revolute && !j.limits.contains(*v, 0.0) {
+                let tau = std::f64::consts::TAU;
+                let k = ((j.limits.lower + j.limits.upper) * 0.5 - *v) / tau;
+                if k.is_finite() {
+                    let cand = *v + k.round() * tau;
+                    if j.limits.contains(cand, 0.0) {
+                        *v = cand;
+                    }
+                }
+            }
+        }
+        if opts.enforce_limits {
+            self.check_joints(&q)?;
+        }
+        Ok(q)
+    }
+
+    /// Torques (N m; N for prismatic joints) the actuators must exert to hold the chain still at
+    /// `q` against gravity, from the links' inertials (links without an inertial weigh nothing),
+    /// plus an optional payload of `payload_kg` at the tool point.
+    pub fn gravity_torques(&self, q: &[f64], payload_kg: f64) -> Result<Vec<f64>> {
+        let frames = self.frames(q)?;
+        let kinds: Vec<JointKind> = self.joints.iter().map(|j| j.kind).collect();
+        let g = Vector3::from(self.gravity_m_s2);
+        let n = self.joints.len();
+        let mut tau = nalgebra::DVector::zeros(n);
+        for (i, j) in self.joints.iter().enumerate() {
+            if let Some(inr) = &j.inertial {
+                let com = frames.links[i] * Point3::from(inr.com_m);
+                let jac = Self::point_jacobian(&frames, &kinds, i, &com);
+                let f = -g * inr.mass_kg; // force the actuators must supply
+                tau += jac.fixed_rows::<3>(0).transpose() * f;
+            }
+        }
+        if payload_kg != 0.0 {
+            let p = Point3::from(frames.tool.translation.vector);
+            let jac = Self::point_jacobian(&frames, &kinds, n - 1, &p);
+            tau += jac.fixed_rows::<3>(0).transpose() * (-g * payload_kg);
+        }
+        Ok(tau.iter().copied().collect())
+    }
+
+    /// Total mass of the links with inertials.
+    pub fn total_mass_kg(&self) -> f64 {
+        self.joints.iter().filter_map(|j| j.inertial.as_ref()).map(|i| i.mass_kg).sum()
+    }
+
+    /// Inertia of a link about its centre of mass, as a matrix.
+    pub fn inertia_matrix(inr: &Inertial) -> Matrix3<f64> {
+        Matrix3::from_row_slice(&inr.inertia_kgm2)
+    }
+
+    /// A reach bound: the largest distance from any joint axis point to the tool over the chain's
+    /// zero configuration plus all link lengths, used for conservative motion bounds.
+    pub fn reach_bound_m(&self) -> f64 {
+        let mut sum = 0.0;
+        for j in &self.joints {
+            let (pre, _, post) = j.split();
+            sum += pre.translation.vector.norm() + post.translation.vector.norm();
+        }
+        sum + self.tool.translation.vector.norm()
+    }
+}
+
+impl Parameterized for SerialChain {
+    fn parameters(&self) -> Vec<ParamInfo> {
+        let mut out = Vec::new();
+        let b = pose_to_vector(&self.base);
+        for (k, n) in ["x_m", "y_m", "z_m", "rx_rad", "ry_rad", "rz_rad"].iter().enumerate() {
+            let unit = if k < 3 { Unit::Metre } else { Unit::Radian };
+            out.push(ParamInfo::new(format!("base.{n}"), unit, b[k]));
+        }
+        for (i, j) in self.joints.iter().enumerate() {
+            j.geometry_params(&format!("joint{}", i + 1), &mut out);
+        }
+        let t = pose_to_vector(&self.tool);
+        for (k, n) in ["x_m", "y_m", "z_m", "rx_rad", "ry_rad", "rz_rad"].iter().enumerate() {
+            let unit = if k < 3 { Unit::Metre } else { Unit::Radian };
+            out.push(ParamInfo::new(format!("tool.{n}"), unit, t[k]));
+        }
+        out
+    }
+
+    fn set_parameter_values(&mut self, values: &[f64]) -> Result<()> {
+        let info = self.parameters();
+        check_values(values, info.len(), &info)?;
+        self.base = pose_from_vectors(
+            &Vector3::new(values[0], values[1], values[2]),
+            &Vector3::new(values[3], values[4], values[5]),
+        );
+        let mut k = 6;
+        for j in &mut self.joints {
+            k += j.set_geometry_params(&values[k..]);
+        }
+        self.tool = pose_from_vectors(
+            &Vector3::new(values[k], values[k + 1], values[k + 2]),
+            &Vector3::new(values[k + 3], values[k + 4], values[k + 5]),
+        );
+        Ok(())
+    }
+}
+
+impl Kinematics for SerialChain {
+    fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    fn joint_names(&self) -> Vec<String> {
+        self.joints.iter().map(|j| j.name.clone()).collect()
+    }
+
+    fn joint_kinds(&self) -> Vec<JointKind> {
+        self.joints.iter().map(|j| j.kind).collect()
+    }
+
+    fn joint_limits(&self) -> Vec<JointLimits> {
+        self.joints.iter().map(|j| j.limits).collect()
+    }
+
+    fn mobility(&self) -> Mobility {
+        Mobility::Full6
+    }
+
+    fn forward(&self, q: &[f64]) -> Result<Pose> {
+        check_len(q, self.joints.len())?;
+        let mut t = self.base;
+        for (j, qi) in self.joints.iter().zip(q) {
+            let (pre, axis, post) = j.split();
+            t = t * pre * j.motion(&axis, *qi) * post;
+        }
+        Ok(t * self.tool)
+    }
+
+    fn inverse(&self, t_base_tool: &Pose, seed: &[f64]) -> Result<Vec<f64>> {
+        self.inverse_with(t_base_tool, seed, &IkOptions::default())
+    }
+
+    fn jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
+        let frames = self.frames(q)?;
+        let p = Point3::from(frames.tool.translation.vector);
+        Ok(Self::point_jacobian(&frames, &self.joint_kinds(), self.joints.len().saturating_sub(1), &p))
+    }
+}

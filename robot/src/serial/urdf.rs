@@ -1,0 +1,444 @@
+//! URDF import: the chain from the root link to a tip link, with limits and inertials.
+//!
+//! Fixed joints are folded into the next actuated joint's origin (or into the tool frame when
+//! they come after the last actuated joint); the inertials of links hanging on fixed joints are
+//! merged into the moving link that carries them.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Matrix3, Translation3, Vector3};
+use roxmltree::{Document, Node};
+
+use super::{Inertial, Joint, JointGeometry, SerialChain};
+use crate::error::{check_finite, Location, Result, RobotError};
+use crate::geometry::{rpy, Pose};
+use crate::kinematics::{JointKind, JointLimits};
+
+/// Choices when a URDF is a tree rather than a chain.
+#[derive(Clone, Debug, Default)]
+pub struct UrdfOptions {
+    /// The link to end the chain at. Default: the leaf reached through the most actuated joints
+    /// (the first in document order on a tie).
+    pub tip_link: Option<String>,
+}
+
+/// Reads and parses a URDF file.
+pub fn parse_urdf(path: &Path, opts: &UrdfOptions) -> Result<SerialChain> {
+    let text = std::fs::read_to_string(path).map_err(|source| RobotError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_urdf_impl(&text, path.to_path_buf(), opts)
+}
+
+/// Parses URDF text (errors name `<string>` as the file).
+pub fn parse_urdf_str(text: &str, opts: &UrdfOptions) -> Result<SerialChain> {
+    parse_urdf_impl(text, PathBuf::from("<string>"), opts)
+}
+
+struct Ctx<'a> {
+    file: PathBuf,
+    doc: &'a Document<'a>,
+}
+
+impl Ctx<'_> {
+    fn loc(&self, node: Node) -> Location {
+        let pos = self.doc.text_pos_at(node.range().start);
+        Location {
+            file: self.file.clone(),
+            line: pos.row,
+            column: pos.col,
+        }
+    }
+
+    fn err(&self, node: Node, message: impl Into<String>) -> RobotError {
+        RobotError::Parse {
+            location: self.loc(node),
+            message: message.into(),
+        }
+    }
+
+    fn floats(&self, node: Node, attr: &str, n: usize, what: &str) -> Result<Vec<f64>> {
+        let Some(s) = node.attribute(attr) else {
+            return Err(self.err(node, format!("{what}: missing attribute '{attr}'")));
+        };
+        let parts: Vec<&str> = s.split_whitespace().collect();
+        if parts.len() != n {
+            return Err(self.err(
+                node,
+                format!("{what}: attribute '{attr}' needs {n} numbers, found {} ('{s}')", parts.len()),
+            ));
+        }
+        parts
+            .iter()
+            .map(|p| {
+                let v: f64 = p
+                    .parse()
+                    .map_err(|_| self.err(node, format!("{what}: '{p}' in '{attr}' is not a number")))?;
+                check_finite(v, &self.loc(node), &format!("{what} ('{attr}')"))
+            })
+            .collect()
+    }
+
+    fn float(&self, node: Node, attr: &str, what: &str) -> Result<Option<f64>> {
+        if node.attribute(attr).is_none() {
+            return Ok(None);
+        }
+        Ok(Some(self.floats(node, attr, 1, what)?[0]))
+    }
+
+    fn origin(&self, parent: Node, what: &str) -> Result<Pose> {
+        let Some(o) = child(parent, "origin") else {
+            return Ok(Isometry3::identity());
+        };
+        let xyz = if o.has_attribute("xyz") {
+            self.floats(o, "xyz", 3, what)?
+        } else {
+            vec![0.0; 3]
+        };
+        let r = if o.has_attribute("rpy") {
+            self.floats(o, "rpy", 3, what)?
+        } else {
+            vec![0.0; 3]
+        };
+        Ok(Isometry3::from_parts(
+            Translation3::new(xyz[0], xyz[1], xyz[2]),
+            rpy(r[0], r[1], r[2]),
+        ))
+    }
+}
+
+fn child<'a, 'i>(node: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
+    node.children().find(|c| c.is_element() && c.tag_name().name() == name)
+}
+
+/// A parsed URDF joint before chain extraction.
+struct RawJoint<'a, 'i> {
+    node: Node<'a, 'i>,
+    name: String,
+    kind: Option<JointKind>, // None = fixed
+    parent: String,
+    child: String,
+    origin: Pose,
+    axis: Vector3<f64>,
+    limits: JointLimits,
+}
+
+/// A link's inertial in its own frame: mass, com, inertia about com.
+#[derive(Clone, Copy)]
+struct RawInertial {
+    mass: f64,
+    com: Vector3<f64>,
+    inertia: Matrix3<f64>,
+}
+
+impl RawInertial {
+    /// Expressed in a frame F where `t_f_link` maps link coordinates to F.
+    fn transformed(&self, t_f_link: &Pose) -> RawInertial {
+        let r = t_f_link.rotation.to_rotation_matrix();
+        RawInertial {
+            mass: self.mass,
+            com: t_f_link * nalgebra::Point3::from(self.com).coords,
+            inertia: r.matrix() * self.inertia * r.matrix().transpose(),
+        }
+    }
+
+    fn merged(a: RawInertial, b: RawInertial) -> RawInertial {
+        let m = a.mass + b.mass;
+        if m <= 0.0 {
+            return a;
+        }
+        let com = (a.com * a.mass + b.com * b.mass) / m;
+        let shift = |i: &RawInertial| {
+            let d = i.com - com;
+            i.inertia + i.mass * (Matrix3::identity() * d.norm_squared() - d * d.transpose())
+        };
+        RawInertial {
+            mass: m,
+            com,
+            inertia: shift(&a) + shift(&b),
+        }
+    }
+}
+
+fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<SerialChain> {
+    let doc = Document::parse(text).map_err(|e| {
+        let pos = e.pos();
+        RobotError::Parse {
+            location: Location {
+                file: file.clone(),
+                line: pos.row,
+                column: pos.col,
+            },
+            message: format!("not valid XML: {e}"),
+        }
+    })?;
+    let ctx = Ctx { file, doc: &doc };
+    let root = doc.root_element();
+    if root.tag_name().name() != "robot" {
+        return Err(ctx.err(root, "the top element must be <robot>"));
+    }
+    let robot_name = root.attribute("name").unwrap_or("urdf").to_string();
+
+    // Links and their inertials.
+    let mut links: HashMap<String, Node> = HashMap::new();
+    let mut link_order: Vec<String> = Vec::new();
+    let mut inertials: HashMap<String, RawInertial> = HashMap::new();
+    for l in root.children().filter(|c| c.is_element() && c.tag_name().name() == "link") {
+        let name = l
+            .attribute("name")
+            .ok_or_else(|| ctx.err(l, "<link> without a name"))?
+            .to_string();
+        if links.insert(name.clone(), l).is_some() {
+            return Err(ctx.err(l, format!("link '{name}' is defined twice")));
+        }
+        link_order.push(name.clone());
+        if let Some(inr) = child(l, "inertial") {
+            let what = format!("inertial of link '{name}'");
+            let origin = ctx.origin(inr, &what)?;
+            let mass_node = child(inr, "mass").ok_or_else(|| ctx.err(inr, format!("{what}: missing <mass>")))?;
+            let mass = ctx
+                .float(mass_node, "value", &what)?
+                .ok_or_else(|| ctx.err(mass_node, format!("{what}: <mass> needs 'value'")))?;
+            if mass < 0.0 {
+                return Err(ctx.err(mass_node, format!("{what}: negative mass {mass}")));
+            }
+            let mut inertia = Matrix3::zeros();
+            if let Some(i) = child(inr, "inertia") {
+                let g = |a: &str| -> Result<f64> { Ok(ctx.float(i, a, &what)?.unwrap_or(0.0)) };
+                let (ixx, ixy, ixz, iyy, iyz, izz) = (g("ixx")?, g("ixy")?, g("ixz")?, g("iyy")?, g("iyz")?, g("izz")?);
+                inertia = Matrix3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz);
+            }
+            // Inertia in the inertial frame -> link frame; com = origin translation.
+            let r = origin.rotation.to_rotation_matrix();
+            inertials.insert(
+                name.clone(),
+                RawInertial {
+                    mass,
+                    com: origin.translation.vector,
+                    inertia: r.matrix() * inertia * r.matrix().transpose(),
+                },
+            );
+        }
+    }
+
+    // Joints.
+    let mut joints: Vec<RawJoint> = Vec::new();
+    let mut child_of: HashMap<String, usize> = HashMap::new();
+    for j in root.children().filter(|c| c.is_element() && c.tag_name().name() == "joint") {
+        let name = j
+            .attribute("name")
+            .ok_or_else(|| ctx.err(j, "<joint> without a name"))?
+            .to_string();
+        let ty = j
+            .attribute("type")
+            .ok_or_else(|| ctx.err(j, format!("joint '{name}' has no type")))?;
+        let kind = match ty {
+            "revolute" | "continuous" => Some(JointKind::Revolute),
+            "prismatic" => Some(JointKind::Prismatic),
+            "fixed" => None,
+            other => {
+                return Err(ctx.err(
+                    j,
+                    format!("joint '{name}': type '{other}' is not supported (revolute, continuous, prismatic, fixed)"),
+                ))
+            }
+        };
+        let link_attr = |tag: &str| -> Result<String> {
+            let n = child(j, tag).ok_or_else(|| ctx.err(j, format!("joint '{name}' has no <{tag}>")))?;
+            n.attribute("link")
+                .map(str::to_string)
+                .ok_or_else(|| ctx.err(n, format!("joint '{name}': <{tag}> needs a 'link' attribute")))
+        };
+        let parent = link_attr("parent")?;
+        let child_link = link_attr("child")?;
+        if !links.contains_key(&parent) {
+            return Err(ctx.err(j, format!("joint '{name}': parent link '{parent}' is not defined")));
+        }
+        if !links.contains_key(&child_link) {
+            return Err(ctx.err(j, format!("joint '{name}': child link '{child_link}' is not defined")));
+        }
+        let what = format!("joint '{name}'");
+        let origin = ctx.origin(j, &what)?;
+        let axis = match child(j, "axis") {
+            Some(a) => {
+                let v = ctx.floats(a, "xyz", 3, &what)?;
+                let v = Vector3::new(v[0], v[1], v[2]);
+                if v.norm() < 1e-12 {
+                    return Err(ctx.err(a, format!("{what}: axis is zero")));
+                }
+                v.normalize()
+            }
+            None => Vector3::x(),
+        };
+        let mut limits = JointLimits::UNBOUNDED;
+        if ty == "revolute" || ty == "prismatic" {
+            if let Some(l) = child(j, "limit") {
+                let lower = ctx.float(l, "lower", &what)?.unwrap_or(0.0);
+                let upper = ctx.float(l, "upper", &what)?.unwrap_or(0.0);
+                if lower > upper {
+                    return Err(RobotError::BadLimits {
+                        joint: name.clone(),
+                        lower,
+                        upper,
+                        location: Some(ctx.loc(l)),
+                    });
+                }
+                limits = JointLimits { lower, upper };
+            } else {
+                return Err(ctx.err(j, format!("{what}: a {ty} joint needs <limit lower=.. upper=..>")));
+            }
+        }
+        if let Some(prev) = child_of.get(&child_link) {
+            return Err(RobotError::Structure {
+                location: ctx.loc(j),
+                message: format!(
+                    "link '{child_link}' is the child of two joints ('{}' and '{name}'): a kinematic loop; URDF describes trees only",
+                    joints[*prev].name
+                ),
+            });
+        }
+        child_of.insert(child_link.clone(), joints.len());
+        joints.push(RawJoint {
+            node: j,
+            name,
+            kind,
+            parent,
+            child: child_link,
+            origin,
+            axis,
+            limits,
+        });
+    }
+
+    // Root: the link that is nobody's child.
+    let roots: Vec<&String> = link_order.iter().filter(|l| !child_of.contains_key(*l)).collect();
+    if roots.is_empty() {
+        return Err(RobotError::Structure {
+            location: ctx.loc(root),
+            message: "every link is the child of a joint: the joints form a loop".into(),
+        });
+    }
+    if roots.len() > 1 {
+        return Err(RobotError::Structure {
+            location: ctx.loc(links[roots[1]]),
+            message: format!(
+                "more than one root link ({}): every link but one must be the child of a joint",
+                roots.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
+            ),
+        });
+    }
+    let root_link = roots[0].clone();
+
+    // Children lists, and a walk from the root that also detects cycles.
+    let mut children: HashMap<&str, Vec<usize>> = HashMap::new();
+    for (k, j) in joints.iter().enumerate() {
+        children.entry(j.parent.as_str()).or_default().push(k);
+    }
+    // Depth (in actuated joints) of every link reachable from the root.
+    let mut depth: HashMap<String, (usize, Option<usize>)> = HashMap::new(); // link -> (actuated count, joint that reaches it)
+    depth.insert(root_link.clone(), (0, None));
+    let mut stack = vec![root_link.clone()];
+    while let Some(l) = stack.pop() {
+        let d = depth[&l].0;
+        for &k in children.get(l.as_str()).map(|v| v.as_slice()).unwrap_or(&[]) {
+            let j = &joints[k];
+            if depth.contains_key(&j.child) {
+                return Err(RobotError::Structure {
+                    location: ctx.loc(j.node),
+                    message: format!("joint '{}' closes a loop back to link '{}'", j.name, j.child),
+                });
+            }
+            depth.insert(j.child.clone(), (d + usize::from(j.kind.is_some()), Some(k)));
+            stack.push(j.child.clone());
+        }
+    }
+    if let Some(j) = joints.iter().find(|j| !depth.contains_key(&j.child)) {
+        return Err(RobotError::Structure {
+            location: ctx.loc(j.node),
+            message: format!("joint '{}' is not connected to the root link '{root_link}' (a detached loop)", j.name),
+        });
+    }
+
+    let tip = match &opts.tip_link {
+        Some(t) => {
+            if !links.contains_key(t) {
+                return Err(ctx.err(root, format!("tip link '{t}' is not defined")));
+            }
+            t.clone()
+        }
+        None => {
+            let mut best: Option<(&String, usize)> = None;
+            for l in &link_order {
+                if children.contains_key(l.as_str()) {
+                    continue; // not a leaf
+                }
+                let d = depth[l].0;
+                if best.is_none_or(|(_, bd)| d > bd) {
+                    best = Some((l, d));
+                }
+            }
+            best.map(|(l, _)| l.clone()).unwrap_or(root_link.clone())
+        }
+    };
+
+    // The path root -> tip, as joint indices.
+    let mut path = Vec::new();
+    let mut cur = tip.clone();
+    while let Some(k) = depth[&cur].1 {
+        path.push(k);
+        cur = joints[k].parent.clone();
+    }
+    path.reverse();
+
+    // Fold fixed joints; collect inertials of links carried by each actuated joint.
+    let mut out_joints: Vec<Joint> = Vec::new();
+    let mut pending = Isometry3::identity(); // fixed transform since the last actuated frame
+    let mut carried: Vec<Option<RawInertial>> = Vec::new();
+    for &k in &path {
+        let j = &joints[k];
+        match j.kind {
+            None => {
+                pending *= j.origin;
+                if let (Some(inr), Some(last)) = (inertials.get(&j.child), carried.last_mut()) {
+                    let moved = inr.transformed(&pending);
+                    *last = Some(match last {
+                        Some(prev) => RawInertial::merged(*prev, moved),
+                        None => moved,
+                    });
+                }
+            }
+            Some(kind) => {
+                let origin = pending * j.origin;
+                pending = Isometry3::identity();
+                let (roll, pitch, yaw) = origin.rotation.euler_angles();
+                out_joints.push(Joint {
+                    name: j.name.clone(),
+                    kind,
+                    geometry: JointGeometry::Origin {
+                        xyz_m: origin.translation.vector.into(),
+                        rpy_rad: [roll, pitch, yaw],
+                        axis: j.axis.into(),
+                    },
+                    limits: j.limits,
+                    inertial: None,
+                });
+                carried.push(inertials.get(&j.child).copied());
+            }
+        }
+    }
+    if out_joints.is_empty() {
+        return Err(ctx.err(root, format!("no actuated joint between root '{root_link}' and tip '{tip}'")));
+    }
+    for (j, c) in out_joints.iter_mut().zip(carried) {
+        j.inertial = c.map(|c| Inertial {
+            mass_kg: c.mass,
+            com_m: c.com.into(),
+            inertia_kgm2: c.inertia.transpose().as_slice().try_into().expect("3x3"),
+        });
+    }
+    let mut chain = SerialChain::new(&robot_name, out_joints);
+    chain.tool = pending;
+    Ok(chain)
+}

@@ -1,0 +1,11 @@
+//! Vision measurement for ferrocal: detection of pattern plates, chessboards and AprilTags,
+//! sub-pixel corners, camera models, calibration and bundle adjustment.
+//!
+//! Entry points:
+//! - [`backends`]: the external libraries (OpenCV, AprilTag C, kornia-rs, Ceres) and a probe.
+//!
+//! # Conventions
+//! Pixel (0, 0) is the centre of the top-left pixel; see `docs/conventions.md`.
+#![deny(missing_docs)]
+
+pub mod backends;
