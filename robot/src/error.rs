@@ -152,9 +152,23 @@ pub(crate) fn check_finite(v: f64, location: &Location, what: &str) -> Result<f6
     if v.is_finite() {
         Ok(v)
     } else {
-        Err(RobotError::NonFinite {
-            location: location.clone(),
-            what: what.to_string(),
-        })
+        Err(RobotError::NonFinite { location: location.clone(), what: what.to_string() })
+    }
+}
+
+/// 1-based line and column of a byte offset in `text`.
+pub fn line_col(text: &str, byte_offset: usize) -> (u32, u32) {
+    let upto = &text[..byte_offset.min(text.len())];
+    let line = upto.matches('\n').count() as u32 + 1;
+    let col = upto.rsplit('\n').next().map_or(0, |l| l.chars().count()) as u32 + 1;
+    (line, col)
+}
+
+/// Converts a TOML deserialisation error into a [`RobotError::Parse`] naming file, line and column.
+pub fn toml_error(file: &std::path::Path, text: &str, err: &toml::de::Error) -> RobotError {
+    let (line, column) = err.span().map_or((1, 1), |s| line_col(text, s.start));
+    RobotError::Parse {
+        location: Location { file: file.to_path_buf(), line, column },
+        message: err.message().to_string(),
     }
 }

@@ -7,26 +7,17 @@ pub type Pose = Isometry3<f64>;
 
 /// Rotation about x by `angle_rad`.
 pub fn rot_x(angle_rad: f64) -> Pose {
-    Isometry3::from_parts(
-        Translation3::identity(),
-        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), angle_rad),
-    )
+    Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::x_axis(), angle_rad))
 }
 
 /// Rotation about y by `angle_rad`.
 pub fn rot_y(angle_rad: f64) -> Pose {
-    Isometry3::from_parts(
-        Translation3::identity(),
-        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), angle_rad),
-    )
+    Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::y_axis(), angle_rad))
 }
 
 /// Rotation about z by `angle_rad`.
 pub fn rot_z(angle_rad: f64) -> Pose {
-    Isometry3::from_parts(
-        Translation3::identity(),
-        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle_rad),
-    )
+    Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle_rad))
 }
 
 /// Translation by `(x, y, z)` metres.
@@ -41,10 +32,7 @@ pub fn rpy(roll_rad: f64, pitch_rad: f64, yaw_rad: f64) -> UnitQuaternion<f64> {
 
 /// Pose from a translation and a rotation vector (axis times angle).
 pub fn pose_from_vectors(t_m: &Vector3<f64>, rotvec_rad: &Vector3<f64>) -> Pose {
-    Isometry3::from_parts(
-        Translation3::from(*t_m),
-        UnitQuaternion::from_scaled_axis(*rotvec_rad),
-    )
+    Isometry3::from_parts(Translation3::from(*t_m), UnitQuaternion::from_scaled_axis(*rotvec_rad))
 }
 
 /// The 6-vector `(t, rotation vector)` of a pose.
@@ -98,8 +86,10 @@ mod tests {
             let a = 0.37 * k as f64;
             let w = wrap_angle(a);
             assert!(w > -std::f64::consts::PI && w <= std::f64::consts::PI);
-            assert!(((a - w) / std::f64::consts::TAU).fract().abs() < 1e-9
-                || ((a - w) / std::f64::consts::TAU).fract().abs() > 1.0 - 1e-9);
+            assert!(
+                ((a - w) / std::f64::consts::TAU).fract().abs() < 1e-9
+                    || ((a - w) / std::f64::consts::TAU).fract().abs() > 1.0 - 1e-9
+            );
         }
     }
 }

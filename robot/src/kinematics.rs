@@ -28,20 +28,12 @@ pub struct JointLimits {
 
 impl JointLimits {
     /// Limits that never bind.
-    pub const UNBOUNDED: JointLimits = JointLimits {
-        lower: f64::NEG_INFINITY,
-        upper: f64::INFINITY,
-    };
+    pub const UNBOUNDED: JointLimits = JointLimits { lower: f64::NEG_INFINITY, upper: f64::INFINITY };
 
     /// Checked constructor: `lower <= upper`, neither NaN.
     pub fn new(joint: &str, lower: f64, upper: f64) -> Result<Self> {
         if lower.is_nan() || upper.is_nan() || lower > upper {
-            return Err(RobotError::BadLimits {
-                joint: joint.to_string(),
-                lower,
-                upper,
-                location: None,
-            });
+            return Err(RobotError::BadLimits { joint: joint.to_string(), lower, upper, location: None });
         }
         Ok(Self { lower, upper })
     }
@@ -101,17 +93,9 @@ pub trait Kinematics: Parameterized {
 }
 
 /// Checks length, finiteness and limits (shrunk by `margin`) of a joint vector.
-pub fn check_joint_vector(
-    q: &[f64],
-    names: &[String],
-    limits: &[JointLimits],
-    margin: f64,
-) -> Result<()> {
+pub fn check_joint_vector(q: &[f64], names: &[String], limits: &[JointLimits], margin: f64) -> Result<()> {
     if q.len() != limits.len() {
-        return Err(RobotError::JointCount {
-            expected: limits.len(),
-            got: q.len(),
-        });
+        return Err(RobotError::JointCount { expected: limits.len(), got: q.len() });
     }
     for (i, (v, l)) in q.iter().zip(limits).enumerate() {
         if !v.is_finite() || !l.contains(*v, margin) {
@@ -130,10 +114,7 @@ pub fn check_joint_vector(
 /// Returns `Err(JointCount)` unless `q` has `n` entries, all finite.
 pub(crate) fn check_len(q: &[f64], n: usize) -> Result<()> {
     if q.len() != n {
-        return Err(RobotError::JointCount {
-            expected: n,
-            got: q.len(),
-        });
+        return Err(RobotError::JointCount { expected: n, got: q.len() });
     }
     if let Some((i, v)) = q.iter().enumerate().find(|(_, v)| !v.is_finite()) {
         return Err(RobotError::BadParameter {

@@ -19,12 +19,14 @@
 //! in messages are 1-based. The full list is in `docs/conventions.md` at the workspace root.
 #![deny(missing_docs)]
 
+pub mod check;
 pub mod error;
 pub mod geometry;
 pub mod kinematics;
 pub mod model;
 pub mod params;
 pub mod presets;
+pub mod safety;
 pub mod serial;
 
 pub use error::{Result, RobotError};

@@ -26,11 +26,7 @@ impl RobotModel {
         match ext.as_deref() {
             Some("urdf") | Some("xml") => Ok(RobotModel::Serial(parse_urdf(path, &UrdfOptions::default())?)),
             _ if path.exists() => Err(RobotError::Parse {
-                location: crate::error::Location {
-                    file: path.to_path_buf(),
-                    line: 1,
-                    column: 1,
-                },
+                location: crate::error::Location { file: path.to_path_buf(), line: 1, column: 1 },
                 message: "unknown model file type: use .urdf for serial robots or .toml for parallel robots".into(),
             }),
             _ => crate::presets::preset(spec),

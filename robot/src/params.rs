@@ -60,11 +60,7 @@ pub struct ParamInfo {
 impl ParamInfo {
     /// Builds an entry.
     pub fn new(name: impl Into<String>, unit: Unit, value: f64) -> Self {
-        Self {
-            name: name.into(),
-            unit,
-            value,
-        }
+        Self { name: name.into(), unit, value }
     }
 }
 
@@ -98,10 +94,7 @@ pub trait Parameterized {
     {
         let mut values = self.parameter_values();
         if delta.len() != values.len() {
-            return Err(RobotError::ParameterCount {
-                expected: values.len(),
-                got: delta.len(),
-            });
+            return Err(RobotError::ParameterCount { expected: values.len(), got: delta.len() });
         }
         for (v, d) in values.iter_mut().zip(delta) {
             *v += d;
@@ -115,18 +108,11 @@ pub trait Parameterized {
 /// Checks that a slice has the expected length and finite entries.
 pub(crate) fn check_values(values: &[f64], expected: usize, names: &[ParamInfo]) -> Result<()> {
     if values.len() != expected {
-        return Err(RobotError::ParameterCount {
-            expected,
-            got: values.len(),
-        });
+        return Err(RobotError::ParameterCount { expected, got: values.len() });
     }
     for (v, p) in values.iter().zip(names) {
         if !v.is_finite() {
-            return Err(RobotError::BadParameter {
-                name: p.name.clone(),
-                value: *v,
-                reason: "not finite".into(),
-            });
+            return Err(RobotError::BadParameter { name: p.name.clone(), value: *v, reason: "not finite".into() });
         }
     }
     Ok(())

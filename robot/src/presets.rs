@@ -27,11 +27,7 @@ fn ur_chain(name: &str, a: [f64; 6], d: [f64; 6], masses: [f64; 6], coms: [[f64;
         j.name = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"][i].to_string();
         // The maker publishes masses and centres of mass; inertia tensors are not needed for
         // gravity torques and are approximated as zero here.
-        j.inertial = Some(Inertial {
-            mass_kg: masses[i],
-            com_m: coms[i],
-            inertia_kgm2: [0.0; 9],
-        });
+        j.inertial = Some(Inertial { mass_kg: masses[i], com_m: coms[i], inertia_kgm2: [0.0; 9] });
     }
     chain
 }

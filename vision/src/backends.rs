@@ -25,7 +25,6 @@ pub fn probe_backends() -> Vec<BackendStatus> {
 
 fn probe_opencv() -> BackendStatus {
     use opencv::core::{Mat, Scalar, Size, Vector, CV_8UC1};
-    use opencv::prelude::*;
     let result = (|| -> opencv::Result<String> {
         let version = opencv::core::get_version_string()?;
         let img = Mat::new_rows_cols_with_default(120, 160, CV_8UC1, Scalar::all(128.0))?;
@@ -39,26 +38,16 @@ fn probe_opencv() -> BackendStatus {
         Ok(format!("OpenCV {version} (blank image: chessboard found = {found})"))
     })();
     match result {
-        Ok(detail) => BackendStatus {
-            name: "opencv",
-            role: "baseline for every vision result",
-            detail,
-            ok: true,
-        },
-        Err(e) => BackendStatus {
-            name: "opencv",
-            role: "baseline for every vision result",
-            detail: e.to_string(),
-            ok: false,
-        },
+        Ok(detail) => BackendStatus { name: "opencv", role: "baseline for every vision result", detail, ok: true },
+        Err(e) => {
+            BackendStatus { name: "opencv", role: "baseline for every vision result", detail: e.to_string(), ok: false }
+        }
     }
 }
 
 fn probe_apriltag() -> BackendStatus {
     let role = "reference AprilTag detector (C library)";
-    let detector = apriltag::DetectorBuilder::new()
-        .add_family_bits(apriltag::Family::tag_36h11(), 1)
-        .build();
+    let detector = apriltag::DetectorBuilder::new().add_family_bits(apriltag::Family::tag_36h11(), 1).build();
     match detector {
         Ok(mut d) => match apriltag::Image::zeros_with_stride(64, 48, 64) {
             Ok(img) => {
@@ -70,19 +59,9 @@ fn probe_apriltag() -> BackendStatus {
                     ok: true,
                 }
             }
-            Err(e) => BackendStatus {
-                name: "apriltag",
-                role,
-                detail: e.to_string(),
-                ok: false,
-            },
+            Err(e) => BackendStatus { name: "apriltag", role, detail: e.to_string(), ok: false },
         },
-        Err(e) => BackendStatus {
-            name: "apriltag",
-            role,
-            detail: e.to_string(),
-            ok: false,
-        },
+        Err(e) => BackendStatus { name: "apriltag", role, detail: e.to_string(), ok: false },
     }
 }
 
@@ -90,10 +69,7 @@ fn probe_kornia() -> BackendStatus {
     use kornia_apriltag::{family::TagFamilyKind, AprilTagDecoder, DecodeTagsConfig};
     use kornia_image::{Image, ImageSize};
     let role = "image primitives and the pure-Rust AprilTag detector";
-    let size = ImageSize {
-        width: 64,
-        height: 48,
-    };
+    let size = ImageSize { width: 64, height: 48 };
     let result = (|| -> Result<usize, String> {
         let img = Image::<u8, 1>::from_size_val(size, 255).map_err(|e| e.to_string())?;
         let cfg = DecodeTagsConfig::new(vec![TagFamilyKind::Tag36H11]).map_err(|e| e.to_string())?;
@@ -107,27 +83,23 @@ fn probe_kornia() -> BackendStatus {
             detail: format!("kornia-apriltag 0.2 on a blank image: {n} detections"),
             ok: true,
         },
-        Err(e) => BackendStatus {
-            name: "kornia-rs",
-            role,
-            detail: e,
-            ok: false,
-        },
+        Err(e) => BackendStatus { name: "kornia-rs", role, detail: e, ok: false },
     }
 }
 
 fn probe_ceres() -> BackendStatus {
     use ceres_solver::{CostFunctionType, NllsProblem, SolverOptions};
     let role = "large non-linear least squares (bundle adjustment)";
-    let cost: CostFunctionType = Box::new(move |p: &[&[f64]], r: &mut [f64], jac: Option<&mut [Option<&mut [&mut [f64]]>]>| {
-        r[0] = p[0][0] - 2.0;
-        if let Some(j) = jac {
-            if let Some(d) = &mut j[0] {
-                d[0][0] = 1.0;
+    let cost: CostFunctionType =
+        Box::new(move |p: &[&[f64]], r: &mut [f64], jac: Option<&mut [Option<&mut [&mut [f64]]>]>| {
+            r[0] = p[0][0] - 2.0;
+            if let Some(j) = jac {
+                if let Some(d) = &mut j[0] {
+                    d[0][0] = 1.0;
+                }
             }
-        }
-        true
-    });
+            true
+        });
     let solved = NllsProblem::new()
         .residual_block_builder()
         .set_cost(cost, 1)
@@ -142,12 +114,7 @@ fn probe_ceres() -> BackendStatus {
             detail: format!("Ceres 2.2 solved min (x-2)^2: x = {:.9}", s.parameters[0][0]),
             ok: (s.parameters[0][0] - 2.0).abs() < 1e-6,
         },
-        Err(e) => BackendStatus {
-            name: "ceres-solver",
-            role,
-            detail: e,
-            ok: false,
-        },
+        Err(e) => BackendStatus { name: "ceres-solver", role, detail: e, ok: false },
     }
 }
 

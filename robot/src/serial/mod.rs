@@ -82,46 +82,23 @@ impl Joint {
     /// Splits the joint transform into `pre * motion(axis, q) * post`; returns `(pre, axis, post)`.
     fn split(&self) -> (Pose, Vector3<f64>, Pose) {
         match (&self.geometry, self.kind) {
-            (
-                JointGeometry::Dh {
-                    a_m,
-                    alpha_rad,
-                    d_m,
-                    theta_offset_rad,
-                },
-                kind,
-            ) => {
+            (JointGeometry::Dh { a_m, alpha_rad, d_m, theta_offset_rad }, kind) => {
                 let tail = Isometry3::translation(*a_m, 0.0, 0.0) * rot_x(*alpha_rad);
                 match kind {
-                    JointKind::Revolute => (
-                        rot_z(*theta_offset_rad),
-                        Vector3::z(),
-                        Isometry3::translation(0.0, 0.0, *d_m) * tail,
-                    ),
-                    JointKind::Prismatic => (
-                        rot_z(*theta_offset_rad) * Isometry3::translation(0.0, 0.0, *d_m),
-                        Vector3::z(),
-                        tail,
-                    ),
+                    JointKind::Revolute => {
+                        (rot_z(*theta_offset_rad), Vector3::z(), Isometry3::translation(0.0, 0.0, *d_m) * tail)
+                    }
+                    JointKind::Prismatic => {
+                        (rot_z(*theta_offset_rad) * Isometry3::translation(0.0, 0.0, *d_m), Vector3::z(), tail)
+                    }
                 }
             }
-            (
-                JointGeometry::Mdh {
-                    a_m,
-                    alpha_rad,
-                    beta_rad,
-                    d_m,
-                    theta_offset_rad,
-                },
-                kind,
-            ) => {
+            (JointGeometry::Mdh { a_m, alpha_rad, beta_rad, d_m, theta_offset_rad }, kind) => {
                 let head = rot_x(*alpha_rad) * rot_y(*beta_rad) * Isometry3::translation(*a_m, 0.0, 0.0);
                 match kind {
-                    JointKind::Revolute => (
-                        head * rot_z(*theta_offset_rad),
-                        Vector3::z(),
-                        Isometry3::translation(0.0, 0.0, *d_m),
-                    ),
+                    JointKind::Revolute => {
+                        (head * rot_z(*theta_offset_rad), Vector3::z(), Isometry3::translation(0.0, 0.0, *d_m))
+                    }
                     JointKind::Prismatic => (
                         head * rot_z(*theta_offset_rad) * Isometry3::translation(0.0, 0.0, *d_m),
                         Vector3::z(),
@@ -142,10 +119,9 @@ impl Joint {
 
     fn motion(&self, axis: &Vector3<f64>, q: f64) -> Pose {
         match self.kind {
-            JointKind::Revolute => Isometry3::from_parts(
-                Translation3::identity(),
-                UnitQuaternion::from_scaled_axis(axis * q),
-            ),
+            JointKind::Revolute => {
+                Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_scaled_axis(axis * q))
+            }
             JointKind::Prismatic => Isometry3::from_parts(Translation3::from(axis * q), UnitQuaternion::identity()),
         }
     }
@@ -153,24 +129,13 @@ impl Joint {
     fn geometry_params(&self, prefix: &str, out: &mut Vec<ParamInfo>) {
         let p = |n: &str, u, v| ParamInfo::new(format!("{prefix}.{n}"), u, v);
         match &self.geometry {
-            JointGeometry::Dh {
-                a_m,
-                alpha_rad,
-                d_m,
-                theta_offset_rad,
-            } => {
+            JointGeometry::Dh { a_m, alpha_rad, d_m, theta_offset_rad } => {
                 out.push(p("a_m", Unit::Metre, *a_m));
                 out.push(p("alpha_rad", Unit::Radian, *alpha_rad));
                 out.push(p("d_m", Unit::Metre, *d_m));
                 out.push(p("theta_offset_rad", Unit::Radian, *theta_offset_rad));
             }
-            JointGeometry::Mdh {
-                a_m,
-                alpha_rad,
-                beta_rad,
-                d_m,
-                theta_offset_rad,
-            } => {
+            JointGeometry::Mdh { a_m, alpha_rad, beta_rad, d_m, theta_offset_rad } => {
                 out.push(p("a_m", Unit::Metre, *a_m));
                 out.push(p("alpha_rad", Unit::Radian, *alpha_rad));
                 out.push(p("beta_rad", Unit::Radian, *beta_rad));
@@ -190,22 +155,11 @@ impl Joint {
 
     fn set_geometry_params(&mut self, v: &[f64]) -> usize {
         match &mut self.geometry {
-            JointGeometry::Dh {
-                a_m,
-                alpha_rad,
-                d_m,
-                theta_offset_rad,
-            } => {
+            JointGeometry::Dh { a_m, alpha_rad, d_m, theta_offset_rad } => {
                 (*a_m, *alpha_rad, *d_m, *theta_offset_rad) = (v[0], v[1], v[2], v[3]);
                 4
             }
-            JointGeometry::Mdh {
-                a_m,
-                alpha_rad,
-                beta_rad,
-                d_m,
-                theta_offset_rad,
-            } => {
+            JointGeometry::Mdh { a_m, alpha_rad, beta_rad, d_m, theta_offset_rad } => {
                 (*a_m, *alpha_rad, *beta_rad, *d_m, *theta_offset_rad) = (v[0], v[1], v[2], v[3], v[4]);
                 5
             }
@@ -359,18 +313,17 @@ impl SerialChain {
             links.push(t);
         }
         let flange = t;
-        Ok(ChainFrames {
-            links,
-            axes,
-            axis_points,
-            flange,
-            tool: flange * self.tool,
-        })
+        Ok(ChainFrames { links, axes, axis_points, flange, tool: flange * self.tool })
     }
 
     /// Geometric Jacobian of an arbitrary point `p_base` rigidly attached to link `link`
     /// (0-based; joints after it do not move it). 6 x n.
-    pub fn point_jacobian(frames: &ChainFrames, kinds: &[JointKind], link: usize, p_base: &Point3<f64>) -> DMatrix<f64> {
+    pub fn point_jacobian(
+        frames: &ChainFrames,
+        kinds: &[JointKind],
+        link: usize,
+        p_base: &Point3<f64>,
+    ) -> DMatrix<f64> {
         let n = frames.axes.len();
         let mut jac = DMatrix::zeros(6, n);
         for i in 0..=link.min(n - 1) {
@@ -463,11 +416,7 @@ impl SerialChain {
         if res_m < 1e-10 && res_rad < 1e-10 {
             return self.finish_ik(q, opts);
         }
-        Err(RobotError::IkNotConverged {
-            iterations: opts.max_iterations,
-            residual_m: res_m,
-            residual_rad: res_rad,
-        })
+        Err(RobotError::IkNotConverged { iterations: opts.max_iterations, residual_m: res_m, residual_rad: res_rad })
     }
 
     fn finish_ik(&self, mut q: Vec<f64>, opts: &IkOptions) -> Result<Vec<f64>> {

@@ -25,10 +25,7 @@ pub struct UrdfOptions {
 
 /// Reads and parses a URDF file.
 pub fn parse_urdf(path: &Path, opts: &UrdfOptions) -> Result<SerialChain> {
-    let text = std::fs::read_to_string(path).map_err(|source| RobotError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = std::fs::read_to_string(path).map_err(|source| RobotError::Io { path: path.to_path_buf(), source })?;
     parse_urdf_impl(&text, path.to_path_buf(), opts)
 }
 
@@ -45,18 +42,11 @@ struct Ctx<'a> {
 impl Ctx<'_> {
     fn loc(&self, node: Node) -> Location {
         let pos = self.doc.text_pos_at(node.range().start);
-        Location {
-            file: self.file.clone(),
-            line: pos.row,
-            column: pos.col,
-        }
+        Location { file: self.file.clone(), line: pos.row, column: pos.col }
     }
 
     fn err(&self, node: Node, message: impl Into<String>) -> RobotError {
-        RobotError::Parse {
-            location: self.loc(node),
-            message: message.into(),
-        }
+        RobotError::Parse { location: self.loc(node), message: message.into() }
     }
 
     fn floats(&self, node: Node, attr: &str, n: usize, what: &str) -> Result<Vec<f64>> {
@@ -65,17 +55,15 @@ impl Ctx<'_> {
         };
         let parts: Vec<&str> = s.split_whitespace().collect();
         if parts.len() != n {
-            return Err(self.err(
-                node,
-                format!("{what}: attribute '{attr}' needs {n} numbers, found {} ('{s}')", parts.len()),
-            ));
+            return Err(
+                self.err(node, format!("{what}: attribute '{attr}' needs {n} numbers, found {} ('{s}')", parts.len()))
+            );
         }
         parts
             .iter()
             .map(|p| {
-                let v: f64 = p
-                    .parse()
-                    .map_err(|_| self.err(node, format!("{what}: '{p}' in '{attr}' is not a number")))?;
+                let v: f64 =
+                    p.parse().map_err(|_| self.err(node, format!("{what}: '{p}' in '{attr}' is not a number")))?;
                 check_finite(v, &self.loc(node), &format!("{what} ('{attr}')"))
             })
             .collect()
@@ -92,20 +80,9 @@ impl Ctx<'_> {
         let Some(o) = child(parent, "origin") else {
             return Ok(Isometry3::identity());
         };
-        let xyz = if o.has_attribute("xyz") {
-            self.floats(o, "xyz", 3, what)?
-        } else {
-            vec![0.0; 3]
-        };
-        let r = if o.has_attribute("rpy") {
-            self.floats(o, "rpy", 3, what)?
-        } else {
-            vec![0.0; 3]
-        };
-        Ok(Isometry3::from_parts(
-            Translation3::new(xyz[0], xyz[1], xyz[2]),
-            rpy(r[0], r[1], r[2]),
-        ))
+        let xyz = if o.has_attribute("xyz") { self.floats(o, "xyz", 3, what)? } else { vec![0.0; 3] };
+        let r = if o.has_attribute("rpy") { self.floats(o, "rpy", 3, what)? } else { vec![0.0; 3] };
+        Ok(Isometry3::from_parts(Translation3::new(xyz[0], xyz[1], xyz[2]), rpy(r[0], r[1], r[2])))
     }
 }
 
@@ -154,11 +131,7 @@ impl RawInertial {
             let d = i.com - com;
             i.inertia + i.mass * (Matrix3::identity() * d.norm_squared() - d * d.transpose())
         };
-        RawInertial {
-            mass: m,
-            com,
-            inertia: shift(&a) + shift(&b),
-        }
+        RawInertial { mass: m, com, inertia: shift(&a) + shift(&b) }
     }
 }
 
@@ -166,11 +139,7 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
     let doc = Document::parse(text).map_err(|e| {
         let pos = e.pos();
         RobotError::Parse {
-            location: Location {
-                file: file.clone(),
-                line: pos.row,
-                column: pos.col,
-            },
+            location: Location { file: file.clone(), line: pos.row, column: pos.col },
             message: format!("not valid XML: {e}"),
         }
     })?;
@@ -186,10 +155,7 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
     let mut link_order: Vec<String> = Vec::new();
     let mut inertials: HashMap<String, RawInertial> = HashMap::new();
     for l in root.children().filter(|c| c.is_element() && c.tag_name().name() == "link") {
-        let name = l
-            .attribute("name")
-            .ok_or_else(|| ctx.err(l, "<link> without a name"))?
-            .to_string();
+        let name = l.attribute("name").ok_or_else(|| ctx.err(l, "<link> without a name"))?.to_string();
         if links.insert(name.clone(), l).is_some() {
             return Err(ctx.err(l, format!("link '{name}' is defined twice")));
         }
@@ -227,13 +193,8 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
     let mut joints: Vec<RawJoint> = Vec::new();
     let mut child_of: HashMap<String, usize> = HashMap::new();
     for j in root.children().filter(|c| c.is_element() && c.tag_name().name() == "joint") {
-        let name = j
-            .attribute("name")
-            .ok_or_else(|| ctx.err(j, "<joint> without a name"))?
-            .to_string();
-        let ty = j
-            .attribute("type")
-            .ok_or_else(|| ctx.err(j, format!("joint '{name}' has no type")))?;
+        let name = j.attribute("name").ok_or_else(|| ctx.err(j, "<joint> without a name"))?.to_string();
+        let ty = j.attribute("type").ok_or_else(|| ctx.err(j, format!("joint '{name}' has no type")))?;
         let kind = match ty {
             "revolute" | "continuous" => Some(JointKind::Revolute),
             "prismatic" => Some(JointKind::Prismatic),
@@ -300,16 +261,7 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
             });
         }
         child_of.insert(child_link.clone(), joints.len());
-        joints.push(RawJoint {
-            node: j,
-            name,
-            kind,
-            parent,
-            child: child_link,
-            origin,
-            axis,
-            limits,
-        });
+        joints.push(RawJoint { node: j, name, kind, parent, child: child_link, origin, axis, limits });
     }
 
     // Root: the link that is nobody's child.

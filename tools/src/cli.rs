@@ -1,0 +1,94 @@
+//! Argument definitions (help text, man page and completions come from here).
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+/// ferrocal: cameras and a printed pattern in place of a laser tracker. Measures end-effector
+/// poses, plans safe measurement poses, calibrates robot models and explains what they miss.
+#[derive(Debug, Parser)]
+#[command(name = "ferrocal", version, about, long_about = None, propagate_version = true)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run the whole pipeline on the built-in example and write an HTML report.
+    Demo(DemoArgs),
+    /// Check that every external library (OpenCV, AprilTag, kornia-rs, Ceres) is built and answers.
+    Doctor,
+    /// Robot models: information, forward and inverse kinematics, safety checks.
+    #[command(subcommand)]
+    Robot(RobotCommand),
+}
+
+/// `ferrocal demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Folder for the report (index.html, report.json and data files).
+    #[arg(long, default_value = "out/demo")]
+    pub out: PathBuf,
+    /// Folder of the shared real recordings (parts of the demo use them when present).
+    #[arg(long, default_value = "../shared/data")]
+    pub data: PathBuf,
+    /// Random configurations per model in the kinematics self-check.
+    #[arg(long, default_value_t = 2000)]
+    pub samples: usize,
+    /// Seed of every random choice in the demo.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// `ferrocal robot ...`.
+#[derive(Debug, Subcommand)]
+pub enum RobotCommand {
+    /// Joints, limits and the named parameter vector of a model.
+    Info {
+        /// A preset name (ur5, ur10, gantry-tau-l1, ...), a URDF file or a TOML model file.
+        #[arg(long)]
+        robot: String,
+        /// Write the information as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+    /// Forward kinematics: the tool pose for joint values.
+    Fk {
+        /// A preset name, a URDF file or a TOML model file.
+        #[arg(long)]
+        robot: String,
+        /// Joint values, comma-separated (degrees for revolute joints, mm for prismatic ones).
+        #[arg(long, allow_hyphen_values = true)]
+        joints: String,
+    },
+    /// Inverse kinematics: joint values for a tool pose.
+    Ik {
+        /// A preset name, a URDF file or a TOML model file.
+        #[arg(long)]
+        robot: String,
+        /// Target `x,y,z` in mm, optionally followed by a rotation vector `rx,ry,rz` in degrees.
+        #[arg(long, allow_hyphen_values = true)]
+        pose: String,
+        /// Start (and configuration choice), comma-separated joint values (deg / mm).
+        #[arg(long, allow_hyphen_values = true)]
+        seed: Option<String>,
+    },
+    /// Check joint values (and optionally a move to a second set) against a safety configuration.
+    Check {
+        /// A preset name, a URDF file or a TOML model file.
+        #[arg(long)]
+        robot: String,
+        /// Safety configuration (TOML, the `[safety]` table or a bare file of its keys).
+        #[arg(long)]
+        safety: PathBuf,
+        /// Joint values (deg / mm).
+        #[arg(long, allow_hyphen_values = true)]
+        joints: String,
+        /// Joint values of the end of a straight joint-space move to check as well.
+        #[arg(long, allow_hyphen_values = true)]
+        to: Option<String>,
+    },
+}

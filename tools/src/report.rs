@@ -1,0 +1,277 @@
+//! HTML + JSON reports with SVG plots, written atomically, with their provenance.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+use serde_json::Value;
+
+/// What produced a report: version, commit, command line, inputs, settings, time.
+#[derive(Clone, Debug, Serialize)]
+pub struct Provenance {
+    /// ferrocal version.
+    pub version: String,
+    /// Git commit of the build (`+changes` when built from a modified tree).
+    pub commit: String,
+    /// The command line.
+    pub command: Vec<String>,
+    /// Input files with their sizes in bytes (0 when missing).
+    pub inputs: Vec<(String, u64)>,
+    /// Settings in effect.
+    pub settings: Value,
+    /// Start time (UTC, RFC 3339).
+    pub started: String,
+}
+
+impl Provenance {
+    /// Provenance of the current process with the given settings.
+    pub fn new(settings: Value) -> Self {
+        Self {
+            version: env!("CARGO_PKG_VERSION").to_string(),
+            commit: env!("FERROCAL_GIT_HASH").to_string(),
+            command: std::env::args().collect(),
+            inputs: Vec::new(),
+            settings,
+            started: chrono::Utc::now().to_rfc3339(),
+        }
+    }
+
+    /// Records an input file.
+    pub fn add_input(&mut self, path: &Path) {
+        let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+        self.inputs.push((path.display().to_string(), size));
+    }
+}
+
+/// One block of a report section.
+#[derive(Clone, Debug)]
+pub enum Block {
+    /// A paragraph of plain text (escaped).
+    Text(String),
+    /// A table with a caption, a header and rows of cells.
+    Table {
+        /// Caption.
+        caption: String,
+        /// Column names.
+        header: Vec<String>,
+        /// Cells, row by row.
+        rows: Vec<Vec<String>>,
+    },
+    /// An inline SVG figure with a caption.
+    Figure {
+        /// Caption.
+        caption: String,
+        /// SVG markup.
+        svg: String,
+    },
+    /// Data attribution (source and licence), shown in small print.
+    Attribution(String),
+    /// Verbatim text.
+    Pre(String),
+}
+
+/// A report section.
+#[derive(Clone, Debug)]
+pub struct Section {
+    /// Anchor id.
+    pub id: String,
+    /// Heading.
+    pub title: String,
+    /// Status shown beside the heading (`ok`, `FAILED`, ...), if any.
+    pub status: Option<(bool, String)>,
+    /// Blocks in order.
+    pub blocks: Vec<Block>,
+    /// Machine-readable results of the section, copied into the JSON.
+    pub data: Value,
+}
+
+impl Section {
+    /// An empty section.
+    pub fn new(id: &str, title: &str) -> Self {
+        Self { id: id.to_string(), title: title.to_string(), status: None, blocks: Vec::new(), data: Value::Null }
+    }
+    /// Adds a paragraph.
+    pub fn text(&mut self, t: impl Into<String>) -> &mut Self {
+        self.blocks.push(Block::Text(t.into()));
+        self
+    }
+    /// Adds a table.
+    pub fn table(&mut self, caption: &str, header: &[&str], rows: Vec<Vec<String>>) -> &mut Self {
+        self.blocks.push(Block::Table {
+            caption: caption.to_string(),
+            header: header.iter().map(|s| s.to_string()).collect(),
+            rows,
+        });
+        self
+    }
+    /// Adds a figure.
+    pub fn figure(&mut self, caption: &str, svg: String) -> &mut Self {
+        self.blocks.push(Block::Figure { caption: caption.to_string(), svg });
+        self
+    }
+    /// Adds an attribution line.
+    pub fn attribution(&mut self, t: &str) -> &mut Self {
+        self.blocks.push(Block::Attribution(t.to_string()));
+        self
+    }
+    /// Adds verbatim text.
+    pub fn pre(&mut self, t: impl Into<String>) -> &mut Self {
+        self.blocks.push(Block::Pre(t.into()));
+        self
+    }
+    /// Sets the status shown beside the heading.
+    pub fn status(&mut self, ok: bool, t: impl Into<String>) -> &mut Self {
+        self.status = Some((ok, t.into()));
+        self
+    }
+}
+
+/// A report: title, provenance, sections.
+pub struct Report {
+    /// Title.
+    pub title: String,
+    /// What produced it.
+    pub provenance: Provenance,
+    /// Sections in order.
+    pub sections: Vec<Section>,
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+impl Report {
+    /// An empty report.
+    pub fn new(title: &str, provenance: Provenance) -> Self {
+        Self { title: title.to_string(), provenance, sections: Vec::new() }
+    }
+
+    /// The report as HTML (self-contained: styles and SVG inline).
+    pub fn to_html(&self) -> String {
+        let mut h = String::new();
+        let _ = write!(
+            h,
+            "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>\n<style>{}</style></head><body>\n<h1>{}</h1>\n",
+            esc(&self.title),
+            CSS,
+            esc(&self.title)
+        );
+        h.push_str("<nav><ul>");
+        for s in &self.sections {
+            let badge = match &s.status {
+                Some((ok, t)) => format!(" <span class=\"{}\">{}</span>", if *ok { "ok" } else { "bad" }, esc(t)),
+                None => String::new(),
+            };
+            let _ = write!(h, "<li><a href=\"#{}\">{}</a>{badge}</li>", esc(&s.id), esc(&s.title));
+        }
+        h.push_str("</ul></nav>\n");
+        for s in &self.sections {
+            let badge = match &s.status {
+                Some((ok, t)) => format!(" <span class=\"{}\">{}</span>", if *ok { "ok" } else { "bad" }, esc(t)),
+                None => String::new(),
+            };
+            let _ = write!(h, "<section id=\"{}\"><h2>{}{badge}</h2>\n", esc(&s.id), esc(&s.title));
+            for b in &s.blocks {
+                match b {
+                    Block::Text(t) => {
+                        let _ = write!(h, "<p>{}</p>\n", esc(t));
+                    }
+                    Block::Pre(t) => {
+                        let _ = write!(h, "<pre>{}</pre>\n", esc(t));
+                    }
+                    Block::Attribution(t) => {
+                        let _ = write!(h, "<p class=\"attr\">{}</p>\n", esc(t));
+                    }
+                    Block::Figure { caption, svg } => {
+                        let _ = write!(h, "<figure>{svg}<figcaption>{}</figcaption></figure>\n", esc(caption));
+                    }
+                    Block::Table { caption, header, rows } => {
+                        let _ = write!(h, "<table><caption>{}</caption><tr>", esc(caption));
+                        for c in header {
+                            let _ = write!(h, "<th>{}</th>", esc(c));
+                        }
+                        h.push_str("</tr>");
+                        for r in rows {
+                            h.push_str("<tr>");
+                            for c in r {
+                                let _ = write!(h, "<td>{}</td>", esc(c));
+                            }
+                            h.push_str("</tr>");
+                        }
+                        h.push_str("</table>\n");
+                    }
+                }
+            }
+            h.push_str("</section>\n");
+        }
+        let p = &self.provenance;
+        let _ = write!(
+            h,
+            "<section id=\"provenance\"><h2>Provenance</h2><table><tr><th>ferrocal</th><td>{} (commit {})</td></tr><tr><th>command</th><td><code>{}</code></td></tr><tr><th>started</th><td>{}</td></tr>",
+            esc(&p.version),
+            esc(&p.commit),
+            esc(&p.command.join(" ")),
+            esc(&p.started)
+        );
+        for (f, size) in &p.inputs {
+            let _ = write!(h, "<tr><th>input</th><td>{} ({size} bytes)</td></tr>", esc(f));
+        }
+        let _ = write!(
+            h,
+            "<tr><th>settings</th><td><pre>{}</pre></td></tr></table></section>\n</body></html>\n",
+            esc(&serde_json::to_string_pretty(&p.settings).unwrap_or_default())
+        );
+        h
+    }
+
+    /// The report as JSON: provenance plus each section's data, keyed by section id.
+    pub fn to_json(&self) -> Value {
+        let mut sections = serde_json::Map::new();
+        for s in &self.sections {
+            let mut m = serde_json::Map::new();
+            m.insert("title".into(), Value::String(s.title.clone()));
+            if let Some((ok, t)) = &s.status {
+                m.insert("ok".into(), Value::Bool(*ok));
+                m.insert("status".into(), Value::String(t.clone()));
+            }
+            m.insert("data".into(), s.data.clone());
+            sections.insert(s.id.clone(), Value::Object(m));
+        }
+        serde_json::json!({
+            "title": self.title,
+            "provenance": self.provenance,
+            "sections": sections,
+        })
+    }
+
+    /// Writes `index.html` and `report.json` into `dir` (created if needed), each atomically.
+    pub fn write(&self, dir: &Path) -> Result<PathBuf> {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create report folder {}", dir.display()))?;
+        write_atomic(&dir.join("report.json"), serde_json::to_string_pretty(&self.to_json())?.as_bytes())?;
+        let html = dir.join("index.html");
+        write_atomic(&html, self.to_html().as_bytes())?;
+        Ok(html)
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
+/// reader never sees a half-written file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create folder {}", dir.display()))?;
+    let tmp =
+        dir.join(format!(".{}.tmp{}", path.file_name().and_then(|n| n.to_str()).unwrap_or("out"), std::process::id()));
+    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))?;
+    Ok(())
+}
+
+const CSS: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}\
+h1{border-bottom:2px solid #335}h2{margin-top:2em;border-bottom:1px solid #ccc}\
+table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right;font-variant-numeric:tabular-nums}\
+th{background:#eef}caption{font-weight:bold;text-align:left;padding:4px 0}\
+figure{margin:1em 0}figcaption{font-size:90%;color:#444}.attr{font-size:80%;color:#666}\
+.ok{color:#fff;background:#2a7;padding:1px 6px;border-radius:3px;font-size:70%}\
+.bad{color:#fff;background:#c33;padding:1px 6px;border-radius:3px;font-size:70%}\
+pre{background:#f6f6f6;padding:6px;overflow-x:auto}nav ul{columns:2}";
