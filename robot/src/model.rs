@@ -7,6 +7,7 @@ use nalgebra::DMatrix;
 use crate::error::{Result, RobotError};
 use crate::geometry::Pose;
 use crate::kinematics::{JointKind, JointLimits, Kinematics, Mobility};
+use crate::parallel::{GantryTau3, GantryTau6, GantryTauF1, Hexapod, ParallelRobot};
 use crate::params::{ParamInfo, Parameterized};
 use crate::serial::{parse_urdf, SerialChain, UrdfOptions};
 
@@ -16,6 +17,14 @@ use crate::serial::{parse_urdf, SerialChain, UrdfOptions};
 pub enum RobotModel {
     /// A serial chain (URDF, DH, MDH).
     Serial(SerialChain),
+    /// The nominal / modified 3-DOF Gantry-Tau.
+    GantryTau3(GantryTau3),
+    /// The six-link Gantry-Tau error model.
+    GantryTau6(GantryTau6),
+    /// The 6-DOF F1 Gantry-Tau.
+    GantryTauF1(GantryTauF1),
+    /// A Stewart / hexapod platform.
+    Hexapod(Hexapod),
 }
 
 impl RobotModel {
@@ -25,6 +34,7 @@ impl RobotModel {
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
             Some("urdf") | Some("xml") => Ok(RobotModel::Serial(parse_urdf(path, &UrdfOptions::default())?)),
+            Some("toml") => crate::parallel::file::load(path),
             _ if path.exists() => Err(RobotError::Parse {
                 location: crate::error::Location { file: path.to_path_buf(), line: 1, column: 1 },
                 message: "unknown model file type: use .urdf for serial robots or .toml for parallel robots".into(),
@@ -37,6 +47,10 @@ impl RobotModel {
     pub fn kinematics(&self) -> &dyn Kinematics {
         match self {
             RobotModel::Serial(s) => s,
+            RobotModel::GantryTau3(m) => m,
+            RobotModel::GantryTau6(m) => m,
+            RobotModel::GantryTauF1(m) => m,
+            RobotModel::Hexapod(m) => m,
         }
     }
 
@@ -44,6 +58,22 @@ impl RobotModel {
     pub fn kinematics_mut(&mut self) -> &mut dyn Kinematics {
         match self {
             RobotModel::Serial(s) => s,
+            RobotModel::GantryTau3(m) => m,
+            RobotModel::GantryTau6(m) => m,
+            RobotModel::GantryTauF1(m) => m,
+            RobotModel::Hexapod(m) => m,
+        }
+    }
+
+    /// The parallel-robot view of the model (closure equations, link segments, spherical-joint
+    /// angles), or `None` for a serial chain.
+    pub fn parallel(&self) -> Option<&dyn ParallelRobot> {
+        match self {
+            RobotModel::Serial(_) => None,
+            RobotModel::GantryTau3(m) => Some(m),
+            RobotModel::GantryTau6(m) => Some(m),
+            RobotModel::GantryTauF1(m) => Some(m),
+            RobotModel::Hexapod(m) => Some(m),
         }
     }
 
@@ -51,6 +81,10 @@ impl RobotModel {
     pub fn name(&self) -> &str {
         match self {
             RobotModel::Serial(s) => &s.name,
+            RobotModel::GantryTau3(m) => &m.name,
+            RobotModel::GantryTau6(m) => &m.name,
+            RobotModel::GantryTauF1(m) => &m.name,
+            RobotModel::Hexapod(m) => &m.name,
         }
     }
 }

@@ -4,16 +4,21 @@ use std::f64::consts::FRAC_PI_2;
 
 use crate::error::{Result, RobotError};
 use crate::model::RobotModel;
+use crate::parallel::presets as parallel_presets;
 use crate::serial::{Inertial, SerialChain};
 
 /// Every preset name [`preset`] accepts.
-pub const PRESET_NAMES: &[&str] = &["ur5", "ur10"];
+pub const PRESET_NAMES: &[&str] = &["ur5", "ur10", "gantry-tau-l1", "gantry-tau-l1-6link", "gantry-tau-f1", "hexapod"];
 
 /// The model called `name`.
 pub fn preset(name: &str) -> Result<RobotModel> {
     match name.to_ascii_lowercase().as_str() {
         "ur5" => Ok(RobotModel::Serial(ur5())),
         "ur10" => Ok(RobotModel::Serial(ur10())),
+        "gantry-tau-l1" => Ok(RobotModel::GantryTau3(parallel_presets::gantry_tau_l1())),
+        "gantry-tau-l1-6link" => Ok(RobotModel::GantryTau6(parallel_presets::gantry_tau_l1_6link())),
+        "gantry-tau-f1" => Ok(RobotModel::GantryTauF1(parallel_presets::gantry_tau_f1())),
+        "hexapod" => Ok(RobotModel::Hexapod(parallel_presets::hexapod())),
         _ => Err(RobotError::UnknownPreset(name.to_string())),
     }
 }

@@ -571,3 +571,70 @@ mod tests {
         assert!(d < 1e-8);
     }
 }
+
+/// Largest speed of any body point of a parallel robot along a joint-space move, estimated from
+/// the Jacobian at 9 points of the move with a safety factor of 2 (the platform's motion is
+/// smooth away from singular configurations, where the forward kinematics fails and the move
+/// is refused anyway). Not a rigorous bound, unlike the serial chains'.
+fn parallel_motion_bound(
+    robot: &dyn crate::parallel::ParallelRobot,
+    q_a: &[f64],
+    q_b: &[f64],
+    extra_radius_m: f64,
+) -> Result<f64> {
+    crate::kinematics::check_len(q_a, robot.dof())?;
+    crate::kinematics::check_len(q_b, robot.dof())?;
+    let dq = nalgebra::DVector::from_iterator(q_a.len(), q_a.iter().zip(q_b).map(|(a, b)| b - a));
+    let mut worst: f64 = 0.0;
+    for k in 0..=8 {
+        let s = k as f64 / 8.0;
+        let q: Vec<f64> = q_a.iter().zip(q_b).map(|(a, b)| a + (b - a) * s).collect();
+        let jac = robot.jacobian(&q)?;
+        let twist = &jac * &dq;
+        let v = twist.fixed_rows::<3>(0).norm();
+        let w = twist.fixed_rows::<3>(3).norm();
+        // Platform points within the links' reach of the tool point, plus the carried plate.
+        let tool = robot.forward(&q)?.translation.vector;
+        let reach =
+            robot.link_segments(&q)?.iter().map(|s| (s.b_m - tool).norm()).fold(0.0, f64::max) + extra_radius_m;
+        // Base-side points move with their carts at most |dq| (guideway directions are near unit).
+        let carts = dq.amax() * 1.5;
+        worst = worst.max((v + w * reach).max(carts));
+    }
+    Ok(2.0 * worst)
+}
+
+impl SafetyBody for crate::model::RobotModel {
+    fn link_segments(&self, q: &[f64]) -> Result<Vec<(Point3<f64>, Point3<f64>)>> {
+        match self.parallel() {
+            None => match self {
+                crate::model::RobotModel::Serial(s) => s.link_segments(q),
+                _ => Ok(Vec::new()),
+            },
+            Some(p) => Ok(p
+                .link_segments(q)?
+                .into_iter()
+                .map(|s| (Point3::from(s.a_m), Point3::from(s.b_m)))
+                .collect()),
+        }
+    }
+
+    fn spherical_joint_angles(&self, q: &[f64]) -> Result<Vec<(String, f64)>> {
+        match self.parallel() {
+            None => Ok(Vec::new()),
+            Some(p) => Ok(p
+                .spherical_joint_angles(q)?
+                .into_iter()
+                .flat_map(|a| [(format!("{} base side", a.link), a.base_rad), (format!("{} platform side", a.link), a.platform_rad)])
+                .collect()),
+        }
+    }
+
+    fn motion_bound_m(&self, q_a: &[f64], q_b: &[f64], extra_radius_m: f64) -> Result<f64> {
+        match (self, self.parallel()) {
+            (crate::model::RobotModel::Serial(s), _) => s.motion_bound_m(q_a, q_b, extra_radius_m),
+            (_, Some(p)) => parallel_motion_bound(p, q_a, q_b, extra_radius_m),
+            _ => Err(RobotError::Safety("this model kind has no motion bound".into())),
+        }
+    }
+}

@@ -39,10 +39,7 @@ pub fn run(cmd: RobotCommand) -> Result<ExitCode> {
             let model = load(&robot)?;
             let cfg = SafetyConfig::from_file(&safety)?;
             let q = parse_joints(&joints, &model)?;
-            let ferrocal_robot::RobotModel::Serial(chain) = &model else {
-                bail!("safety checks of this model kind come with the parallel robots");
-            };
-            let checker = SafetyChecker::new(chain, cfg)?;
+            let checker = SafetyChecker::new(&model, cfg)?;
             let v = checker.violations(&q, 0.0);
             for x in &v {
                 println!("unsafe: {x}");
