@@ -30,6 +30,9 @@ fn mdh_arm() -> SerialChain {
         *beta_rad = 0.002;
     }
     c.tool = Pose::translation(0.01, -0.02, 0.05);
+    // Small per-joint corrections, as a calibration would identify them.
+    c.joints[1].correction = [0.0004, -0.0002, 0.0003, 0.001, -0.0007, 0.0005];
+    c.joints[4].correction = [-0.0003, 0.0001, 0.0002, -0.0004, 0.0009, 0.0002];
     c
 }
 
@@ -341,6 +344,7 @@ fn joint_geometry_conventions_agree_for_the_ur5() {
             },
             limits: j.limits,
             inertial: None,
+            correction: [0.0; 6],
         });
         post_prev = Pose::translation(0.0, 0.0, d_m)
             * Pose::translation(a_m, 0.0, 0.0)

@@ -76,6 +76,12 @@ pub struct Joint {
     /// Mass properties of the link this joint moves (expressed in the joint's frame after
     /// motion), if known.
     pub inertial: Option<Inertial>,
+    /// A small correction transform applied after the joint's nominal transform: translation
+    /// (m) and rotation vector (rad), `T = pre * motion(q) * post * Exp(correction)`. Zero for a
+    /// nominal model; calibration identifies it (a complete, singularity-free error model: six
+    /// parameters per joint, of which identifiability analysis keeps the independent ones).
+    #[serde(default)]
+    pub correction: [f64; 6],
 }
 
 impl Joint {
@@ -117,6 +123,16 @@ impl Joint {
         }
     }
 
+    /// `(pre, axis, post * Exp(correction))`.
+    fn split_corrected(&self) -> (Pose, Vector3<f64>, Pose) {
+        let (pre, axis, post) = self.split();
+        if self.correction == [0.0; 6] {
+            return (pre, axis, post);
+        }
+        let c = &self.correction;
+        (pre, axis, post * pose_from_vectors(&Vector3::new(c[0], c[1], c[2]), &Vector3::new(c[3], c[4], c[5])))
+    }
+
     fn motion(&self, axis: &Vector3<f64>, q: f64) -> Pose {
         match self.kind {
             JointKind::Revolute => {
@@ -151,9 +167,18 @@ impl Joint {
                 }
             }
         }
+        for (k, n) in CORRECTION_NAMES.iter().enumerate() {
+            out.push(p(n, if k < 3 { Unit::Metre } else { Unit::Radian }, self.correction[k]));
+        }
     }
 
     fn set_geometry_params(&mut self, v: &[f64]) -> usize {
+        let used = self.set_nominal_params(v);
+        self.correction.copy_from_slice(&v[used..used + 6]);
+        used + 6
+    }
+
+    fn set_nominal_params(&mut self, v: &[f64]) -> usize {
         match &mut self.geometry {
             JointGeometry::Dh { a_m, alpha_rad, d_m, theta_offset_rad } => {
                 (*a_m, *alpha_rad, *d_m, *theta_offset_rad) = (v[0], v[1], v[2], v[3]);
@@ -171,6 +196,9 @@ impl Joint {
         }
     }
 }
+
+/// Names of the six correction parameters of every joint (after the `joint<i>.` prefix).
+pub const CORRECTION_NAMES: [&str; 6] = ["corr_x_m", "corr_y_m", "corr_z_m", "corr_rx_rad", "corr_ry_rad", "corr_rz_rad"];
 
 /// Frames of a serial chain at one joint configuration.
 #[derive(Clone, Debug)]
@@ -250,6 +278,7 @@ impl SerialChain {
                 },
                 limits: JointLimits::UNBOUNDED,
                 inertial: None,
+                correction: [0.0; 6],
             })
             .collect();
         Self::new(name, joints)
@@ -270,6 +299,7 @@ impl SerialChain {
                 },
                 limits: JointLimits::UNBOUNDED,
                 inertial: None,
+                correction: [0.0; 6],
             })
             .collect();
         Self::new(name, joints)
@@ -304,7 +334,7 @@ impl SerialChain {
         let mut axis_points = Vec::with_capacity(n);
         let mut t = self.base;
         for (j, qi) in self.joints.iter().zip(q) {
-            let (pre, axis, post) = j.split();
+            let (pre, axis, post) = j.split_corrected();
             let before = t * pre;
             let a = before.rotation * axis;
             axes.push(a.normalize());
@@ -479,7 +509,7 @@ impl SerialChain {
     pub fn reach_bound_m(&self) -> f64 {
         let mut sum = 0.0;
         for j in &self.joints {
-            let (pre, _, post) = j.split();
+            let (pre, _, post) = j.split_corrected();
             sum += pre.translation.vector.norm() + post.translation.vector.norm();
         }
         sum + self.tool.translation.vector.norm()
@@ -549,7 +579,7 @@ impl Kinematics for SerialChain {
         check_len(q, self.joints.len())?;
         let mut t = self.base;
         for (j, qi) in self.joints.iter().zip(q) {
-            let (pre, axis, post) = j.split();
+            let (pre, axis, post) = j.split_corrected();
             t = t * pre * j.motion(&axis, *qi) * post;
         }
         Ok(t * self.tool)

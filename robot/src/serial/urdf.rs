@@ -375,6 +375,7 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
                     },
                     limits: j.limits,
                     inertial: None,
+                    correction: [0.0; 6],
                 });
                 carried.push(inertials.get(&j.child).copied());
             }
