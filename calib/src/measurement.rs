@@ -5,6 +5,8 @@
 //! (metres, radians); the CSV format of `../shared/spec/measurements.md` is read and written by
 //! `ferrocal-datasets`.
 
+use std::collections::BTreeMap;
+
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -45,6 +47,11 @@ pub struct PoseMeasurement {
     pub split: Option<Split>,
     /// Where the row came from (file line), for messages.
     pub source_line: Option<u64>,
+    /// Extra per-row metadata that the measurement table has no column for (column name ->
+    /// value as text), e.g. a recording's own timestamp or per-axis standard deviations.
+    /// Empty for most sources.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub meta: BTreeMap<String, String>,
 }
 
 impl PoseMeasurement {
@@ -63,6 +70,7 @@ impl PoseMeasurement {
             dir: None,
             split: None,
             source_line: None,
+            meta: BTreeMap::new(),
         }
     }
 }
@@ -89,9 +97,6 @@ impl MeasurementSet {
 
     /// Rows with the given split (rows without a split count as `Train`).
     pub fn split(&self, which: Split) -> Vec<&PoseMeasurement> {
-        self.rows
-            .iter()
-            .filter(|r| r.split.unwrap_or(Split::Train) == which)
-            .collect()
+        self.rows.iter().filter(|r| r.split.unwrap_or(Split::Train) == which).collect()
     }
 }

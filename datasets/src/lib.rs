@@ -1,1 +1,19 @@
-//! placeholder
+//! Recordings for ferrocal: importers for real data and the synthetic measurement cell.
+//!
+//! Entry points:
+//! - [`import`]: the measurement CSV of `shared/spec/measurements.md`, the UR5 and UR10
+//!   laser-tracker recordings, image folders; export to the measurement CSV.
+//! - [`render`]: the physically modelled camera renderer of the synthetic cell.
+//! - [`sim`]: the synthetic measurement cell (true robot, plan, tracker, cameras) and the
+//!   recorded sessions it writes.
+//! - [`error`]: the crate's error type, [`error::DatasetError`].
+//!
+//! # Conventions
+//! SI units inside; tables at the edges in millimetres and degrees unless a column says otherwise.
+//! See `docs/conventions.md`.
+#![deny(missing_docs)]
+
+pub mod error;
+pub mod import;
+pub mod render;
+pub mod sim;

@@ -3,9 +3,15 @@
 //!
 //! Entry points:
 //! - [`backends`]: the external libraries (OpenCV, AprilTag C, kornia-rs, Ceres) and a probe.
+//! - [`camera`]: pinhole, Brown-Conrady (5 and 8 coefficients) and Kannala-Brandt camera models
+//!   with analytic Jacobians, their inverse, and OpenCV / ROS calibration files.
 //!
 //! # Conventions
 //! Pixel (0, 0) is the centre of the top-left pixel; see `docs/conventions.md`.
 #![deny(missing_docs)]
 
 pub mod backends;
+pub mod camera;
+pub mod error;
+
+pub use error::{Result, VisionError};

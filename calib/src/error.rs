@@ -1,0 +1,33 @@
+//! The calib crate's error type.
+
+/// Everything that can go wrong in identification.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CalibError {
+    /// The robot model refused something (bad joint count, failed kinematics).
+    #[error(transparent)]
+    Robot(#[from] ferrocal_robot::RobotError),
+    /// Measurements and model disagree (joint counts, units), or a row holds an impossible value.
+    #[error("{0}")]
+    Data(String),
+    /// Too few measurements for what was asked.
+    #[error("{0}")]
+    TooFew(String),
+    /// The optimisation failed to make progress or diverged.
+    #[error("the fit diverged: {0}")]
+    Diverged(String),
+    /// A linear-algebra step failed (singular matrix, SVD did not converge).
+    #[error("linear algebra: {0}")]
+    Numeric(String),
+    /// A calibration file could not be read or written.
+    #[error("{path}: {message}")]
+    File {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+/// Result alias of the calib crate.
+pub type Result<T, E = CalibError> = std::result::Result<T, E>;

@@ -1,0 +1,475 @@
+//! Camera calibration files: OpenCV FileStorage YAML and ROS `camera_info` YAML.
+//!
+//! Both are written by hand and read with a small tolerant reader (no YAML crate). Numbers are
+//! written in the shortest form that parses back to the same `f64`, so write-then-read returns
+//! the identical model.
+//!
+//! OpenCV FileStorage (as the calibration samples write it):
+//!
+//! ```text
+//! %YAML:1.0
+//! ---
+//! image_width: 640
+//! image_height: 480
+//! camera_matrix: !!opencv-matrix
+//!    rows: 3
+//!    cols: 3
+//!    dt: d
+//!    data: [ fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0 ]
+//! distortion_coefficients: !!opencv-matrix
+//!    rows: 5
+//!    cols: 1
+//!    dt: d
+//!    data: [ k1, k2, p1, p2, k3 ]
+//! distortion_model: plumb_bob
+//! ```
+//!
+//! `distortion_model` (ROS names; `none` for an ideal pinhole) is ferrocal's addition that
+//! OpenCV ignores. Without it, 4 coefficients mean `k1 k2 p1 p2` (Brown with `k3 = 0`) unless
+//! `fisheye_model: 1` (OpenCV's calibration tutorial) says fisheye; 5 mean Brown, 8 rational;
+//! 12 or 14 are accepted when the thin-prism and tilt terms are zero.
+//!
+//! ROS `camera_info` (as `camera_calibration_parsers` writes it): `image_width`,
+//! `image_height`, `camera_name`, `camera_matrix`, `distortion_model` (`plumb_bob`,
+//! `rational_polynomial`, `equidistant`), `distortion_coefficients` (empty for an ideal
+//! pinhole), `rectification_matrix` (written as identity, ignored on reading) and
+//! `projection_matrix` (written as `[K | 0]`, ignored on reading). ROS, OpenCV and ferrocal all
+//! put pixel centres at integer coordinates, so no offset is applied.
+
+use std::path::Path;
+
+use super::yaml::{self, fmt_f64, Entry, Node};
+use super::{CameraModel, Distortion, DistortionKind, ImageSize, Intrinsics};
+use crate::error::{Result, VisionError};
+
+fn perr(source_name: &str, line: usize, message: impl Into<String>) -> VisionError {
+    VisionError::Parse { source_name: source_name.to_string(), line, message: message.into() }
+}
+
+fn fmt_list(values: &[f64]) -> String {
+    values.iter().map(|v| fmt_f64(*v)).collect::<Vec<_>>().join(", ")
+}
+
+fn k_matrix(camera: &CameraModel) -> [f64; 9] {
+    let k = &camera.intrinsics;
+    [k.fx_px, 0.0, k.cx_px, 0.0, k.fy_px, k.cy_px, 0.0, 0.0, 1.0]
+}
+
+fn ros_model_name(kind: DistortionKind) -> &'static str {
+    match kind {
+        DistortionKind::None | DistortionKind::Brown5 => "plumb_bob",
+        DistortionKind::Rational8 => "rational_polynomial",
+        DistortionKind::KannalaBrandt => "equidistant",
+    }
+}
+
+/// The OpenCV FileStorage YAML text of a camera.
+pub fn to_opencv_yaml(camera: &CameraModel) -> Result<String> {
+    camera.validate()?;
+    let kind = camera.distortion.kind();
+    let coeffs = match kind {
+        DistortionKind::None => vec![0.0; 5],
+        _ => camera.distortion.coefficients(),
+    };
+    let model = match kind {
+        DistortionKind::None => "none",
+        other => ros_model_name(other),
+    };
+    let mut s = String::new();
+    s.push_str("%YAML:1.0\n---\n");
+    s.push_str(&format!("image_width: {}\n", camera.image_size.width_px));
+    s.push_str(&format!("image_height: {}\n", camera.image_size.height_px));
+    s.push_str("camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n");
+    s.push_str(&format!("   data: [ {} ]\n", fmt_list(&k_matrix(camera))));
+    s.push_str(&format!("distortion_coefficients: !!opencv-matrix\n   rows: {}\n   cols: 1\n   dt: d\n", coeffs.len()));
+    s.push_str(&format!("   data: [ {} ]\n", fmt_list(&coeffs)));
+    s.push_str(&format!("distortion_model: {model}\n"));
+    if kind == DistortionKind::KannalaBrandt {
+        s.push_str("fisheye_model: 1\n");
+    }
+    Ok(s)
+}
+
+/// The ROS `camera_info` YAML text of a camera.
+pub fn to_ros_yaml(camera: &CameraModel, camera_name: &str) -> Result<String> {
+    camera.validate()?;
+    let kind = camera.distortion.kind();
+    let coeffs = camera.distortion.coefficients();
+    let k = k_matrix(camera);
+    let p = [k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0];
+    let name = if camera_name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '/')
+        && !camera_name.is_empty()
+    {
+        camera_name.to_string()
+    } else {
+        format!("\"{}\"", camera_name.replace('\\', "\\\\").replace('"', "\\\""))
+    };
+    let mut s = String::new();
+    s.push_str(&format!("image_width: {}\n", camera.image_size.width_px));
+    s.push_str(&format!("image_height: {}\n", camera.image_size.height_px));
+    s.push_str(&format!("camera_name: {name}\n"));
+    s.push_str("camera_matrix:\n  rows: 3\n  cols: 3\n");
+    s.push_str(&format!("  data: [{}]\n", fmt_list(&k)));
+    s.push_str(&format!("distortion_model: {}\n", ros_model_name(kind)));
+    s.push_str(&format!("distortion_coefficients:\n  rows: 1\n  cols: {}\n", coeffs.len()));
+    s.push_str(&format!("  data: [{}]\n", fmt_list(&coeffs)));
+    s.push_str("rectification_matrix:\n  rows: 3\n  cols: 3\n");
+    s.push_str("  data: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]\n");
+    s.push_str("projection_matrix:\n  rows: 3\n  cols: 4\n");
+    s.push_str(&format!("  data: [{}]\n", fmt_list(&p)));
+    Ok(s)
+}
+
+struct Doc<'a> {
+    entries: Vec<Entry>,
+    source_name: &'a str,
+}
+
+impl<'a> Doc<'a> {
+    fn parse(text: &str, source_name: &'a str) -> Result<Self> {
+        Ok(Self { entries: yaml::parse(text, source_name)?, source_name })
+    }
+
+    fn get(&self, key: &str) -> Option<&Entry> {
+        self.entries.iter().find(|e| e.key == key)
+    }
+
+    fn require(&self, key: &str) -> Result<&Entry> {
+        self.get(key).ok_or_else(|| perr(self.source_name, 0, format!("missing key '{key}'")))
+    }
+
+    fn scalar<'e>(&self, e: &'e Entry) -> Result<&'e str> {
+        match &e.value {
+            Node::Scalar(s) => Ok(s),
+            _ => Err(perr(self.source_name, e.line, format!("'{}' must be a single value", e.key))),
+        }
+    }
+
+    fn u32_value(&self, key: &str) -> Result<u32> {
+        let e = self.require(key)?;
+        let s = self.scalar(e)?;
+        s.parse::<u32>()
+            .map_err(|_| perr(self.source_name, e.line, format!("'{key}' must be a non-negative integer, found '{s}'")))
+    }
+
+    /// A matrix written as a mapping with `rows`, `cols` and `data`.
+    fn matrix(&self, key: &str) -> Result<(usize, usize, Vec<f64>, usize)> {
+        let e = self.require(key)?;
+        let Node::Map(m) = &e.value else {
+            return Err(perr(self.source_name, e.line, format!("'{key}' must be a matrix with rows, cols and data")));
+        };
+        let field = |name: &str| -> Result<&Entry> {
+            m.iter()
+                .find(|f| f.key == name)
+                .ok_or_else(|| perr(self.source_name, e.line, format!("matrix '{key}' has no '{name}'")))
+        };
+        let dim = |name: &str| -> Result<usize> {
+            let f = field(name)?;
+            let s = self.scalar(f)?;
+            s.parse::<usize>().map_err(|_| {
+                perr(self.source_name, f.line, format!("'{key}.{name}' must be a non-negative integer, found '{s}'"))
+            })
+        };
+        let rows = dim("rows")?;
+        let cols = dim("cols")?;
+        let data_entry = field("data")?;
+        let items: Vec<String> = match &data_entry.value {
+            Node::Seq(items) => items.clone(),
+            Node::Scalar(s) if s.is_empty() => Vec::new(),
+            _ => {
+                return Err(perr(
+                    self.source_name,
+                    data_entry.line,
+                    format!("'{key}.data' must be a sequence of numbers"),
+                ))
+            }
+        };
+        let mut data = Vec::with_capacity(items.len());
+        for item in &items {
+            data.push(yaml::parse_f64(item).ok_or_else(|| {
+                perr(self.source_name, data_entry.line, format!("'{key}.data' holds '{item}', not a finite number"))
+            })?);
+        }
+        if data.len() != rows * cols {
+            return Err(perr(
+                self.source_name,
+                data_entry.line,
+                format!("'{key}' is {rows}x{cols} but its data has {} values", data.len()),
+            ));
+        }
+        Ok((rows, cols, data, e.line))
+    }
+
+    fn intrinsics(&self) -> Result<Intrinsics> {
+        let (rows, cols, k, line) = self.matrix("camera_matrix")?;
+        if rows != 3 || cols != 3 {
+            return Err(perr(self.source_name, line, format!("camera_matrix must be 3x3, found {rows}x{cols}")));
+        }
+        if k[1] != 0.0 || k[3] != 0.0 || k[6] != 0.0 || k[7] != 0.0 || k[8] != 1.0 {
+            return Err(perr(
+                self.source_name,
+                line,
+                "camera_matrix must be [fx 0 cx; 0 fy cy; 0 0 1] (skew is not supported)",
+            ));
+        }
+        Ok(Intrinsics { fx_px: k[0], fy_px: k[4], cx_px: k[2], cy_px: k[5] })
+    }
+
+    fn image_size(&self) -> Result<ImageSize> {
+        Ok(ImageSize { width_px: self.u32_value("image_width")?, height_px: self.u32_value("image_height")? })
+    }
+
+    fn model_name(&self) -> Result<Option<String>> {
+        match self.get("distortion_model") {
+            Some(e) => Ok(Some(self.scalar(e)?.to_string())),
+            None => Ok(None),
+        }
+    }
+}
+
+/// Chooses the distortion model from a model name (may be absent), a fisheye flag and the
+/// coefficients.
+fn distortion_from(
+    model: Option<&str>,
+    fisheye: bool,
+    coeffs: &[f64],
+    source_name: &str,
+    line: usize,
+) -> Result<Distortion> {
+    let unsupported =
+        || VisionError::UnsupportedDistortion { model: model.unwrap_or("").to_string(), count: coeffs.len() };
+    let n = coeffs.len();
+    let kind = match model {
+        Some("none") => {
+            if coeffs.iter().any(|c| *c != 0.0) {
+                return Err(perr(source_name, line, "distortion_model 'none' with non-zero coefficients"));
+            }
+            return Ok(Distortion::None);
+        }
+        Some("equidistant") | Some("fisheye") | Some("kannala_brandt") => DistortionKind::KannalaBrandt,
+        Some("plumb_bob") | Some("brown5") => {
+            if n == 0 {
+                return Ok(Distortion::None);
+            }
+            DistortionKind::Brown5
+        }
+        Some("rational_polynomial") | Some("rational8") => DistortionKind::Rational8,
+        Some(_) => return Err(unsupported()),
+        None if fisheye => DistortionKind::KannalaBrandt,
+        None => match n {
+            0 => return Ok(Distortion::None),
+            4 | 5 => DistortionKind::Brown5,
+            8 | 12 | 14 => DistortionKind::Rational8,
+            _ => return Err(unsupported()),
+        },
+    };
+    let want = kind.coefficient_names().len();
+    let mut c = coeffs.to_vec();
+    match kind {
+        DistortionKind::Brown5 if n == 4 => c.push(0.0),
+        DistortionKind::Rational8 if n == 12 || n == 14 => {
+            if c[8..].iter().any(|v| *v != 0.0) {
+                return Err(perr(
+                    source_name,
+                    line,
+                    "thin-prism (s1..s4) and tilt (tau_x, tau_y) coefficients are not supported; \
+                     they must be zero",
+                ));
+            }
+            c.truncate(8);
+        }
+        DistortionKind::Rational8 if n == 5 => c.extend_from_slice(&[0.0, 0.0, 0.0]),
+        _ => {}
+    }
+    if c.len() != want {
+        return Err(unsupported());
+    }
+    Distortion::from_coefficients(kind, &c)
+}
+
+fn opencv_from_doc(doc: &Doc<'_>) -> Result<CameraModel> {
+    let intrinsics = doc.intrinsics()?;
+    let image_size = doc.image_size()?;
+    let (rows, cols, coeffs, line) = doc.matrix("distortion_coefficients")?;
+    if rows != 1 && cols != 1 && rows * cols != 0 {
+        return Err(perr(
+            doc.source_name,
+            line,
+            format!("distortion_coefficients must be a vector, found {rows}x{cols}"),
+        ));
+    }
+    let fisheye = match doc.get("fisheye_model") {
+        Some(e) => {
+            let s = doc.scalar(e)?;
+            !(s == "0" || s.eq_ignore_ascii_case("false"))
+        }
+        None => false,
+    };
+    let model = doc.model_name()?;
+    let distortion = distortion_from(model.as_deref(), fisheye, &coeffs, doc.source_name, line)?;
+    CameraModel::new(intrinsics, distortion, image_size)
+}
+
+/// Reads a camera from OpenCV FileStorage YAML text.
+pub fn from_opencv_yaml(text: &str) -> Result<CameraModel> {
+    opencv_from_doc(&Doc::parse(text, "<string>")?)
+}
+
+/// Reads a camera and its name from ROS `camera_info` YAML text (the name is empty when the
+/// file has none).
+pub fn from_ros_yaml(text: &str) -> Result<(CameraModel, String)> {
+    ros_from_doc(&Doc::parse(text, "<string>")?)
+}
+
+fn ros_from_doc(doc: &Doc<'_>) -> Result<(CameraModel, String)> {
+    let intrinsics = doc.intrinsics()?;
+    let image_size = doc.image_size()?;
+    let (rows, cols, coeffs, line) = doc.matrix("distortion_coefficients")?;
+    if rows != 1 && cols != 1 && rows * cols != 0 {
+        return Err(perr(
+            doc.source_name,
+            line,
+            format!("distortion_coefficients must be a vector, found {rows}x{cols}"),
+        ));
+    }
+    let model = doc.model_name()?;
+    let distortion =
+        distortion_from(Some(model.as_deref().unwrap_or("plumb_bob")), false, &coeffs, doc.source_name, line)?;
+    let name = match doc.get("camera_name") {
+        Some(e) => doc.scalar(e)?.replace("\\\"", "\"").replace("\\\\", "\\"),
+        None => String::new(),
+    };
+    Ok((CameraModel::new(intrinsics, distortion, image_size)?, name))
+}
+
+fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|source| VisionError::Io { path: path.to_path_buf(), source })
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).map_err(|source| VisionError::Io { path: path.to_path_buf(), source })
+}
+
+/// Writes a camera as OpenCV FileStorage YAML.
+pub fn write_opencv_yaml(camera: &CameraModel, path: &Path) -> Result<()> {
+    write_text(path, &to_opencv_yaml(camera)?)
+}
+
+/// Reads a camera from an OpenCV FileStorage YAML file.
+pub fn read_opencv_yaml(path: &Path) -> Result<CameraModel> {
+    let text = read_text(path)?;
+    let name = path.display().to_string();
+    opencv_from_doc(&Doc::parse(&text, &name)?)
+}
+
+/// Writes a camera as ROS `camera_info` YAML.
+pub fn write_ros_yaml(camera: &CameraModel, camera_name: &str, path: &Path) -> Result<()> {
+    write_text(path, &to_ros_yaml(camera, camera_name)?)
+}
+
+/// Reads a camera and its name from a ROS `camera_info` YAML file.
+pub fn read_ros_yaml(path: &Path) -> Result<(CameraModel, String)> {
+    let text = read_text(path)?;
+    let name = path.display().to_string();
+    ros_from_doc(&Doc::parse(&text, &name)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cameras() -> Vec<CameraModel> {
+        let k =
+            Intrinsics { fx_px: 535.9157, fy_px: 535.9157 + 1.0 / 3.0e9, cx_px: 342.2832 + 0.1 + 0.2, cy_px: 235.5708 };
+        let size = ImageSize { width_px: 640, height_px: 480 };
+        [
+            Distortion::None,
+            Distortion::Brown5 { k1: -0.26637, k2: -0.038589, p1: 0.0017832, p2: -0.00028122 / 3.0, k3: 0.23839 },
+            Distortion::Rational8 { k1: 1.9, k2: 0.4, p1: 3e-4, p2: -1e-20, k3: 0.01, k4: 2.2, k5: 0.9, k6: 0.05 },
+            Distortion::KannalaBrandt { k1: -0.00371, k2: 0.0406, k3: -0.0392, k4: 0.0072 },
+        ]
+        .into_iter()
+        .map(|d| CameraModel::new(k, d, size).unwrap())
+        .collect()
+    }
+
+    #[test]
+    fn opencv_yaml_round_trips_exactly() {
+        for cam in cameras() {
+            let text = to_opencv_yaml(&cam).unwrap();
+            let back = from_opencv_yaml(&text).unwrap();
+            assert_eq!(back, cam, "{text}");
+        }
+    }
+
+    #[test]
+    fn ros_yaml_round_trips_exactly() {
+        for (i, cam) in cameras().into_iter().enumerate() {
+            let name = if i == 0 { "narrow_stereo/left" } else { "cam \"1\"" };
+            let text = to_ros_yaml(&cam, name).unwrap();
+            let (back, back_name) = from_ros_yaml(&text).unwrap();
+            assert_eq!(back, cam, "{text}");
+            assert_eq!(back_name, name);
+        }
+    }
+
+    #[test]
+    fn files_round_trip_and_io_errors_name_the_file() {
+        let dir = std::env::temp_dir().join(format!("ferrocal-camera-io-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cam = cameras()[1];
+        let p = dir.join("left.yml");
+        write_opencv_yaml(&cam, &p).unwrap();
+        assert_eq!(read_opencv_yaml(&p).unwrap(), cam);
+        let q = dir.join("left_ros.yaml");
+        write_ros_yaml(&cam, "left", &q).unwrap();
+        assert_eq!(read_ros_yaml(&q).unwrap(), (cam, "left".to_string()));
+        let missing = dir.join("missing.yml");
+        let err = read_opencv_yaml(&missing).unwrap_err();
+        assert!(err.to_string().contains("missing.yml"), "{err}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A file in the layout OpenCV's `FileStorage` writes (OpenCV's number style, 5x1 and 1x5
+    /// vectors, no ferrocal keys).
+    #[test]
+    fn reads_opencv_style_files() {
+        let text = "%YAML:1.0\n---\ncalibration_time: \"Mon Jan  1 00:00:00 2024\"\nimage_width: 640\nimage_height: 480\nflags: 0\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 5.3591573396163199e+02, 0., 3.4228315473308373e+02, 0.,\n       5.3591573396163199e+02, 2.3557082909788173e+02, 0., 0., 1. ]\ndistortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: [ -2.6637260909660682e-01, -3.8588898922304653e-02,\n       1.7831947042852964e-03, -2.8122100441115472e-04,\n       2.3839153080878486e-01 ]\navg_reprojection_error: 3.9e-01\n";
+        let cam = from_opencv_yaml(text).unwrap();
+        let num = |s: &str| s.parse::<f64>().unwrap();
+        assert_eq!(cam.intrinsics.fx_px, num("5.3591573396163199e+02"));
+        assert_eq!(cam.intrinsics.cy_px, num("2.3557082909788173e+02"));
+        assert_eq!(
+            cam.distortion.coefficients(),
+            [
+                "-2.6637260909660682e-01",
+                "-3.8588898922304653e-02",
+                "1.7831947042852964e-03",
+                "-2.8122100441115472e-04",
+                "2.3839153080878486e-01"
+            ]
+            .map(num)
+        );
+        // Four coefficients: k1 k2 p1 p2, k3 = 0; with fisheye_model: 1, Kannala-Brandt.
+        let four = text.replace("cols: 5", "cols: 4").replace(",\n       2.3839153080878486e-01 ]", " ]");
+        assert_eq!(from_opencv_yaml(&four).unwrap().distortion.kind(), DistortionKind::Brown5);
+        let fish = format!("{four}fisheye_model: 1\n");
+        assert_eq!(from_opencv_yaml(&fish).unwrap().distortion.kind(), DistortionKind::KannalaBrandt);
+    }
+
+    #[test]
+    fn malformed_files_are_reported_with_line_numbers() {
+        let good = to_opencv_yaml(&cameras()[1]).unwrap();
+        let bad_count = good.replace("rows: 5", "rows: 6");
+        let err = from_opencv_yaml(&bad_count).unwrap_err();
+        assert!(matches!(err, VisionError::Parse { line, .. } if line > 0), "{err}");
+        let bad_number = good.replace("0.23839", "abc");
+        assert!(from_opencv_yaml(&bad_number).is_err());
+        let missing = good.replace("image_width", "width");
+        assert!(from_opencv_yaml(&missing).unwrap_err().to_string().contains("image_width"));
+        let skew = good.replacen(", 0.0,", ", 0.5,", 1);
+        assert!(from_opencv_yaml(&skew).is_err());
+        let model = good.replace("plumb_bob", "unknown_model");
+        assert!(matches!(from_opencv_yaml(&model).unwrap_err(), VisionError::UnsupportedDistortion { .. }));
+    }
+}
