@@ -73,26 +73,35 @@ impl Identifiability {
         (0..self.names.len()).filter(|i| !self.fixed.contains(i)).collect()
     }
 
-    /// Plain-words description of each unobservable combination.
+    /// Plain-words description of each coupled group: its members, how many are fixed, and
+    /// the strongest terms of (at most three of) its unobservable combinations.
     pub fn describe_groups(&self) -> Vec<String> {
         self.groups
             .iter()
+            .filter(|g| g.deficiency > 0)
             .map(|g| {
                 let names: Vec<&str> = g.params.iter().map(|&i| self.names[i].as_str()).collect();
                 let combos: Vec<String> = g
                     .combinations
                     .iter()
+                    .take(3)
                     .map(|c| {
-                        c.iter()
-                            .map(|(i, w)| format!("{w:+.2} {}", self.names[*i]))
-                            .collect::<Vec<_>>()
-                            .join(" ")
+                        let mut c = c.clone();
+                        c.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+                        let more = c.len().saturating_sub(4);
+                        let mut t =
+                            c.iter().take(4).map(|(i, w)| format!("{w:+.2} {}", self.names[*i])).collect::<Vec<_>>().join(" ");
+                        if more > 0 {
+                            t.push_str(&format!(" (+{more} smaller terms)"));
+                        }
+                        t
                     })
                     .collect();
                 format!(
-                    "{} trade against each other ({} must be fixed); unobservable: {}",
-                    names.join(", "),
+                    "{} parameters trade against each other ({} fixed): {}; unobservable directions include: {}",
+                    names.len(),
                     g.deficiency,
+                    names.join(", "),
                     combos.join("; ")
                 )
             })

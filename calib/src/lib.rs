@@ -10,7 +10,10 @@
 #![deny(missing_docs)]
 
 pub mod error;
+pub mod file;
+pub mod frames;
 pub mod identifiability;
+pub mod kinematic;
 pub mod lsq;
 pub mod measurement;
 

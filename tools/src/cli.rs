@@ -24,6 +24,10 @@ pub enum Command {
     /// Robot models: information, forward and inverse kinematics, safety checks.
     #[command(subcommand)]
     Robot(RobotCommand),
+    /// Kinematic calibration from a measurement table (laser tracker, cameras, CMM).
+    Calibrate(crate::commands::calibrate::CalibrateArgs),
+    /// Predict a measurement table with a calibrated model and report the position errors.
+    Evaluate(crate::commands::calibrate::EvaluateArgs),
 }
 
 /// `ferrocal demo`.

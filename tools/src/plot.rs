@@ -118,7 +118,6 @@ pub fn histogram(title: &str, x_label: &str, values: &[f64], bins: usize) -> Str
 }
 
 /// A matrix as a colour map (correlation and R-factor pictures of the calibration reports) (values clamped to `[lo, hi]`), with row/column labels.
-#[allow(dead_code)] // first used by the calibration report
 pub fn matrix_map(title: &str, labels: &[String], values: &[Vec<f64>], lo: f64, hi: f64) -> String {
     let mut svg = String::new();
     let n = values.len().max(1);

@@ -1,5 +1,6 @@
 //! One module per command; each is a library call plus I/O.
 
+pub mod calibrate;
 mod demo;
 mod doctor;
 mod robot;
@@ -17,6 +18,8 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Demo(a) => demo::run(&a),
         Command::Doctor => doctor::run(),
         Command::Robot(c) => robot::run(c),
+        Command::Calibrate(a) => calibrate::run_calibrate(&a),
+        Command::Evaluate(a) => calibrate::run_evaluate(&a),
     }
 }
 

@@ -1,0 +1,823 @@
+//! Kinematic calibration: a robot model's parameters together with the measuring device's frame,
+//! the target-to-tool offset and joint offsets, from measured poses.
+//!
+//! # Model
+//! `T_device_target(q) = F * FK(p, q + dq) * T_tool`, with
+//! - `F = Exp(f) F0`: the device-to-base frame, a 6-vector increment `f` on a registration `F0`;
+//! - `FK(p, .)`: the robot model's forward kinematics with parameter vector `p` (a selection of
+//!   it is free; `base.*` and `tool.*` of a serial chain are always fixed, being the same
+//!   freedoms as `F` and `T_tool`);
+//! - `dq`: joint offsets (zero readings);
+//! - `T_tool = T0_tool Exp(t)`: the target on the tool (translation only when orientation is not
+//!   measured: it is then not identifiable).
+//!
+//! Residuals are positions (and orientations when measured and wanted), each divided by its
+//! standard deviation, so different units are never mixed unweighted.
+//!
+//! # State layout
+//! The candidate vector is `[f (6) | t (3 or 6) | dq (n) | selected model parameters]`;
+//! [`StateLayout`] names every entry. The identifiability analysis keeps a subset; the others
+//! stay at their start values (zero increments, zero offsets, nominal model values).
+
+use std::ops::Range;
+
+use ferrocal_robot::{JointKind, Kinematics, Parameterized, RobotModel, Unit};
+use nalgebra::{DMatrix, DVector, Isometry3, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{CalibError, Result};
+use crate::frames::{exp6, fit_rigid, log6};
+use crate::identifiability::{analyze, Identifiability};
+use crate::lsq::{covariance, solve, LmOptions, LmSummary, Loss, Problem};
+use crate::measurement::PoseMeasurement;
+
+/// Which of the model's own parameters are free.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ModelParams {
+    /// The default for the model kind: a serial chain's per-joint correction transforms (a
+    /// complete error model), every parameter of a parallel robot.
+    Default,
+    /// All parameters but a serial chain's `base.*` and `tool.*`.
+    All,
+    /// None: only frames, tool and joint offsets.
+    None,
+    /// Parameters whose names start with one of these prefixes.
+    Prefixes {
+        /// Name prefixes, e.g. `arm1.` or `joint2.corr_`.
+        prefixes: Vec<String>,
+    },
+}
+
+/// Options of [`calibrate`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct KinematicOptions {
+    /// The model parameters to identify.
+    pub model_params: ModelParams,
+    /// Whether to identify the device frame (else it stays at the start value: identity, or
+    /// `fixed_device_frame`).
+    pub estimate_device_frame: bool,
+    /// A known device-to-base frame (translation mm-free SI, as a pose); `None` registers one.
+    #[serde(skip)]
+    pub fixed_device_frame: Option<Isometry3<f64>>,
+    /// Whether to identify joint offsets.
+    pub joint_offsets: bool,
+    /// Whether to identify the target-to-tool offset.
+    pub estimate_tool: bool,
+    /// Use measured orientations when every row has one.
+    pub use_orientation: bool,
+    /// Position standard deviation for rows without `sigma`.
+    pub sigma_position_m: f64,
+    /// Orientation standard deviation for rows without one.
+    pub sigma_orientation_rad: f64,
+    /// Robust loss on each pose's whitened residual.
+    pub loss: Loss,
+    /// Relative singular-value tolerance of the structural identifiability.
+    pub rank_tolerance: f64,
+    /// Drop identifiable parameters whose parameter-to-noise ratio (deviation from the start
+    /// value over its standard deviation) stays below this, and refit (practical
+    /// identifiability); `None` keeps them.
+    pub practical_threshold: Option<f64>,
+    /// Solver options.
+    pub lm: LmOptions,
+}
+
+impl Default for KinematicOptions {
+    fn default() -> Self {
+        Self {
+            model_params: ModelParams::Default,
+            estimate_device_frame: true,
+            fixed_device_frame: None,
+            joint_offsets: true,
+            estimate_tool: true,
+            use_orientation: true,
+            sigma_position_m: 20e-6,
+            sigma_orientation_rad: 1e-4,
+            loss: Loss::Squared,
+            rank_tolerance: 1e-8,
+            practical_threshold: None,
+            lm: LmOptions { max_iterations: 200, ..LmOptions::default() },
+        }
+    }
+}
+
+/// Names, units and blocks of the candidate vector.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct StateLayout {
+    /// Device frame increment `f`.
+    pub frame: Range<usize>,
+    /// Tool increment `t` (3 or 6).
+    pub tool: Range<usize>,
+    /// Joint offsets.
+    pub offsets: Range<usize>,
+    /// Selected model parameters.
+    pub model: Range<usize>,
+    /// Index in the model's parameter vector of each selected model parameter.
+    pub model_index: Vec<usize>,
+    /// Name of every entry.
+    pub names: Vec<String>,
+    /// Unit of every entry.
+    pub units: Vec<Unit>,
+}
+
+impl StateLayout {
+    fn new(model: &RobotModel, tool_dim: usize, selection: &ModelParams) -> Self {
+        let mut names = Vec::new();
+        let mut units = Vec::new();
+        for (n, u) in [
+            ("frame.x_m", Unit::Metre),
+            ("frame.y_m", Unit::Metre),
+            ("frame.z_m", Unit::Metre),
+            ("frame.rx_rad", Unit::Radian),
+            ("frame.ry_rad", Unit::Radian),
+            ("frame.rz_rad", Unit::Radian),
+        ] {
+            names.push(n.to_string());
+            units.push(u);
+        }
+        for (k, n) in ["tool.x_m", "tool.y_m", "tool.z_m", "tool.rx_rad", "tool.ry_rad", "tool.rz_rad"].iter().enumerate().take(tool_dim)
+        {
+            names.push(format!("target_{n}"));
+            units.push(if k < 3 { Unit::Metre } else { Unit::Radian });
+        }
+        let n_j = model.dof();
+        for (i, k) in model.joint_kinds().iter().enumerate() {
+            match k {
+                JointKind::Revolute => {
+                    names.push(format!("offset.q{}_rad", i + 1));
+                    units.push(Unit::Radian);
+                }
+                JointKind::Prismatic => {
+                    names.push(format!("offset.q{}_m", i + 1));
+                    units.push(Unit::Metre);
+                }
+            }
+        }
+        let params = model.parameters();
+        let serial = matches!(model, RobotModel::Serial(_));
+        let model_index: Vec<usize> = params
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| {
+                let frame_like = serial && (p.name.starts_with("base.") || p.name.starts_with("tool."));
+                if frame_like || p.unit == Unit::Kilogram {
+                    return false;
+                }
+                match selection {
+                    ModelParams::Default => !serial || p.name.contains(".corr_"),
+                    ModelParams::All => true,
+                    ModelParams::None => false,
+                    ModelParams::Prefixes { prefixes } => prefixes.iter().any(|x| p.name.starts_with(x.as_str())),
+                }
+            })
+            .map(|(i, _)| i)
+            .collect();
+        for &i in &model_index {
+            names.push(params[i].name.clone());
+            units.push(params[i].unit);
+        }
+        let frame = 0..6;
+        let tool = 6..6 + tool_dim;
+        let offsets = tool.end..tool.end + n_j;
+        let model_r = offsets.end..offsets.end + model_index.len();
+        Self { frame, tool, offsets, model: model_r, model_index, names, units }
+    }
+
+    /// Number of candidate parameters.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Whether there are no candidates.
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+}
+
+/// One parameter of a calibration result.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ParamResult {
+    /// Name (see [`StateLayout`]).
+    pub name: String,
+    /// Unit.
+    pub unit: Unit,
+    /// Start value (nominal; zero for increments and offsets).
+    pub start: f64,
+    /// Identified value.
+    pub value: f64,
+    /// Standard deviation, when free.
+    pub std: Option<f64>,
+    /// Whether it was identified (else fixed at its start value).
+    pub free: bool,
+    /// Why it was fixed, when it was.
+    pub fixed_because: Option<String>,
+    /// Parameter-to-noise ratio `|value - start| / std`.
+    pub nu: Option<f64>,
+}
+
+/// Position (and orientation) error statistics.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct ErrorStats {
+    /// Number of poses.
+    pub n: usize,
+    /// Mean position error.
+    pub mean_mm: f64,
+    /// RMS position error.
+    pub rms_mm: f64,
+    /// Largest position error.
+    pub max_mm: f64,
+    /// RMS per axis (device frame).
+    pub rms_axis_mm: [f64; 3],
+    /// Mean orientation error, when orientations were compared.
+    pub mean_deg: Option<f64>,
+    /// Largest orientation error.
+    pub max_deg: Option<f64>,
+}
+
+impl ErrorStats {
+    /// Statistics of position error vectors (metres) and optional orientation errors (radians).
+    pub fn from_errors(pos_m: &[Vector3<f64>], ori_rad: &[f64]) -> Self {
+        let n = pos_m.len();
+        if n == 0 {
+            return Self::default();
+        }
+        let norms: Vec<f64> = pos_m.iter().map(|e| e.norm() * 1e3).collect();
+        let mut axis = [0.0; 3];
+        for e in pos_m {
+            for k in 0..3 {
+                axis[k] += (e[k] * 1e3).powi(2);
+            }
+        }
+        Self {
+            n,
+            mean_mm: norms.iter().sum::<f64>() / n as f64,
+            rms_mm: (norms.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt(),
+            max_mm: norms.iter().copied().fold(0.0, f64::max),
+            rms_axis_mm: axis.map(|a| (a / n as f64).sqrt()),
+            mean_deg: (!ori_rad.is_empty()).then(|| ori_rad.iter().sum::<f64>() / ori_rad.len() as f64 * 180.0 / std::f64::consts::PI),
+            max_deg: (!ori_rad.is_empty()).then(|| ori_rad.iter().copied().fold(0.0, f64::max).to_degrees()),
+        }
+    }
+}
+
+/// A calibrated model: everything needed to predict measurements.
+#[derive(Clone, Debug)]
+pub struct CalibratedModel {
+    /// The robot model with the identified parameters.
+    pub model: RobotModel,
+    /// `T_device_base`.
+    pub device_frame: Isometry3<f64>,
+    /// `T_flange_target` (the model's own tool frame included before it).
+    pub tool: Isometry3<f64>,
+    /// Joint offsets added to the readings.
+    pub joint_offsets: Vec<f64>,
+}
+
+impl CalibratedModel {
+    /// Predicted `T_device_target` for joint readings `q`.
+    pub fn predict(&self, q: &[f64]) -> Result<Isometry3<f64>> {
+        if q.len() != self.joint_offsets.len() {
+            return Err(CalibError::Data(format!(
+                "the robot has {} joints, the row {}",
+                self.joint_offsets.len(),
+                q.len()
+            )));
+        }
+        let qq: Vec<f64> = q.iter().zip(&self.joint_offsets).map(|(a, b)| a + b).collect();
+        Ok(self.device_frame * self.model.forward(&qq)? * self.tool)
+    }
+
+    /// Position (and orientation) errors of `rows` under this model: `measured - predicted`.
+    pub fn errors(&self, rows: &[&PoseMeasurement]) -> Result<(Vec<Vector3<f64>>, Vec<f64>)> {
+        let mut pos = Vec::with_capacity(rows.len());
+        let mut ori = Vec::new();
+        for r in rows {
+            let t = self.predict(&r.q).map_err(|e| row_error(r, e))?;
+            pos.push(r.position_m - t.translation.vector);
+            if let Some(qm) = &r.orientation {
+                ori.push(qm.angle_to(&t.rotation));
+            }
+        }
+        if ori.len() != rows.len() {
+            ori.clear();
+        }
+        Ok((pos, ori))
+    }
+
+    /// Error statistics of `rows`.
+    pub fn evaluate(&self, rows: &[&PoseMeasurement]) -> Result<ErrorStats> {
+        let (p, o) = self.errors(rows)?;
+        Ok(ErrorStats::from_errors(&p, &o))
+    }
+}
+
+fn row_error(r: &PoseMeasurement, e: impl std::fmt::Display) -> CalibError {
+    let line = r.source_line.map(|l| format!(" (line {l})")).unwrap_or_default();
+    CalibError::Data(format!("pose '{}'{line}: {e}", r.pose_id))
+}
+
+/// The result of [`calibrate`].
+#[derive(Clone, Debug)]
+pub struct KinematicCalibration {
+    /// The calibrated model.
+    pub calibrated: CalibratedModel,
+    /// The candidate layout.
+    pub layout: StateLayout,
+    /// Per candidate parameter.
+    pub params: Vec<ParamResult>,
+    /// Covariance of the free parameters (in the order of [`KinematicCalibration::free`]).
+    pub covariance: DMatrix<f64>,
+    /// Indices (into the candidates) of the free parameters.
+    pub free: Vec<usize>,
+    /// A-posteriori standard deviation of unit weight (1 when the noise model is right).
+    pub s0: f64,
+    /// Identifiability at the start values (over the candidates the options leave free; its
+    /// `names` say which).
+    pub identifiability_before: Identifiability,
+    /// Identifiability at the solution (all candidates).
+    pub identifiability_after: Identifiability,
+    /// Parameters dropped by the practical-identifiability reduction, with the training RMS
+    /// change it caused (mm).
+    pub practical_dropped: Vec<(String, f64)>,
+    /// Solver summary.
+    pub summary: LmSummary,
+    /// Errors on the training rows before calibration (nominal model, registered frames).
+    pub train_before: ErrorStats,
+    /// Errors on the training rows after calibration.
+    pub train_after: ErrorStats,
+    /// Whether orientations were used.
+    pub used_orientation: bool,
+    /// Advice for parameters the data cannot identify.
+    pub advice: Vec<String>,
+}
+
+struct KinProblem<'a> {
+    base_model: RobotModel,
+    rows: &'a [&'a PoseMeasurement],
+    layout: &'a StateLayout,
+    f0: Isometry3<f64>,
+    tool0: Isometry3<f64>,
+    use_ori: bool,
+    /// Start values of all candidates.
+    start: Vec<f64>,
+    /// Free candidate indices.
+    free: Vec<usize>,
+    sigma_pos: Vec<f64>,
+    sigma_ori: Vec<f64>,
+}
+
+impl KinProblem<'_> {
+    fn full(&self, x: &[f64]) -> Vec<f64> {
+        let mut v = self.start.clone();
+        for (k, &i) in self.free.iter().enumerate() {
+            v[i] = x[k];
+        }
+        v
+    }
+
+    fn model_for(&self, full: &[f64]) -> Result<RobotModel> {
+        let mut m = self.base_model.clone();
+        if !self.layout.model_index.is_empty() {
+            let mut vals = m.parameter_values();
+            for (k, &pi) in self.layout.model_index.iter().enumerate() {
+                vals[pi] = full[self.layout.model.start + k];
+            }
+            m.set_parameter_values(&vals)?;
+        }
+        Ok(m)
+    }
+
+    fn frames(&self, full: &[f64]) -> (Isometry3<f64>, Isometry3<f64>) {
+        let f = exp6(&full[self.layout.frame.clone()]) * self.f0;
+        let t = &full[self.layout.tool.clone()];
+        let tool = if t.len() == 6 { self.tool0 * exp6(t) } else { self.tool0 * Isometry3::translation(t[0], t[1], t[2]) };
+        (f, tool)
+    }
+
+    fn calibrated(&self, full: &[f64]) -> Result<CalibratedModel> {
+        let (device_frame, tool) = self.frames(full);
+        Ok(CalibratedModel {
+            model: self.model_for(full)?,
+            device_frame,
+            tool,
+            joint_offsets: full[self.layout.offsets.clone()].to_vec(),
+        })
+    }
+
+    fn block(&self) -> usize {
+        if self.use_ori {
+            6
+        } else {
+            3
+        }
+    }
+
+    /// Whitened residuals of every row for a calibrated model.
+    fn residuals_of(&self, cm: &CalibratedModel) -> Result<DVector<f64>> {
+        let b = self.block();
+        let mut r = DVector::zeros(self.rows.len() * b);
+        for (k, row) in self.rows.iter().enumerate() {
+            let t = cm.predict(&row.q).map_err(|e| row_error(row, e))?;
+            let e = (row.position_m - t.translation.vector) / self.sigma_pos[k];
+            r.fixed_rows_mut::<3>(k * b).copy_from(&e);
+            if self.use_ori {
+                let qm = row.orientation.expect("checked");
+                let w = (qm * t.rotation.inverse()).scaled_axis() / self.sigma_ori[k];
+                r.fixed_rows_mut::<3>(k * b + 3).copy_from(&w);
+            }
+        }
+        Ok(r)
+    }
+}
+
+impl Problem for KinProblem<'_> {
+    fn n_params(&self) -> usize {
+        self.free.len()
+    }
+    fn n_residuals(&self) -> usize {
+        self.rows.len() * self.block()
+    }
+    fn block_size(&self) -> usize {
+        self.block()
+    }
+    fn scales(&self) -> Vec<f64> {
+        self.free.iter().map(|&i| self.layout.units[i].typical_scale()).collect()
+    }
+    fn residuals(&self, x: &[f64]) -> Result<DVector<f64>> {
+        let full = self.full(x);
+        let cm = self.calibrated(&full)?;
+        self.residuals_of(&cm)
+    }
+    fn jacobian(&self, x: &[f64]) -> Result<DMatrix<f64>> {
+        let full = self.full(x);
+        let jfull = self.full_jacobian(&full)?;
+        let mut j = DMatrix::zeros(jfull.nrows(), self.free.len());
+        for (k, &i) in self.free.iter().enumerate() {
+            j.set_column(k, &jfull.column(i));
+        }
+        Ok(j)
+    }
+}
+
+impl KinProblem<'_> {
+    /// Jacobian of the whitened residuals with respect to every candidate at `full`.
+    fn full_jacobian(&self, full: &[f64]) -> Result<DMatrix<f64>> {
+        let b = self.block();
+        let cm = self.calibrated(full)?;
+        let n_cand = self.layout.len();
+        let mut jac = DMatrix::zeros(self.rows.len() * b, n_cand);
+        let rf = cm.device_frame.rotation;
+        let kinds = cm.model.joint_kinds();
+        // Analytic columns: frame, tool, offsets, serial corrections.
+        let serial = match &cm.model {
+            RobotModel::Serial(c) => Some(c),
+            _ => None,
+        };
+        let corr_cols: Vec<(usize, usize, usize)> = match serial {
+            Some(_) => self
+                .layout
+                .model_index
+                .iter()
+                .enumerate()
+                .filter_map(|(k, &pi)| {
+                    let name = &self.base_model.parameters()[pi].name;
+                    let joint: usize = name.strip_prefix("joint")?.split('.').next()?.parse().ok()?;
+                    let comp = ferrocal_robot::serial::CORRECTION_NAMES
+                        .iter()
+                        .position(|c| name.ends_with(&format!(".{c}")))?;
+                    Some((self.layout.model.start + k, joint - 1, comp))
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        let params = self.base_model.parameters();
+        for (k, row) in self.rows.iter().enumerate() {
+            let qq: Vec<f64> = row.q.iter().zip(&cm.joint_offsets).map(|(a, b)| a + b).collect();
+            let t_base_flange = cm.model.forward(&qq).map_err(|e| row_error(row, e))?;
+            let t_dev_tool = cm.device_frame * t_base_flange * cm.tool;
+            let p = t_dev_tool.translation.vector;
+            let sp = self.sigma_pos[k];
+            let so = self.sigma_ori[k];
+            // d(prediction) columns: (dp, dw) in the device frame; residual = -d(prediction).
+            let mut put = |col: usize, dp: Vector3<f64>, dw: Vector3<f64>| {
+                jac.fixed_view_mut::<3, 1>(k * b, col).copy_from(&(-dp / sp));
+                if self.use_ori {
+                    jac.fixed_view_mut::<3, 1>(k * b + 3, col).copy_from(&(-dw / so));
+                }
+            };
+            // Device frame (left increment): dp = dt + dr x p.
+            for a in 0..3 {
+                put(self.layout.frame.start + a, Vector3::ith(a, 1.0), Vector3::zeros());
+                let w = Vector3::ith(a, 1.0);
+                put(self.layout.frame.start + 3 + a, w.cross(&p), w);
+            }
+            // Tool (right increment in the tool frame).
+            let t_dev_tool0 = cm.device_frame * t_base_flange * self.tool0;
+            for a in 0..self.layout.tool.len().min(3) {
+                put(self.layout.tool.start + a, t_dev_tool0.rotation * Vector3::ith(a, 1.0), Vector3::zeros());
+            }
+            if self.layout.tool.len() == 6 {
+                for a in 0..3 {
+                    let w = t_dev_tool.rotation * Vector3::ith(a, 1.0);
+                    put(self.layout.tool.start + 3 + a, Vector3::zeros(), w);
+                }
+            }
+            // Joint offsets: geometric Jacobian of the model's tool point, moved to the target.
+            let jg = cm.model.jacobian(&qq).map_err(|e| row_error(row, e))?;
+            let lever = p - (cm.device_frame * t_base_flange).translation.vector;
+            for i in 0..cm.model.dof() {
+                let v = rf * Vector3::new(jg[(0, i)], jg[(1, i)], jg[(2, i)]);
+                let w = rf * Vector3::new(jg[(3, i)], jg[(4, i)], jg[(5, i)]);
+                put(self.layout.offsets.start + i, v + w.cross(&lever), w);
+            }
+            // Serial corrections (right increment of each corrected link frame).
+            if let Some(chain) = serial {
+                if !corr_cols.is_empty() {
+                    let fr = chain.frames(&qq).map_err(|e| row_error(row, e))?;
+                    for &(col, j, comp) in &corr_cols {
+                        let link = cm.device_frame * fr.links[j];
+                        let e = link.rotation * Vector3::ith(comp % 3, 1.0);
+                        if comp < 3 {
+                            put(col, e, Vector3::zeros());
+                        } else {
+                            put(col, e.cross(&(p - link.translation.vector)), e);
+                        }
+                    }
+                }
+            }
+            let _ = kinds.len();
+        }
+        // Numeric columns: model parameters without an analytic form.
+        let analytic: Vec<usize> = corr_cols.iter().map(|c| c.0).collect();
+        for (kk, &pi) in self.layout.model_index.iter().enumerate() {
+            let col = self.layout.model.start + kk;
+            if analytic.contains(&col) {
+                continue;
+            }
+            let h = match params[pi].unit {
+                Unit::Metre => 1e-7,
+                Unit::Radian => 1e-7,
+                _ => 1e-7,
+            };
+            let mut fp = full.to_vec();
+            fp[col] += h;
+            let rp = self.residuals_of(&self.calibrated(&fp)?)?;
+            fp[col] -= 2.0 * h;
+            let rm = self.residuals_of(&self.calibrated(&fp)?)?;
+            jac.set_column(col, &((rp - rm) / (2.0 * h)));
+        }
+        Ok(jac)
+    }
+}
+
+/// Calibrates `model` from `rows` (the training rows).
+pub fn calibrate(model: &RobotModel, rows: &[&PoseMeasurement], opts: &KinematicOptions) -> Result<KinematicCalibration> {
+    let n_j = model.dof();
+    if rows.is_empty() {
+        return Err(CalibError::TooFew("no measured poses to calibrate from".into()));
+    }
+    for r in rows {
+        if r.q.len() != n_j {
+            return Err(row_error(
+                r,
+                format!("{} joint values, but the robot model '{}' has {n_j} joints", r.q.len(), model.name()),
+            ));
+        }
+        if r.q.iter().any(|v| !v.is_finite()) || !r.position_m.iter().all(|v| v.is_finite()) {
+            return Err(row_error(r, "non-finite value"));
+        }
+    }
+    let use_ori = opts.use_orientation && rows.iter().all(|r| r.orientation.is_some());
+    let tool_dim = if use_ori { 6 } else { 3 };
+    let layout = StateLayout::new(model, tool_dim, &opts.model_params);
+    let tool0 = Isometry3::identity();
+
+    // Start: register the nominal model's positions to the measurements.
+    let mut nominal_pts = Vec::with_capacity(rows.len());
+    for r in rows {
+        let t = model.forward(&r.q).map_err(|e| row_error(r, e))?;
+        nominal_pts.push(Point3::from(t.translation.vector));
+    }
+    let measured: Vec<Point3<f64>> = rows.iter().map(|r| Point3::from(r.position_m)).collect();
+    let f0 = match opts.fixed_device_frame {
+        Some(f) => f,
+        None => fit_rigid(&nominal_pts, &measured)?,
+    };
+    let sigma_pos: Vec<f64> = rows.iter().map(|r| r.sigma_m.unwrap_or(opts.sigma_position_m)).collect();
+    let sigma_ori: Vec<f64> = rows.iter().map(|r| r.sigma_rad.unwrap_or(opts.sigma_orientation_rad)).collect();
+    if sigma_pos.iter().chain(&sigma_ori).any(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(CalibError::Data("every standard deviation must be positive".into()));
+    }
+    let params = model.parameters();
+    let mut start = vec![0.0; layout.len()];
+    for (k, &pi) in layout.model_index.iter().enumerate() {
+        start[layout.model.start + k] = params[pi].value;
+    }
+    let all: Vec<usize> = (0..layout.len()).collect();
+    let mut problem = KinProblem {
+        base_model: model.clone(),
+        rows,
+        layout: &layout,
+        f0,
+        tool0,
+        use_ori,
+        start: start.clone(),
+        free: all.clone(),
+        sigma_pos,
+        sigma_ori,
+    };
+    let train_before = problem.calibrated(&start)?.evaluate(rows)?;
+
+    // Structural identifiability at the start, on the scaled Jacobian.
+    let scaled = |jac: &DMatrix<f64>| {
+        let mut s = jac.clone();
+        for (c, u) in layout.units.iter().enumerate() {
+            s.column_mut(c).scale_mut(u.typical_scale());
+        }
+        s
+    };
+    let mut fixed_reason: Vec<Option<String>> = vec![None; layout.len()];
+    if !opts.estimate_device_frame {
+        for i in layout.frame.clone() {
+            fixed_reason[i] = Some("device frame given".into());
+        }
+    }
+    if !opts.estimate_tool {
+        for i in layout.tool.clone() {
+            fixed_reason[i] = Some("tool offset given".into());
+        }
+    }
+    if !opts.joint_offsets {
+        for i in layout.offsets.clone() {
+            fixed_reason[i] = Some("joint offsets not identified (option)".into());
+        }
+    }
+    // Structural identifiability at the start over the candidates the options leave free.
+    let allowed: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
+    if allowed.is_empty() {
+        return Err(CalibError::Data("nothing to identify: every parameter is fixed by the options".into()));
+    }
+    let j0 = problem.full_jacobian(&start)?;
+    let id_before = analyze_subset(&scaled(&j0), &layout.names, &allowed, opts.rank_tolerance)?;
+    for &i in &id_before.fixed {
+        fixed_reason[allowed[i]] = Some("not identifiable from these measurements (redundant with the kept parameters)".into());
+    }
+    let mut free: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
+    if rows.len() * problem.block() <= free.len() {
+        return Err(CalibError::TooFew(format!(
+            "{} poses give {} equations for {} identifiable parameters: measure more poses",
+            rows.len(),
+            rows.len() * problem.block(),
+            free.len()
+        )));
+    }
+    problem.free = free.clone();
+    let lm = LmOptions { loss: opts.loss, ..opts.lm.clone() };
+    let x0: Vec<f64> = free.iter().map(|&i| start[i]).collect();
+    let mut res = solve(&problem, &x0, &lm)?;
+    let mut full = problem.full(&res.x);
+
+    // Practical identifiability: drop parameters the data do not resolve, refit.
+    let mut practical_dropped = Vec::new();
+    if let Some(th) = opts.practical_threshold {
+        let (cov, _) = covariance(&res.jacobian, &res.residuals)?;
+        let rms_before = problem.calibrated(&full)?.evaluate(rows)?.rms_mm;
+        let weak: Vec<usize> = free
+            .iter()
+            .enumerate()
+            .filter(|(k, &i)| {
+                layout.model.contains(&i) && {
+                    let sd = cov[(*k, *k)].sqrt();
+                    (full[i] - start[i]).abs() / sd < th
+                }
+            })
+            .map(|(_, &i)| i)
+            .collect();
+        if !weak.is_empty() {
+            for &i in &weak {
+                fixed_reason[i] = Some(format!("parameter-to-noise ratio below {th}: the data do not resolve it"));
+            }
+            free.retain(|i| !weak.contains(i));
+            problem.free = free.clone();
+            let x0: Vec<f64> = free.iter().map(|&i| start[i]).collect();
+            res = solve(&problem, &x0, &lm)?;
+            full = problem.full(&res.x);
+            let rms_after = problem.calibrated(&full)?.evaluate(rows)?.rms_mm;
+            for &i in &weak {
+                practical_dropped.push((layout.names[i].clone(), rms_after - rms_before));
+            }
+        }
+    }
+    let calibrated = problem.calibrated(&full)?;
+    let train_after = calibrated.evaluate(rows)?;
+    if !res.summary.converged && train_after.rms_mm > train_before.rms_mm {
+        return Err(CalibError::Diverged(format!(
+            "{} after {} iterations; RMS {:.3} mm before, {:.3} mm after. Check the units of the table, the robot model and the joint order",
+            res.summary.termination, res.summary.iterations, train_before.rms_mm, train_after.rms_mm
+        )));
+    }
+    let (cov, s0) = covariance(&res.jacobian, &res.residuals)?;
+    let j_after = problem.full_jacobian(&full)?;
+    let id_after = analyze_subset(&scaled(&j_after), &layout.names, &allowed, opts.rank_tolerance)?;
+    let mut out_params = Vec::with_capacity(layout.len());
+    for i in 0..layout.len() {
+        let k = free.iter().position(|&f| f == i);
+        let std = k.map(|k| cov[(k, k)].sqrt());
+        out_params.push(ParamResult {
+            name: layout.names[i].clone(),
+            unit: layout.units[i],
+            start: start[i],
+            value: full[i],
+            std,
+            free: k.is_some(),
+            fixed_because: fixed_reason[i].clone(),
+            nu: std.map(|s| (full[i] - start[i]).abs() / s),
+        });
+    }
+    let advice = advise(model, rows, &id_before);
+    Ok(KinematicCalibration {
+        calibrated,
+        layout: layout.clone(),
+        params: out_params,
+        covariance: cov,
+        free,
+        s0,
+        identifiability_before: id_before,
+        identifiability_after: id_after,
+        practical_dropped,
+        summary: res.summary,
+        train_before,
+        train_after,
+        used_orientation: use_ori,
+        advice,
+    })
+}
+
+/// Identifiability over the columns `cols` of `a` (names taken from `names`).
+fn analyze_subset(a: &DMatrix<f64>, names: &[String], cols: &[usize], tol: f64) -> Result<Identifiability> {
+    let sub = DMatrix::from_fn(a.nrows(), cols.len(), |i, j| a[(i, cols[j])]);
+    let sub_names: Vec<String> = cols.iter().map(|&c| names[c].clone()).collect();
+    analyze(&sub, &sub_names, tol)
+}
+
+/// Plain-words advice for what the data cannot identify: joints that barely moved.
+fn advise(model: &RobotModel, rows: &[&PoseMeasurement], id: &Identifiability) -> Vec<String> {
+    let mut out = Vec::new();
+    let kinds = model.joint_kinds();
+    for (i, k) in kinds.iter().enumerate() {
+        let (lo, hi) = rows.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), r| (l.min(r.q[i]), h.max(r.q[i])));
+        let range = hi - lo;
+        let small = match k {
+            JointKind::Revolute => range < 5f64.to_radians(),
+            JointKind::Prismatic => range < 0.02,
+        };
+        if small {
+            let unit = match k {
+                JointKind::Revolute => format!("{:.2} deg", range.to_degrees()),
+                JointKind::Prismatic => format!("{:.1} mm", range * 1e3),
+            };
+            out.push(format!(
+                "joint {} moved only {unit} over the measurements: its offset and the parameters after it cannot be separated; measure poses that move joint {} over a wide range",
+                i + 1,
+                i + 1
+            ));
+        }
+    }
+    let dead: Vec<&str> = id
+        .classes
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| **c == crate::identifiability::ParamClass::NotIdentifiable)
+        .map(|(i, _)| id.names[i].as_str())
+        .collect();
+    if !dead.is_empty() {
+        out.push(format!(
+            "these parameters have no effect on the measured quantities and keep their nominal values: {}",
+            dead.join(", ")
+        ));
+    }
+    out
+}
+
+/// Splits rows into training and held-out sets: by the `split` column when any row has one,
+/// else every second row held out (the source's choice) when `holdout_every_second`.
+pub fn split_rows(rows: &[PoseMeasurement], holdout_every_second: bool) -> (Vec<&PoseMeasurement>, Vec<&PoseMeasurement>) {
+    if rows.iter().any(|r| r.split.is_some()) {
+        let train = rows.iter().filter(|r| r.split != Some(crate::measurement::Split::Test)).collect();
+        let test = rows.iter().filter(|r| r.split == Some(crate::measurement::Split::Test)).collect();
+        return (train, test);
+    }
+    if holdout_every_second {
+        let train = rows.iter().step_by(2).collect();
+        let test = rows.iter().skip(1).step_by(2).collect();
+        (train, test)
+    } else {
+        (rows.iter().collect(), Vec::new())
+    }
+}
+
+/// The device frame as `(translation mm, rotation vector deg)`.
+pub fn frame_mm_deg(t: &Isometry3<f64>) -> ([f64; 3], [f64; 3]) {
+    let v = log6(t);
+    ([v[0] * 1e3, v[1] * 1e3, v[2] * 1e3], [v[3].to_degrees(), v[4].to_degrees(), v[5].to_degrees()])
+}

@@ -1,0 +1,99 @@
+//! Kinematic calibration on simulated cells with known truth (the [calibration] issue's
+//! simulated checks, in small seeded versions; the full studies are `ferrocal study ...`).
+
+use ferrocal_calib::kinematic::{calibrate, KinematicOptions, ModelParams};
+use ferrocal_calib::PoseMeasurement;
+use ferrocal_datasets::sim::{make_plan, Conditions, GeometricErrors, PlanConfig, TrackerConfig, TrueRobot};
+use ferrocal_robot::{Parameterized, RobotModel};
+use nalgebra::Isometry3;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+/// Simulates tracker rows of the true robot at the plan's poses.
+fn simulate_rows(truth: &TrueRobot, poses: &[Vec<f64>], tracker: &TrackerConfig, rng: &mut ChaCha8Rng) -> Vec<PoseMeasurement> {
+    poses
+        .iter()
+        .enumerate()
+        .map(|(k, q)| {
+            let t = truth.tool_pose(q, &Conditions { temp_c: 20.0, dir: vec![0; q.len()], ..Default::default() }).unwrap();
+            let r = tracker.measure(&t, rng);
+            let mut m = PoseMeasurement::new(format!("{k}"), q.clone(), r.position_m);
+            m.sigma_m = Some(r.sigma_m);
+            m
+        })
+        .collect()
+}
+
+#[test]
+fn gantry_tau_l1_modified_model_parameters_within_their_3_sigma() {
+    let nominal = RobotModel::load("gantry-tau-l1").unwrap();
+    let tracker = TrackerConfig {
+        position_m: [0.0, 0.0, 0.0],
+        rpy_deg: [0.0, 0.0, 0.0],
+        sigma_const_um: 15.0,
+        sigma_per_m_um: 6.0,
+        six_dof: false,
+        sigma_angle_mrad: 0.0,
+        reflector_in_tool_m: [0.0, 0.0, 0.0],
+    };
+    let plan_cfg = PlanConfig::Grid {
+        min_m: [-0.45, 2.45, -0.85],
+        max_m: [0.45, 2.95, -0.35],
+        spacing_m: 0.15,
+        rpy_deg: [0.0, 0.0, 0.0],
+        seconds_per_pose: 10.0,
+        home_si: vec![],
+    };
+    let names: Vec<String> = nominal.parameters().into_iter().map(|p| p.name).collect();
+    assert_eq!(names.len(), 21, "the modified model has 21 parameters");
+    let seeds = 20;
+    let mut inside = vec![0usize; 21];
+    let mut all_inside_seeds = 0;
+    let mut heldout_ratio = Vec::new();
+    for seed in 0..seeds {
+        let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
+        let errors = GeometricErrors { length_sigma_mm: 1.0, dimensionless_sigma: 3e-3, ..Default::default() };
+        let truth = TrueRobot::new(nominal.clone(), &errors, vec![], 0.0, &mut rng).unwrap();
+        let plan = make_plan(&plan_cfg, &nominal, None, &mut rng).unwrap();
+        let rows = simulate_rows(&truth, &plan.poses, &tracker, &mut rng);
+        let (train, test): (Vec<_>, Vec<_>) = rows.iter().enumerate().partition(|(k, _)| k % 2 == 0);
+        let train: Vec<&PoseMeasurement> = train.into_iter().map(|(_, r)| r).collect();
+        let test: Vec<&PoseMeasurement> = test.into_iter().map(|(_, r)| r).collect();
+        let opts = KinematicOptions {
+            model_params: ModelParams::All,
+            estimate_device_frame: false,
+            fixed_device_frame: Some(Isometry3::identity()),
+            joint_offsets: false,
+            estimate_tool: false,
+            ..KinematicOptions::default()
+        };
+        let cal = calibrate(&nominal, &train, &opts).unwrap();
+        assert_eq!(cal.free.len(), 21, "all 21 parameters identifiable: {:?}", cal.identifiability_before.describe_groups());
+        let true_vals = truth.truth.parameter_values();
+        let mut all = true;
+        for (k, name) in names.iter().enumerate() {
+            let p = cal.params.iter().find(|p| &p.name == name).unwrap();
+            let z = (p.value - true_vals[k]).abs() / p.std.unwrap();
+            if z <= 3.0 {
+                inside[k] += 1;
+            } else {
+                all = false;
+            }
+        }
+        all_inside_seeds += all as usize;
+        // Held-out error at the noise floor: the expected RMS of pure noise is sqrt(3) sigma.
+        let stats = cal.calibrated.evaluate(&test).unwrap();
+        let floor_mm = (test.iter().map(|r| 3.0 * r.sigma_m.unwrap().powi(2)).sum::<f64>() / test.len() as f64).sqrt() * 1e3;
+        heldout_ratio.push(stats.rms_mm / floor_mm);
+    }
+    let worst = inside.iter().copied().min().unwrap();
+    eprintln!(
+        "L1 21-parameter model, {seeds} seeds: per-parameter within 3 sigma: min {worst}/{seeds}; all 21 within 3 sigma on {all_inside_seeds}/{seeds} seeds; held-out RMS / noise floor: {:?}",
+        heldout_ratio.iter().map(|r| format!("{r:.3}")).collect::<Vec<_>>()
+    );
+    // Every parameter within its 3 sigma on at least 95 % of seeds (19 of 20).
+    assert!(worst as f64 >= 0.95 * seeds as f64, "a parameter was outside 3 sigma on {} of {seeds} seeds", seeds - worst as u64);
+    for r in &heldout_ratio {
+        assert!(*r < 1.15, "held-out RMS {r:.3} times the noise floor");
+    }
+}
