@@ -35,7 +35,11 @@ impl FrameJson {
     /// To a transform (the rotation vector is authoritative).
     pub fn to_isometry(&self) -> Isometry3<f64> {
         Isometry3::from_parts(
-            Translation3::new(self.translation_mm[0] * 1e-3, self.translation_mm[1] * 1e-3, self.translation_mm[2] * 1e-3),
+            Translation3::new(
+                self.translation_mm[0] * 1e-3,
+                self.translation_mm[1] * 1e-3,
+                self.translation_mm[2] * 1e-3,
+            ),
             UnitQuaternion::from_scaled_axis(Vector3::from(self.rotation_deg.map(f64::to_radians))),
         )
     }
@@ -76,7 +80,12 @@ impl CalibrationFile {
             format: "ferrocal-calibration/1".into(),
             robot: robot_spec.to_string(),
             n_joints: cm.model.dof(),
-            parameters: cm.model.parameters().into_iter().map(|p| NamedValue { name: p.name, value: p.value }).collect(),
+            parameters: cm
+                .model
+                .parameters()
+                .into_iter()
+                .map(|p| NamedValue { name: p.name, value: p.value })
+                .collect(),
             joint_offsets: cm.joint_offsets.clone(),
             device_frame: FrameJson::from_isometry(&cm.device_frame),
             tool: FrameJson::from_isometry(&cm.tool),

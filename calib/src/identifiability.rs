@@ -89,8 +89,12 @@ impl Identifiability {
                         let mut c = c.clone();
                         c.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
                         let more = c.len().saturating_sub(4);
-                        let mut t =
-                            c.iter().take(4).map(|(i, w)| format!("{w:+.2} {}", self.names[*i])).collect::<Vec<_>>().join(" ");
+                        let mut t = c
+                            .iter()
+                            .take(4)
+                            .map(|(i, w)| format!("{w:+.2} {}", self.names[*i]))
+                            .collect::<Vec<_>>()
+                            .join(" ");
                         if more > 0 {
                             t.push_str(&format!(" (+{more} smaller terms)"));
                         }
@@ -133,7 +137,8 @@ pub fn analyze(a: &DMatrix<f64>, names: &[String], rel_tol: f64) -> Result<Ident
     }
     let rank = s.iter().filter(|v| **v > rel_tol * smax).count();
     // V is n x min(m, n); the null space also includes columns beyond min(m, n) when m < n.
-    let full = if m < n { Some(fa.svd().map_err(|e| CalibError::Numeric(format!("SVD failed: {e:?}")))?) } else { None };
+    let full =
+        if m < n { Some(fa.svd().map_err(|e| CalibError::Numeric(format!("SVD failed: {e:?}")))?) } else { None };
     let v = match &full {
         Some(f) => f.V().to_owned(),
         None => svd.V().to_owned(),
@@ -261,7 +266,10 @@ mod tests {
         let names: Vec<String> = ["slope", "offset_a", "offset_b", "dead"].iter().map(|s| s.to_string()).collect();
         let id = analyze(&a, &names, 1e-9).unwrap();
         assert_eq!(id.rank, 2);
-        assert_eq!(id.classes, vec![ParamClass::Identifiable, ParamClass::Coupled, ParamClass::Coupled, ParamClass::NotIdentifiable]);
+        assert_eq!(
+            id.classes,
+            vec![ParamClass::Identifiable, ParamClass::Coupled, ParamClass::Coupled, ParamClass::NotIdentifiable]
+        );
         assert_eq!(id.fixed.len(), 2);
         assert!(id.fixed.contains(&3));
         assert!(id.fixed.contains(&1) ^ id.fixed.contains(&2));

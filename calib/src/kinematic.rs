@@ -135,7 +135,10 @@ impl StateLayout {
             names.push(n.to_string());
             units.push(u);
         }
-        for (k, n) in ["tool.x_m", "tool.y_m", "tool.z_m", "tool.rx_rad", "tool.ry_rad", "tool.rz_rad"].iter().enumerate().take(tool_dim)
+        for (k, n) in ["tool.x_m", "tool.y_m", "tool.z_m", "tool.rx_rad", "tool.ry_rad", "tool.rz_rad"]
+            .iter()
+            .enumerate()
+            .take(tool_dim)
         {
             names.push(format!("target_{n}"));
             units.push(if k < 3 { Unit::Metre } else { Unit::Radian });
@@ -254,7 +257,8 @@ impl ErrorStats {
             rms_mm: (norms.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt(),
             max_mm: norms.iter().copied().fold(0.0, f64::max),
             rms_axis_mm: axis.map(|a| (a / n as f64).sqrt()),
-            mean_deg: (!ori_rad.is_empty()).then(|| ori_rad.iter().sum::<f64>() / ori_rad.len() as f64 * 180.0 / std::f64::consts::PI),
+            mean_deg: (!ori_rad.is_empty())
+                .then(|| ori_rad.iter().sum::<f64>() / ori_rad.len() as f64 * 180.0 / std::f64::consts::PI),
             max_deg: (!ori_rad.is_empty()).then(|| ori_rad.iter().copied().fold(0.0, f64::max).to_degrees()),
         }
     }
@@ -390,7 +394,8 @@ impl KinProblem<'_> {
     fn frames(&self, full: &[f64]) -> (Isometry3<f64>, Isometry3<f64>) {
         let f = exp6(&full[self.layout.frame.clone()]) * self.f0;
         let t = &full[self.layout.tool.clone()];
-        let tool = if t.len() == 6 { self.tool0 * exp6(t) } else { self.tool0 * Isometry3::translation(t[0], t[1], t[2]) };
+        let tool =
+            if t.len() == 6 { self.tool0 * exp6(t) } else { self.tool0 * Isometry3::translation(t[0], t[1], t[2]) };
         (f, tool)
     }
 
@@ -571,7 +576,11 @@ impl KinProblem<'_> {
 }
 
 /// Calibrates `model` from `rows` (the training rows).
-pub fn calibrate(model: &RobotModel, rows: &[&PoseMeasurement], opts: &KinematicOptions) -> Result<KinematicCalibration> {
+pub fn calibrate(
+    model: &RobotModel,
+    rows: &[&PoseMeasurement],
+    opts: &KinematicOptions,
+) -> Result<KinematicCalibration> {
     let n_j = model.dof();
     if rows.is_empty() {
         return Err(CalibError::TooFew("no measured poses to calibrate from".into()));
@@ -660,7 +669,8 @@ pub fn calibrate(model: &RobotModel, rows: &[&PoseMeasurement], opts: &Kinematic
     let j0 = problem.full_jacobian(&start)?;
     let id_before = analyze_subset(&scaled(&j0), &layout.names, &allowed, opts.rank_tolerance)?;
     for &i in &id_before.fixed {
-        fixed_reason[allowed[i]] = Some("not identifiable from these measurements (redundant with the kept parameters)".into());
+        fixed_reason[allowed[i]] =
+            Some("not identifiable from these measurements (redundant with the kept parameters)".into());
     }
     let mut free: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
     if rows.len() * problem.block() <= free.len() {
@@ -801,7 +811,10 @@ fn advise(model: &RobotModel, rows: &[&PoseMeasurement], id: &Identifiability) -
 
 /// Splits rows into training and held-out sets: by the `split` column when any row has one,
 /// else every second row held out (the source's choice) when `holdout_every_second`.
-pub fn split_rows(rows: &[PoseMeasurement], holdout_every_second: bool) -> (Vec<&PoseMeasurement>, Vec<&PoseMeasurement>) {
+pub fn split_rows(
+    rows: &[PoseMeasurement],
+    holdout_every_second: bool,
+) -> (Vec<&PoseMeasurement>, Vec<&PoseMeasurement>) {
     if rows.iter().any(|r| r.split.is_some()) {
         let train = rows.iter().filter(|r| r.split != Some(crate::measurement::Split::Test)).collect();
         let test = rows.iter().filter(|r| r.split == Some(crate::measurement::Split::Test)).collect();

@@ -105,7 +105,13 @@ pub struct LmOptions {
 
 impl Default for LmOptions {
     fn default() -> Self {
-        Self { max_iterations: 100, cost_tolerance: 1e-12, step_tolerance: 1e-10, initial_lambda: 1e-3, loss: Loss::Squared }
+        Self {
+            max_iterations: 100,
+            cost_tolerance: 1e-12,
+            step_tolerance: 1e-10,
+            initial_lambda: 1e-3,
+            loss: Loss::Squared,
+        }
     }
 }
 
@@ -211,7 +217,8 @@ pub fn solve(problem: &dyn Problem, x0: &[f64], opts: &LmOptions) -> Result<LmRe
                 _ => {
                     lambda *= 10.0;
                     if iterations >= opts.max_iterations || lambda > 1e16 {
-                        termination = "no step reduces the cost (the model cannot be evaluated around the current point)".into();
+                        termination =
+                            "no step reduces the cost (the model cannot be evaluated around the current point)".into();
                         break 'outer;
                     }
                     continue;
@@ -250,11 +257,8 @@ pub fn solve(problem: &dyn Problem, x0: &[f64], opts: &LmOptions) -> Result<LmRe
         }
     }
     let jacobian = problem.jacobian(&x)?;
-    let downweighted_blocks = r
-        .as_slice()
-        .chunks(b)
-        .filter(|c| opts.loss.rho(c.iter().map(|v| v * v).sum()).1 < 0.5)
-        .count();
+    let downweighted_blocks =
+        r.as_slice().chunks(b).filter(|c| opts.loss.rho(c.iter().map(|v| v * v).sum()).1 < 0.5).count();
     Ok(LmResult {
         x,
         residuals: r,
@@ -281,7 +285,9 @@ pub fn covariance(jacobian: &DMatrix<f64>, residuals: &DVector<f64>) -> Result<(
     let jtj = js.transpose() * js;
     let inv = jtj
         .cholesky()
-        .ok_or_else(|| CalibError::Numeric("the normal matrix is singular: some parameters are not identifiable".into()))?
+        .ok_or_else(|| {
+            CalibError::Numeric("the normal matrix is singular: some parameters are not identifiable".into())
+        })?
         .inverse();
     let mut cov = inv * (s0 * s0);
     for i in 0..n {
@@ -310,7 +316,10 @@ mod tests {
             self.t.len()
         }
         fn residuals(&self, x: &[f64]) -> Result<DVector<f64>> {
-            Ok(DVector::from_iterator(self.t.len(), self.t.iter().zip(&self.y).map(|(t, y)| x[0] * (x[1] * t).exp() + x[2] - y)))
+            Ok(DVector::from_iterator(
+                self.t.len(),
+                self.t.iter().zip(&self.y).map(|(t, y)| x[0] * (x[1] * t).exp() + x[2] - y),
+            ))
         }
         fn scales(&self) -> Vec<f64> {
             vec![1.0, 0.1, 1.0]
@@ -378,7 +387,8 @@ mod tests {
         let p = Exp { t, y };
         let plain = solve(&p, &[1.0, -0.3, 0.0], &LmOptions::default()).unwrap();
         let robust =
-            solve(&p, &[1.0, -0.3, 0.0], &LmOptions { loss: Loss::Huber { delta: 0.05 }, ..LmOptions::default() }).unwrap();
+            solve(&p, &[1.0, -0.3, 0.0], &LmOptions { loss: Loss::Huber { delta: 0.05 }, ..LmOptions::default() })
+                .unwrap();
         let err = |x: &[f64]| (x[0] - 2.0).abs() + (x[1] + 0.7).abs() + (x[2] - 0.5).abs();
         assert!(err(&robust.x) < 0.1 * err(&plain.x), "robust {:?} plain {:?}", robust.x, plain.x);
         assert!(robust.summary.downweighted_blocks >= 2);

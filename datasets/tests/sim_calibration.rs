@@ -10,12 +10,18 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 /// Simulates tracker rows of the true robot at the plan's poses.
-fn simulate_rows(truth: &TrueRobot, poses: &[Vec<f64>], tracker: &TrackerConfig, rng: &mut ChaCha8Rng) -> Vec<PoseMeasurement> {
+fn simulate_rows(
+    truth: &TrueRobot,
+    poses: &[Vec<f64>],
+    tracker: &TrackerConfig,
+    rng: &mut ChaCha8Rng,
+) -> Vec<PoseMeasurement> {
     poses
         .iter()
         .enumerate()
         .map(|(k, q)| {
-            let t = truth.tool_pose(q, &Conditions { temp_c: 20.0, dir: vec![0; q.len()], ..Default::default() }).unwrap();
+            let t =
+                truth.tool_pose(q, &Conditions { temp_c: 20.0, dir: vec![0; q.len()], ..Default::default() }).unwrap();
             let r = tracker.measure(&t, rng);
             let mut m = PoseMeasurement::new(format!("{k}"), q.clone(), r.position_m);
             m.sigma_m = Some(r.sigma_m);
@@ -68,7 +74,12 @@ fn gantry_tau_l1_modified_model_parameters_within_their_3_sigma() {
             ..KinematicOptions::default()
         };
         let cal = calibrate(&nominal, &train, &opts).unwrap();
-        assert_eq!(cal.free.len(), 21, "all 21 parameters identifiable: {:?}", cal.identifiability_before.describe_groups());
+        assert_eq!(
+            cal.free.len(),
+            21,
+            "all 21 parameters identifiable: {:?}",
+            cal.identifiability_before.describe_groups()
+        );
         let true_vals = truth.truth.parameter_values();
         let mut all = true;
         for (k, name) in names.iter().enumerate() {
@@ -83,7 +94,8 @@ fn gantry_tau_l1_modified_model_parameters_within_their_3_sigma() {
         all_inside_seeds += all as usize;
         // Held-out error at the noise floor: the expected RMS of pure noise is sqrt(3) sigma.
         let stats = cal.calibrated.evaluate(&test).unwrap();
-        let floor_mm = (test.iter().map(|r| 3.0 * r.sigma_m.unwrap().powi(2)).sum::<f64>() / test.len() as f64).sqrt() * 1e3;
+        let floor_mm =
+            (test.iter().map(|r| 3.0 * r.sigma_m.unwrap().powi(2)).sum::<f64>() / test.len() as f64).sqrt() * 1e3;
         heldout_ratio.push(stats.rms_mm / floor_mm);
     }
     let worst = inside.iter().copied().min().unwrap();
@@ -92,7 +104,11 @@ fn gantry_tau_l1_modified_model_parameters_within_their_3_sigma() {
         heldout_ratio.iter().map(|r| format!("{r:.3}")).collect::<Vec<_>>()
     );
     // Every parameter within its 3 sigma on at least 95 % of seeds (19 of 20).
-    assert!(worst as f64 >= 0.95 * seeds as f64, "a parameter was outside 3 sigma on {} of {seeds} seeds", seeds - worst as u64);
+    assert!(
+        worst as f64 >= 0.95 * seeds as f64,
+        "a parameter was outside 3 sigma on {} of {seeds} seeds",
+        seeds - worst as u64
+    );
     for r in &heldout_ratio {
         assert!(*r < 1.15, "held-out RMS {r:.3} times the noise floor");
     }

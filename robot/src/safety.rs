@@ -595,8 +595,7 @@ fn parallel_motion_bound(
         let w = twist.fixed_rows::<3>(3).norm();
         // Platform points within the links' reach of the tool point, plus the carried plate.
         let tool = robot.forward(&q)?.translation.vector;
-        let reach =
-            robot.link_segments(&q)?.iter().map(|s| (s.b_m - tool).norm()).fold(0.0, f64::max) + extra_radius_m;
+        let reach = robot.link_segments(&q)?.iter().map(|s| (s.b_m - tool).norm()).fold(0.0, f64::max) + extra_radius_m;
         // Base-side points move with their carts at most |dq| (guideway directions are near unit).
         let carts = dq.amax() * 1.5;
         worst = worst.max((v + w * reach).max(carts));
@@ -611,11 +610,9 @@ impl SafetyBody for crate::model::RobotModel {
                 crate::model::RobotModel::Serial(s) => s.link_segments(q),
                 _ => Ok(Vec::new()),
             },
-            Some(p) => Ok(p
-                .link_segments(q)?
-                .into_iter()
-                .map(|s| (Point3::from(s.a_m), Point3::from(s.b_m)))
-                .collect()),
+            Some(p) => {
+                Ok(p.link_segments(q)?.into_iter().map(|s| (Point3::from(s.a_m), Point3::from(s.b_m))).collect())
+            }
         }
     }
 
@@ -625,7 +622,12 @@ impl SafetyBody for crate::model::RobotModel {
             Some(p) => Ok(p
                 .spherical_joint_angles(q)?
                 .into_iter()
-                .flat_map(|a| [(format!("{} base side", a.link), a.base_rad), (format!("{} platform side", a.link), a.platform_rad)])
+                .flat_map(|a| {
+                    [
+                        (format!("{} base side", a.link), a.base_rad),
+                        (format!("{} platform side", a.link), a.platform_rad),
+                    ]
+                })
                 .collect()),
         }
     }

@@ -209,7 +209,9 @@ impl TrueRobot {
             }
             if let Effect::PeriodicJointError { period_si, .. } = e {
                 if !(period_si.is_finite() && *period_si > 0.0) {
-                    return Err(DatasetError::Config(format!("periodic_joint_error: period must be > 0, got {period_si}")));
+                    return Err(DatasetError::Config(format!(
+                        "periodic_joint_error: period must be > 0, got {period_si}"
+                    )));
                 }
             }
         }
@@ -231,7 +233,9 @@ impl TrueRobot {
         }
         for (name, off) in &errors.offsets {
             let Some(i) = params.iter().position(|p| &p.name == name) else {
-                return Err(DatasetError::Config(format!("geometric error offset: the model has no parameter '{name}'")));
+                return Err(DatasetError::Config(format!(
+                    "geometric error offset: the model has no parameter '{name}'"
+                )));
             };
             values[i] += off;
         }
@@ -245,7 +249,8 @@ impl TrueRobot {
     /// Holding torques (forces) `dV/dq` at `q` under gravity and `payload_kg`, by central
     /// differences of the potential energy.
     pub fn holding_torques(&self, model: &RobotModel, q: &[f64], payload_kg: f64) -> Result<Vec<f64>, DatasetError> {
-        let v = |q: &[f64]| -> Result<f64, DatasetError> { potential_energy(model, q, payload_kg, self.platform_mass_kg) };
+        let v =
+            |q: &[f64]| -> Result<f64, DatasetError> { potential_energy(model, q, payload_kg, self.platform_mass_kg) };
         let kinds = model.joint_kinds();
         let mut out = Vec::with_capacity(q.len());
         for i in 0..q.len() {
@@ -296,7 +301,12 @@ impl TrueRobot {
     }
 
     /// Effective joint values for commanded joints `q_cmd` under conditions `c`.
-    pub fn effective_joints(&self, model: &RobotModel, q_cmd: &[f64], c: &Conditions) -> Result<Vec<f64>, DatasetError> {
+    pub fn effective_joints(
+        &self,
+        model: &RobotModel,
+        q_cmd: &[f64],
+        c: &Conditions,
+    ) -> Result<Vec<f64>, DatasetError> {
         let mut q = q_cmd.to_vec();
         let mut torques: Option<Vec<f64>> = None;
         for e in &self.effects {
@@ -327,15 +337,18 @@ impl TrueRobot {
     pub fn tool_pose(&self, q_cmd: &[f64], c: &Conditions) -> Result<Pose, DatasetError> {
         let model = self.model_at(q_cmd, c)?;
         let q = self.effective_joints(&model, q_cmd, c)?;
-        model
-            .forward(&q)
-            .map_err(|e| DatasetError::Config(format!("true forward kinematics failed: {e}")))
+        model.forward(&q).map_err(|e| DatasetError::Config(format!("true forward kinematics failed: {e}")))
     }
 }
 
 /// Potential energy `V = -sum m g . p` of the moving bodies at `q`: the links' inertials for a
 /// serial chain (plus the payload at the tool), or a platform mass plus payload at the tool.
-fn potential_energy(model: &RobotModel, q: &[f64], payload_kg: f64, platform_mass_kg: f64) -> Result<f64, DatasetError> {
+fn potential_energy(
+    model: &RobotModel,
+    q: &[f64],
+    payload_kg: f64,
+    platform_mass_kg: f64,
+) -> Result<f64, DatasetError> {
     let kin_err = |e: ferrocal_robot::RobotError| DatasetError::Config(format!("kinematics failed: {e}"));
     match model {
         RobotModel::Serial(chain) => {

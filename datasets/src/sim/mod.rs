@@ -172,8 +172,8 @@ pub struct CellConfig {
 impl CellConfig {
     /// Reads a cell file; errors name the file, line and column.
     pub fn from_file(path: &Path) -> Result<Self, DatasetError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|source| DatasetError::Io { path: path.to_path_buf(), source })?;
         let mut cfg = Self::from_toml_str(&text, path)?;
         // Model files are relative to the cell file.
         let m = Path::new(&cfg.robot.model);
@@ -312,7 +312,8 @@ pub fn simulate(
 
     let tmp = sibling_tmp(out)?;
     let result = (|| -> Result<SessionManifest, DatasetError> {
-        std::fs::create_dir_all(tmp.join("truth")).map_err(|source| DatasetError::Write { path: tmp.clone(), source })?;
+        std::fs::create_dir_all(tmp.join("truth"))
+            .map_err(|source| DatasetError::Write { path: tmp.clone(), source })?;
         let t_tool_target = cfg.target.as_ref().map(|t| t.t_tool_target.isometry());
         let mut renderers = Vec::new();
         for cam in &cfg.cameras {
@@ -394,7 +395,12 @@ pub fn simulate(
             let set = MeasurementSet { source: "simulated laser tracker".into(), rows: tracker_rows };
             let mut opts = WriteOptions::si(&kinds);
             opts.length_unit = crate::import::units::LengthUnit::Mm;
-            opts.comments = vec![format!("simulated by ferrocal {} from cell '{}' (seed {})", env!("CARGO_PKG_VERSION"), cfg.name, cfg.seed)];
+            opts.comments = vec![format!(
+                "simulated by ferrocal {} from cell '{}' (seed {})",
+                env!("CARGO_PKG_VERSION"),
+                cfg.name,
+                cfg.seed
+            )];
             write_measurements(tmp.join("tracker.csv"), &set, &opts)?;
             Some("tracker.csv".to_string())
         } else {
@@ -443,7 +449,8 @@ pub fn simulate(
     match result {
         Ok(m) => {
             if out.exists() {
-                std::fs::remove_dir_all(out).map_err(|source| DatasetError::Write { path: out.to_path_buf(), source })?;
+                std::fs::remove_dir_all(out)
+                    .map_err(|source| DatasetError::Write { path: out.to_path_buf(), source })?;
             }
             std::fs::rename(&tmp, out).map_err(|source| DatasetError::Write { path: out.to_path_buf(), source })?;
             Ok(m)

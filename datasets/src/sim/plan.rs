@@ -78,9 +78,9 @@ impl PlanConfig {
 
     fn home(&self) -> &[f64] {
         match self {
-            PlanConfig::Random { home_si, .. } | PlanConfig::Grid { home_si, .. } | PlanConfig::List { home_si, .. } => {
-                home_si
-            }
+            PlanConfig::Random { home_si, .. }
+            | PlanConfig::Grid { home_si, .. }
+            | PlanConfig::List { home_si, .. } => home_si,
         }
     }
 }
@@ -106,7 +106,15 @@ impl Plan {
                 let d = q
                     .iter()
                     .zip(&prev)
-                    .map(|(a, b)| if a > b { 1 } else if a < b { -1 } else { 0 })
+                    .map(|(a, b)| {
+                        if a > b {
+                            1
+                        } else if a < b {
+                            -1
+                        } else {
+                            0
+                        }
+                    })
                     .collect();
                 prev = q.clone();
                 d
@@ -195,7 +203,10 @@ pub fn make_plan(
             let count = |k: usize| (((max_m[k] - min_m[k]) / spacing_m).floor() as i64).max(0) as usize + 1;
             let (nx, ny, nz) = (count(0), count(1), count(2));
             if nx * ny * nz > 1_000_000 {
-                return Err(DatasetError::Config(format!("plan: the grid has {} points; use a larger spacing", nx * ny * nz)));
+                return Err(DatasetError::Config(format!(
+                    "plan: the grid has {} points; use a larger spacing",
+                    nx * ny * nz
+                )));
             }
             let r = rpy_deg.map(f64::to_radians);
             let rot = UnitQuaternion::from_euler_angles(r[0], r[1], r[2]);
@@ -217,8 +228,12 @@ pub fn make_plan(
                                 seed = q.clone();
                                 out.push(q);
                             }
-                            Ok(_) => left_out.push(format!("grid point ({:.3}, {:.3}, {:.3}) m: unsafe", p[0], p[1], p[2])),
-                            Err(e) => left_out.push(format!("grid point ({:.3}, {:.3}, {:.3}) m: {e}", p[0], p[1], p[2])),
+                            Ok(_) => {
+                                left_out.push(format!("grid point ({:.3}, {:.3}, {:.3}) m: unsafe", p[0], p[1], p[2]))
+                            }
+                            Err(e) => {
+                                left_out.push(format!("grid point ({:.3}, {:.3}, {:.3}) m: {e}", p[0], p[1], p[2]))
+                            }
                         }
                     }
                 }

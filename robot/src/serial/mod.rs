@@ -198,7 +198,8 @@ impl Joint {
 }
 
 /// Names of the six correction parameters of every joint (after the `joint<i>.` prefix).
-pub const CORRECTION_NAMES: [&str; 6] = ["corr_x_m", "corr_y_m", "corr_z_m", "corr_rx_rad", "corr_ry_rad", "corr_rz_rad"];
+pub const CORRECTION_NAMES: [&str; 6] =
+    ["corr_x_m", "corr_y_m", "corr_z_m", "corr_rx_rad", "corr_ry_rad", "corr_rz_rad"];
 
 /// Frames of a serial chain at one joint configuration.
 #[derive(Clone, Debug)]

@@ -7,7 +7,9 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use ferrocal_calib::file::CalibrationFile;
-use ferrocal_calib::kinematic::{calibrate, split_rows, ErrorStats, KinematicCalibration, KinematicOptions, ModelParams};
+use ferrocal_calib::kinematic::{
+    calibrate, split_rows, ErrorStats, KinematicCalibration, KinematicOptions, ModelParams,
+};
 use ferrocal_calib::lsq::Loss;
 use ferrocal_calib::PoseMeasurement;
 use ferrocal_robot::{Kinematics, RobotModel};
@@ -190,7 +192,8 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
 
 /// Errors of the nominal model on `test` with frames registered on `train`.
 fn nominal_stats(model: &RobotModel, train: &[&PoseMeasurement], test: &[&PoseMeasurement]) -> Result<ErrorStats> {
-    let opts = KinematicOptions { model_params: ModelParams::None, joint_offsets: false, ..KinematicOptions::default() };
+    let opts =
+        KinematicOptions { model_params: ModelParams::None, joint_offsets: false, ..KinematicOptions::default() };
     let cal = calibrate(model, train, &opts).context("registering the nominal model")?;
     Ok(cal.calibrated.evaluate(test)?)
 }
@@ -246,12 +249,17 @@ pub fn calibration_sections(
             e.mean_deg.map(|v| format!("{v:.4}")).unwrap_or_default(),
         ]
     };
-    let mut rows_t = vec![row("training, nominal model", &cal.train_before), row("training, calibrated", &cal.train_after)];
+    let mut rows_t =
+        vec![row("training, nominal model", &cal.train_before), row("training, calibrated", &cal.train_after)];
     if let Some((_, b, a)) = validation {
         rows_t.push(row("held out, nominal model", b));
         rows_t.push(row("held out, calibrated", a));
     }
-    s.table("Position errors [mm]", &["set", "poses", "mean", "RMS", "max", "RMS x / y / z", "mean orientation [deg]"], rows_t);
+    s.table(
+        "Position errors [mm]",
+        &["set", "poses", "mean", "RMS", "max", "RMS x / y / z", "mean orientation [deg]"],
+        rows_t,
+    );
     s.text(format!(
         "Solver: {} after {} iterations; a-posteriori factor s0 = {:.3} (1 when the stated noise is right). {} of {} candidate parameters identified; {} fixed as not identifiable.",
         cal.summary.termination,
@@ -266,7 +274,10 @@ pub fn calibration_sections(
     }
     if let Ok((pos, _)) = cal.calibrated.errors(rows) {
         let norms: Vec<f64> = pos.iter().map(|e| e.norm() * 1e3).collect();
-        s.figure("Position errors after calibration (training poses)", plot::histogram("Residual position errors", "error [mm]", &norms, 40));
+        s.figure(
+            "Position errors after calibration (training poses)",
+            plot::histogram("Residual position errors", "error [mm]", &norms, 40),
+        );
         let pts: Vec<(f64, f64)> = norms.iter().enumerate().map(|(k, v)| (k as f64, *v)).collect();
         s.figure(
             "Residual error per pose in measuring order (structure here points at effects the model leaves out: run `ferrocal diagnose`)",
@@ -306,7 +317,10 @@ pub fn calibration_sections(
         let corr: Vec<Vec<f64>> =
             (0..n).map(|i| (0..n).map(|j| c[(i, j)] / (c[(i, i)] * c[(j, j)]).sqrt()).collect()).collect();
         let labels: Vec<String> = cal.free.iter().map(|&i| cal.layout.names[i].clone()).collect();
-        p.figure("Correlation of the identified parameters (blue -1, white 0, red +1)", plot::matrix_map("Parameter correlation", &labels, &corr, -1.0, 1.0));
+        p.figure(
+            "Correlation of the identified parameters (blue -1, white 0, red +1)",
+            plot::matrix_map("Parameter correlation", &labels, &corr, -1.0, 1.0),
+        );
     }
     let sv: Vec<(f64, f64)> = cal
         .identifiability_after
@@ -342,6 +356,9 @@ pub fn run_evaluate(args: &EvaluateArgs) -> Result<ExitCode> {
         "per_pose": per_pose,
     });
     write_atomic(&args.json, serde_json::to_string_pretty(&out)?.as_bytes())?;
-    eprintln!("{} poses: mean {:.4} mm, RMS {:.4} mm, max {:.4} mm", stats.n, stats.mean_mm, stats.rms_mm, stats.max_mm);
+    eprintln!(
+        "{} poses: mean {:.4} mm, RMS {:.4} mm, max {:.4} mm",
+        stats.n, stats.mean_mm, stats.rms_mm, stats.max_mm
+    );
     Ok(ExitCode::SUCCESS)
 }

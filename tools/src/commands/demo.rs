@@ -250,7 +250,10 @@ fn section_safety(args: &DemoArgs) -> Result<Section> {
         cfg.joint_margin, cfg.plate_radius_m * 1e3, cfg.link_radius_m * 1e3, cfg.workspace_edge_margin_m * 1e3,
         moves_ok + moves_bad
     ));
-    s.pre(format!("# the example cell's safety zones (ferrocal robot check --safety FILE reads this format)\n{}", toml::to_string_pretty(&cfg).unwrap_or_default()));
+    s.pre(format!(
+        "# the example cell's safety zones (ferrocal robot check --safety FILE reads this format)\n{}",
+        toml::to_string_pretty(&cfg).unwrap_or_default()
+    ));
     s.table(
         "Why configurations were refused (a configuration may violate several zones)",
         &["zone", "configurations"],
