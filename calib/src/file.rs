@@ -71,6 +71,9 @@ pub struct CalibrationFile {
     pub device_frame: FrameJson,
     /// `T_flange_target` (after the model's own tool frame).
     pub tool: FrameJson,
+    /// Whether the target's orientation was calibrated (else only positions are predicted).
+    #[serde(default)]
+    pub orientation_calibrated: bool,
 }
 
 impl CalibrationFile {
@@ -89,6 +92,7 @@ impl CalibrationFile {
             joint_offsets: cm.joint_offsets.clone(),
             device_frame: FrameJson::from_isometry(&cm.device_frame),
             tool: FrameJson::from_isometry(&cm.tool),
+            orientation_calibrated: cm.orientation_calibrated,
         }
     }
 
@@ -121,6 +125,7 @@ impl CalibrationFile {
             device_frame: self.device_frame.to_isometry(),
             tool: self.tool.to_isometry(),
             joint_offsets: self.joint_offsets.clone(),
+            orientation_calibrated: self.orientation_calibrated,
         })
     }
 

@@ -275,6 +275,8 @@ pub struct CalibratedModel {
     pub tool: Isometry3<f64>,
     /// Joint offsets added to the readings.
     pub joint_offsets: Vec<f64>,
+    /// Whether the target's orientation was calibrated (orientations are compared only then).
+    pub orientation_calibrated: bool,
 }
 
 impl CalibratedModel {
@@ -298,7 +300,7 @@ impl CalibratedModel {
         for r in rows {
             let t = self.predict(&r.q).map_err(|e| row_error(r, e))?;
             pos.push(r.position_m - t.translation.vector);
-            if let Some(qm) = &r.orientation {
+            if let (true, Some(qm)) = (self.orientation_calibrated, &r.orientation) {
                 ori.push(qm.angle_to(&t.rotation));
             }
         }
@@ -406,6 +408,7 @@ impl KinProblem<'_> {
             device_frame,
             tool,
             joint_offsets: full[self.layout.offsets.clone()].to_vec(),
+            orientation_calibrated: self.use_ori,
         })
     }
 
@@ -763,9 +766,24 @@ pub fn calibrate(
     })
 }
 
-/// Identifiability over the columns `cols` of `a` (names taken from `names`).
+/// Identifiability over the columns `cols` of `a` (names taken from `names`). Where parameters
+/// are redundant, the pivoted QR keeps the robot model's own parameters first, then joint
+/// offsets, the tool offset and last the device frame (their columns are weighted 1, 0.8, 0.7
+/// and 0.5 for the pivoting), so a redundant frame is what gets fixed, as in the source's
+/// identification "in the measuring device's frame".
 fn analyze_subset(a: &DMatrix<f64>, names: &[String], cols: &[usize], tol: f64) -> Result<Identifiability> {
-    let sub = DMatrix::from_fn(a.nrows(), cols.len(), |i, j| a[(i, cols[j])]);
+    let weight = |n: &str| {
+        if n.starts_with("frame.") {
+            0.5
+        } else if n.starts_with("target_tool.") {
+            0.7
+        } else if n.starts_with("offset.") {
+            0.8
+        } else {
+            1.0
+        }
+    };
+    let sub = DMatrix::from_fn(a.nrows(), cols.len(), |i, j| a[(i, cols[j])] * weight(&names[cols[j]]));
     let sub_names: Vec<String> = cols.iter().map(|&c| names[c].clone()).collect();
     analyze(&sub, &sub_names, tol)
 }

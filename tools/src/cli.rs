@@ -24,6 +24,10 @@ pub enum Command {
     /// Robot models: information, forward and inverse kinematics, safety checks.
     #[command(subcommand)]
     Robot(RobotCommand),
+    /// Write a recorded session from a simulated cell (TOML): images, joints, tracker, truth.
+    Simulate(crate::commands::simulate::SimulateArgs),
+    /// Convert a real recording (UR5, UR10 laser-tracker sets) into the measurement table.
+    Import(crate::commands::simulate::ImportArgs),
     /// Kinematic calibration from a measurement table (laser tracker, cameras, CMM).
     Calibrate(crate::commands::calibrate::CalibrateArgs),
     /// Predict a measurement table with a calibrated model and report the position errors.

@@ -275,3 +275,20 @@ figure{margin:1em 0}figcaption{font-size:90%;color:#444}.attr{font-size:80%;colo
 .ok{color:#fff;background:#2a7;padding:1px 6px;border-radius:3px;font-size:70%}\
 .bad{color:#fff;background:#c33;padding:1px 6px;border-radius:3px;font-size:70%}\
 pre{background:#f6f6f6;padding:6px;overflow-x:auto}nav ul{columns:2}";
+
+/// An 8-bit grey image as an inline `<img>` (PNG, base64), for figures.
+pub fn inline_png(img: &image::GrayImage, alt: &str) -> String {
+    use base64::Engine as _;
+    let mut bytes = Vec::new();
+    let ok = image::DynamicImage::ImageLuma8(img.clone())
+        .write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
+        .is_ok();
+    if !ok {
+        return format!("<p>({alt}: could not encode)</p>");
+    }
+    format!(
+        "<img alt=\"{}\" src=\"data:image/png;base64,{}\" style=\"max-width:100%\"/>",
+        esc(alt),
+        base64::engine::general_purpose::STANDARD.encode(bytes)
+    )
+}

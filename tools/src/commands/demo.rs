@@ -23,6 +23,8 @@ use crate::report::{Provenance, Report, Section};
 
 /// The example arm shipped with the binary.
 pub const EXAMPLE_URDF: &str = include_str!("../../../robot/models/example_arm6.urdf");
+/// The example cell shipped with the binary (`datasets/cells/gantry_tau_l1.toml`).
+pub const EXAMPLE_CELL: &str = include_str!("../../../datasets/cells/gantry_tau_l1.toml");
 
 pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     let settings = json!({"samples": args.samples, "seed": args.seed, "data": args.data.display().to_string()});
@@ -50,6 +52,26 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     let s = section_safety(args)?;
     all_ok &= s.status.as_ref().is_none_or(|(ok, _)| *ok);
     report.sections.push(s);
+
+    let session = args.out.join("session");
+    let s = section_simulated_cell(args, &session)?;
+    all_ok &= s.status.as_ref().is_none_or(|(ok, _)| *ok);
+    report.sections.push(s);
+    for s in sections_tracker_calibration(&session)? {
+        all_ok &= s.status.as_ref().is_none_or(|(ok, _)| *ok);
+        report.sections.push(s);
+    }
+
+    let ur5_csv = args.data.join("ur5_tracker/ur5_grid_train.csv");
+    for s in sections_real_calibration(args)? {
+        all_ok &= s.status.as_ref().is_none_or(|(ok, _)| *ok);
+        report.sections.push(s);
+    }
+    let ur10 = args.data.join("ur10_tracker/Series_A/measurements_grid.csv");
+    if ur10.exists() {
+        prov.add_input(&ur10);
+    }
+    let _ = ur5_csv;
 
     report.provenance = prov;
     let html = report.write(&args.out)?;
@@ -275,4 +297,198 @@ fn section_safety(args: &DemoArgs) -> Result<Section> {
     let ok = !safe_pts.is_empty();
     s.status(ok, "ok");
     Ok(s)
+}
+
+fn section_simulated_cell(args: &DemoArgs, session: &Path) -> Result<Section> {
+    use ferrocal_datasets::sim::{simulate, CellConfig};
+    let mut s = Section::new("cell", "Simulated cell: Gantry-Tau L1, two 5 MP cameras and a laser tracker");
+    let mut cfg = CellConfig::from_toml_str(EXAMPLE_CELL, Path::new("datasets/cells/gantry_tau_l1.toml"))?;
+    cfg.seed ^= args.seed.wrapping_sub(1);
+    let pb = progress::bar(1, "simulating the cell");
+    let manifest = simulate(&cfg, session, true, |k, n| {
+        pb.set_length(n as u64);
+        pb.set_position(k as u64);
+    })?;
+    pb.finish_and_clear();
+    let n_images: usize = manifest.cameras.iter().map(|c| c.images.iter().flatten().count()).sum();
+    s.text(format!(
+        "The built-in cell (datasets/cells/gantry_tau_l1.toml): the L1's nominal model of the source with random geometric errors (0.5 mm on lengths and positions, 2e-3 on guideway directions) as the true robot, {} poses on a grid, a laser tracker (15 um + 6 um/m) and two 5 MP cameras 2.5 m away photographing the plate of five squares. Written to {}: {} images, the joint table, the tracker table (measurement CSV) and the ground truth apart.",
+        manifest.n_poses,
+        session.display(),
+        n_images
+    ));
+    for cam in &manifest.cameras {
+        if let Some(Some(first)) = cam.images.first() {
+            if let Ok(img) = image::open(session.join(first)) {
+                let small = image::imageops::resize(
+                    &img.to_luma8(),
+                    cam.width_px / 4,
+                    cam.height_px / 4,
+                    image::imageops::FilterType::Triangle,
+                );
+                s.blocks.push(crate::report::Block::Figure {
+                    caption: format!("Camera '{}', pose 1 (shown at 1/4 scale): exact pixel coverage, lens distortion, blur, vignetting, uneven light, shot and read noise, 8-bit quantisation", cam.name),
+                    svg: crate::report::inline_png(&small, &cam.name),
+                });
+            }
+        }
+    }
+    s.table(
+        "Session",
+        &["item", "value"],
+        vec![
+            vec!["poses".into(), manifest.n_poses.to_string()],
+            vec![
+                "cameras".into(),
+                manifest
+                    .cameras
+                    .iter()
+                    .map(|c| format!("{} ({}x{})", c.name, c.width_px, c.height_px))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            ],
+            vec!["tracker table".into(), manifest.tracker.clone().unwrap_or_default()],
+            vec!["notes".into(), manifest.notes.len().to_string()],
+        ],
+    );
+    s.data = serde_json::to_value(&manifest)?;
+    let ok = n_images == 2 * manifest.n_poses && manifest.tracker.is_some();
+    s.status(ok, if ok { "complete" } else { "incomplete" });
+    Ok(s)
+}
+
+fn sections_tracker_calibration(session: &Path) -> Result<Vec<Section>> {
+    use ferrocal_calib::kinematic::{calibrate, split_rows, KinematicOptions};
+    use ferrocal_datasets::sim::SessionTruth;
+    let table = ferrocal_datasets::import::read_measurements(session.join("tracker.csv"))?;
+    let truth: SessionTruth = serde_json::from_str(&std::fs::read_to_string(session.join("truth/truth.json"))?)?;
+    let model = RobotModel::load(&truth.cell.robot.model)?;
+    let (train, test) = split_rows(&table.set.rows, true);
+    let cal = calibrate(&model, &train, &KinematicOptions::default())?;
+    let nominal = calibrate(
+        &model,
+        &train,
+        &KinematicOptions {
+            model_params: ferrocal_calib::kinematic::ModelParams::None,
+            joint_offsets: false,
+            ..KinematicOptions::default()
+        },
+    )?;
+    let before = nominal.calibrated.evaluate(&test)?;
+    let after = cal.calibrated.evaluate(&test)?;
+    // Against the truth: predicted minus true tool positions in the tracker frame.
+    let t_world_tracker = truth.t_world_tracker.unwrap_or_else(nalgebra::Isometry3::identity);
+    let mut model_err = Vec::new();
+    for r in &test {
+        let pt = truth
+            .poses
+            .iter()
+            .find(|p| p.pose_id == r.pose_id)
+            .map(|p| (t_world_tracker.inverse() * p.t_world_tool).translation.vector);
+        if let (Some(pt), Ok(pred)) = (pt, cal.calibrated.predict(&r.q)) {
+            model_err.push((pred.translation.vector - pt).norm() * 1e3);
+        }
+    }
+    let model_mean = model_err.iter().sum::<f64>() / model_err.len().max(1) as f64;
+    let mut sections = crate::commands::calibrate::calibration_sections(
+        &cal,
+        &Some((cal.clone(), before.clone(), after.clone())),
+        &train,
+    );
+    for s in &mut sections {
+        s.id = format!("cell-{}", s.id);
+        s.title = format!("Simulated L1 from the tracker: {}", s.title.to_lowercase());
+    }
+    let mut head = Section::new("cell-calibration", "Simulated L1 calibrated from the laser tracker");
+    head.text(format!(
+        "The L1's modified model (21 parameters: L_i, A_i^s, v_i per arm) identified with the tracker's frame from every second pose of the session, checked on the others. Held out: mean {:.3} mm before, {:.3} mm after calibration (tracker noise included); the calibrated model's predictions are {:.3} mm from the true positions on average. The source reports 0.7 mm (ideal model) and 0.23 mm (modified model) on the real L1, whose errors are not only geometric.",
+        before.mean_mm, after.mean_mm, model_mean
+    ));
+    head.data = serde_json::json!({"heldout_before": before, "heldout_after": after, "model_error_vs_truth_mean_mm": model_mean, "fixed": cal.params.iter().filter(|p| !p.free).map(|p| &p.name).collect::<Vec<_>>()});
+    let ok = after.mean_mm < 0.1 && model_mean < 0.05;
+    head.status(ok, format!("held out {:.3} mm", after.mean_mm));
+    let mut out = vec![head];
+    out.extend(sections);
+    Ok(out)
+}
+
+fn sections_real_calibration(args: &DemoArgs) -> Result<Vec<Section>> {
+    use ferrocal_calib::kinematic::{calibrate, split_rows, KinematicOptions, ModelParams};
+    let mut out = Vec::new();
+    let ur5 = args.data.join("ur5_tracker/ur5_grid_train.csv");
+    let mut s = Section::new("ur5-calibration", "UR5 calibrated from a real laser tracker");
+    s.attribution("Data: UR5 with a GTS3800 laser tracker, 1000 grid poses, from P. Jacobi, MSc thesis, Tsinghua University, 2025 (MIT licence). Measured = target + dif.");
+    if ur5.exists() {
+        let set = ferrocal_datasets::import::import_ur5_grid(&ur5)?;
+        let model = RobotModel::load("ur5")?;
+        let (train, test) = split_rows(&set.rows, true);
+        let cal = calibrate(&model, &train, &KinematicOptions::default())?;
+        let nominal = calibrate(
+            &model,
+            &train,
+            &KinematicOptions { model_params: ModelParams::None, joint_offsets: false, ..KinematicOptions::default() },
+        )?;
+        let before = nominal.calibrated.evaluate(&test)?;
+        let after = cal.calibrated.evaluate(&test)?;
+        s.text(format!(
+            "Complete geometric error model (a 6-parameter correction per joint, joint offsets, tracker frame and tool offset; redundant parameters fixed by the identifiability analysis), fitted on every second grid pose and checked on the others: mean {:.3} mm with the nominal model (frames registered) and {:.3} mm calibrated (RMS {:.3} mm, max {:.3} mm). The thesis reports 2.57 mm uncalibrated and 0.155 mm for its MDH model plus a neural network on 20 random test poses kept aside; `ferrocal calibrate` fits all 1000 poses for delivery.",
+            before.mean_mm, after.mean_mm, after.rms_mm, after.max_mm
+        ));
+        s.data = serde_json::json!({"heldout_before": before, "heldout_after": after});
+        let ok = after.mean_mm < 0.12;
+        s.status(ok, format!("held out {:.3} mm", after.mean_mm));
+        out.push(s);
+        let mut detail =
+            crate::commands::calibrate::calibration_sections(&cal, &Some((cal.clone(), before, after)), &train);
+        for d in &mut detail {
+            d.id = format!("ur5-{}", d.id);
+            d.title = format!("UR5: {}", d.title.to_lowercase());
+        }
+        out.extend(detail);
+    } else {
+        s.text(format!("{} is not present: section skipped.", ur5.display()));
+        out.push(s);
+    }
+    let ur10 = args.data.join("ur10_tracker/Series_A/measurements_grid.csv");
+    let mut s = Section::new("ur10-calibration", "UR10 series A: positions and full 6-DoF poses");
+    s.attribution("Data: UR10 with a Leica laser tracker and T-Mac probe, C. Landgraf, K. Ernst, G. Schleth, M. Fabritius, M. F. Huber, IEEE CASE 2021 (christianlandgraf/ipa-robot-accuracy, MIT licence).");
+    if ur10.exists() {
+        let set = ferrocal_datasets::import::import_ur10_measurements(&ur10)?;
+        let model = RobotModel::load("ur10")?;
+        let (train, test) = split_rows(&set.rows, true);
+        let mut rows_t = Vec::new();
+        let mut data = Vec::new();
+        for (label, use_ori) in [("positions only", false), ("positions and orientations", true)] {
+            let opts = KinematicOptions {
+                use_orientation: use_ori,
+                sigma_position_m: 50e-6,
+                sigma_orientation_rad: 0.01f64.to_radians(),
+                ..KinematicOptions::default()
+            };
+            let cal = calibrate(&model, &train, &opts)?;
+            let e = cal.calibrated.evaluate(&test)?;
+            rows_t.push(vec![
+                label.to_string(),
+                train.len().to_string(),
+                test.len().to_string(),
+                format!("{:.3}", e.mean_mm),
+                format!("{:.3}", e.rms_mm),
+                format!("{:.3}", e.max_mm),
+                e.mean_deg.map(|v| format!("{v:.4}")).unwrap_or_default(),
+            ]);
+            data.push(serde_json::json!({"fit": label, "heldout": e}));
+        }
+        s.text("Split: every second pose of the 11,911 rows for fitting, the others held out (the first row is the start pose, the other 11,910 the grid). A geometric model leaves about 0.4 mm: something beyond geometry is in these data (temperature drift is a candidate: see `ferrocal diagnose`).");
+        s.table(
+            "Held-out errors, UR10 series A",
+            &["fit", "train", "held out", "mean [mm]", "RMS [mm]", "max [mm]", "mean orientation [deg]"],
+            rows_t,
+        );
+        s.data = serde_json::json!(data);
+        s.status(true, "reported");
+    } else {
+        s.text(format!("{} is not present: section skipped.", ur10.display()));
+    }
+    out.push(s);
+    Ok(out)
 }

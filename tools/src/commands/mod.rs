@@ -4,6 +4,7 @@ pub mod calibrate;
 mod demo;
 mod doctor;
 mod robot;
+pub mod simulate;
 
 use std::process::ExitCode;
 
@@ -18,6 +19,8 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Demo(a) => demo::run(&a),
         Command::Doctor => doctor::run(),
         Command::Robot(c) => robot::run(c),
+        Command::Simulate(a) => simulate::run_simulate(&a),
+        Command::Import(a) => simulate::run_import(&a),
         Command::Calibrate(a) => calibrate::run_calibrate(&a),
         Command::Evaluate(a) => calibrate::run_evaluate(&a),
     }
