@@ -553,25 +553,6 @@ impl<'a, R: SafetyBody + ?Sized> SafetyChecker<'a, R> {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn box_distances() {
-        let b = ObstacleBox { name: "b".into(), min_m: [0.0, 0.0, 0.0], max_m: [1.0, 1.0, 1.0], margin_m: 0.0 };
-        assert_eq!(b.distance(&Point3::new(0.5, 0.5, 0.5)), 0.0);
-        assert!((b.distance(&Point3::new(2.0, 0.5, 0.5)) - 1.0).abs() < 1e-15);
-        assert!((b.distance(&Point3::new(2.0, 2.0, 0.5)) - 2f64.sqrt()).abs() < 1e-15);
-        // A segment passing over the box at height 0.5 above it.
-        let d = b.segment_distance(&Point3::new(-1.0, 0.5, 1.5), &Point3::new(2.0, 0.5, 1.5));
-        assert!((d - 0.5).abs() < 1e-8, "{d}");
-        // A segment through the box.
-        let d = b.segment_distance(&Point3::new(-1.0, 0.5, 0.5), &Point3::new(2.0, 0.5, 0.5));
-        assert!(d < 1e-8);
-    }
-}
-
 /// Largest speed of any body point of a parallel robot along a joint-space move, estimated from
 /// the Jacobian at 9 points of the move with a safety factor of 2 (the platform's motion is
 /// smooth away from singular configurations, where the forward kinematics fails and the move
@@ -638,5 +619,24 @@ impl SafetyBody for crate::model::RobotModel {
             (_, Some(p)) => parallel_motion_bound(p, q_a, q_b, extra_radius_m),
             _ => Err(RobotError::Safety("this model kind has no motion bound".into())),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_distances() {
+        let b = ObstacleBox { name: "b".into(), min_m: [0.0, 0.0, 0.0], max_m: [1.0, 1.0, 1.0], margin_m: 0.0 };
+        assert_eq!(b.distance(&Point3::new(0.5, 0.5, 0.5)), 0.0);
+        assert!((b.distance(&Point3::new(2.0, 0.5, 0.5)) - 1.0).abs() < 1e-15);
+        assert!((b.distance(&Point3::new(2.0, 2.0, 0.5)) - 2f64.sqrt()).abs() < 1e-15);
+        // A segment passing over the box at height 0.5 above it.
+        let d = b.segment_distance(&Point3::new(-1.0, 0.5, 1.5), &Point3::new(2.0, 0.5, 1.5));
+        assert!((d - 0.5).abs() < 1e-8, "{d}");
+        // A segment through the box.
+        let d = b.segment_distance(&Point3::new(-1.0, 0.5, 0.5), &Point3::new(2.0, 0.5, 0.5));
+        assert!(d < 1e-8);
     }
 }

@@ -357,9 +357,9 @@ impl SerialChain {
     ) -> DMatrix<f64> {
         let n = frames.axes.len();
         let mut jac = DMatrix::zeros(6, n);
-        for i in 0..=link.min(n - 1) {
-            let z = frames.axes[i];
-            match kinds[i] {
+        for (i, (z, kind)) in frames.axes.iter().zip(kinds).enumerate().take(link.min(n - 1) + 1) {
+            let z = *z;
+            match kind {
                 JointKind::Revolute => {
                     let r = p_base - frames.axis_points[i];
                     let v = z.cross(&r);
