@@ -53,7 +53,7 @@ fn gantry_tau_l1_modified_model_parameters_within_their_3_sigma() {
     let names: Vec<String> = nominal.parameters().into_iter().map(|p| p.name).collect();
     assert_eq!(names.len(), 21, "the modified model has 21 parameters");
     let seeds = 20;
-    let mut inside = vec![0usize; 21];
+    let mut inside = [0usize; 21];
     let mut all_inside_seeds = 0;
     let mut heldout_ratio = Vec::new();
     for seed in 0..seeds {

@@ -171,20 +171,20 @@ impl Report {
                 Some((ok, t)) => format!(" <span class=\"{}\">{}</span>", if *ok { "ok" } else { "bad" }, esc(t)),
                 None => String::new(),
             };
-            let _ = write!(h, "<section id=\"{}\"><h2>{}{badge}</h2>\n", esc(&s.id), esc(&s.title));
+            let _ = writeln!(h, "<section id=\"{}\"><h2>{}{badge}</h2>", esc(&s.id), esc(&s.title));
             for b in &s.blocks {
                 match b {
                     Block::Text(t) => {
-                        let _ = write!(h, "<p>{}</p>\n", esc(t));
+                        let _ = writeln!(h, "<p>{}</p>", esc(t));
                     }
                     Block::Pre(t) => {
-                        let _ = write!(h, "<pre>{}</pre>\n", esc(t));
+                        let _ = writeln!(h, "<pre>{}</pre>", esc(t));
                     }
                     Block::Attribution(t) => {
-                        let _ = write!(h, "<p class=\"attr\">{}</p>\n", esc(t));
+                        let _ = writeln!(h, "<p class=\"attr\">{}</p>", esc(t));
                     }
                     Block::Figure { caption, svg } => {
-                        let _ = write!(h, "<figure>{svg}<figcaption>{}</figcaption></figure>\n", esc(caption));
+                        let _ = writeln!(h, "<figure>{svg}<figcaption>{}</figcaption></figure>", esc(caption));
                     }
                     Block::Table { caption, header, rows } => {
                         let _ = write!(h, "<table><caption>{}</caption><tr>", esc(caption));
@@ -217,9 +217,9 @@ impl Report {
         for (f, size) in &p.inputs {
             let _ = write!(h, "<tr><th>input</th><td>{} ({size} bytes)</td></tr>", esc(f));
         }
-        let _ = write!(
+        let _ = writeln!(
             h,
-            "<tr><th>settings</th><td><pre>{}</pre></td></tr></table></section>\n</body></html>\n",
+            "<tr><th>settings</th><td><pre>{}</pre></td></tr></table></section>\n</body></html>",
             esc(&serde_json::to_string_pretty(&p.settings).unwrap_or_default())
         );
         h

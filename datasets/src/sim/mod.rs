@@ -318,7 +318,7 @@ pub fn simulate(
         let mut renderers = Vec::new();
         for cam in &cfg.cameras {
             let target = &cfg.target.as_ref().expect("checked above").pattern;
-            let r = Renderer::new(cam.model.clone(), target, cam.render.clone())?;
+            let r = Renderer::new(cam.model, target, cam.render.clone())?;
             std::fs::create_dir_all(tmp.join("images").join(&cam.name))
                 .map_err(|source| DatasetError::Write { path: tmp.join("images"), source })?;
             renderers.push((cam, cam.t_world_cam()?, r));

@@ -124,7 +124,8 @@ fn parse_params(s: &str) -> ModelParams {
 
 /// The options from the arguments.
 pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
-    if !(args.sigma_mm.is_finite() && args.sigma_mm > 0.0) || !(args.sigma_deg.is_finite() && args.sigma_deg > 0.0) {
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !positive(args.sigma_mm) || !positive(args.sigma_deg) {
         bail!("--sigma-mm and --sigma-deg must be positive");
     }
     Ok(KinematicOptions {
