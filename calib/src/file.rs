@@ -8,6 +8,7 @@ use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
 use crate::kinematic::CalibratedModel;
 
@@ -74,6 +75,18 @@ pub struct CalibrationFile {
     /// Whether the target's orientation was calibrated (else only positions are predicted).
     #[serde(default)]
     pub orientation_calibrated: bool,
+    /// Physical effects modelled beyond the geometry, with their parameter values.
+    #[serde(default)]
+    pub effects: Vec<EffectValues>,
+}
+
+/// An effect and its identified parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EffectValues {
+    /// The effect.
+    pub spec: EffectSpec,
+    /// Its parameter values (SI), in the order of [`EffectSpec::parameters`].
+    pub values: Vec<f64>,
 }
 
 impl CalibrationFile {
@@ -93,6 +106,11 @@ impl CalibrationFile {
             device_frame: FrameJson::from_isometry(&cm.device_frame),
             tool: FrameJson::from_isometry(&cm.tool),
             orientation_calibrated: cm.orientation_calibrated,
+            effects: cm
+                .effects
+                .iter()
+                .map(|(spec, values)| EffectValues { spec: spec.clone(), values: values.clone() })
+                .collect(),
         }
     }
 
@@ -126,6 +144,7 @@ impl CalibrationFile {
             tool: self.tool.to_isometry(),
             joint_offsets: self.joint_offsets.clone(),
             orientation_calibrated: self.orientation_calibrated,
+            effects: self.effects.iter().map(|e| (e.spec.clone(), e.values.clone())).collect(),
         })
     }
 

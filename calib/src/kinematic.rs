@@ -25,6 +25,7 @@ use ferrocal_robot::{JointKind, Kinematics, Parameterized, RobotModel, Unit};
 use nalgebra::{DMatrix, DVector, Isometry3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
 use crate::frames::{exp6, fit_rigid, log6};
 use crate::identifiability::{analyze, Identifiability};
@@ -78,6 +79,8 @@ pub struct KinematicOptions {
     /// value over its standard deviation) stays below this, and refit (practical
     /// identifiability); `None` keeps them.
     pub practical_threshold: Option<f64>,
+    /// Physical effects identified together with the geometry.
+    pub effects: Vec<EffectSpec>,
     /// Solver options.
     pub lm: LmOptions,
 }
@@ -96,6 +99,7 @@ impl Default for KinematicOptions {
             loss: Loss::Squared,
             rank_tolerance: 1e-8,
             practical_threshold: None,
+            effects: Vec::new(),
             lm: LmOptions { max_iterations: 200, ..LmOptions::default() },
         }
     }
@@ -114,6 +118,10 @@ pub struct StateLayout {
     pub model: Range<usize>,
     /// Index in the model's parameter vector of each selected model parameter.
     pub model_index: Vec<usize>,
+    /// Effect parameters, one range per effect of the options.
+    pub effects: Vec<Range<usize>>,
+    /// Typical size of a change of every entry (for scaling).
+    pub scales: Vec<f64>,
     /// Name of every entry.
     pub names: Vec<String>,
     /// Unit of every entry.
@@ -121,7 +129,7 @@ pub struct StateLayout {
 }
 
 impl StateLayout {
-    fn new(model: &RobotModel, tool_dim: usize, selection: &ModelParams) -> Self {
+    fn new(model: &RobotModel, tool_dim: usize, selection: &ModelParams, effects: &[EffectSpec]) -> Self {
         let mut names = Vec::new();
         let mut units = Vec::new();
         for (n, u) in [
@@ -183,7 +191,19 @@ impl StateLayout {
         let tool = 6..6 + tool_dim;
         let offsets = tool.end..tool.end + n_j;
         let model_r = offsets.end..offsets.end + model_index.len();
-        Self { frame, tool, offsets, model: model_r, model_index, names, units }
+        let mut scales: Vec<f64> = units.iter().map(|u| u.typical_scale()).collect();
+        let kinds = model.joint_kinds();
+        let mut effect_ranges = Vec::new();
+        for e in effects {
+            let start = names.len();
+            for ((n, u), sc) in e.parameters(&kinds).into_iter().zip(e.scales()) {
+                names.push(n);
+                units.push(u);
+                scales.push(sc);
+            }
+            effect_ranges.push(start..names.len());
+        }
+        Self { frame, tool, offsets, model: model_r, model_index, effects: effect_ranges, scales, names, units }
     }
 
     /// Number of candidate parameters.
@@ -277,10 +297,42 @@ pub struct CalibratedModel {
     pub joint_offsets: Vec<f64>,
     /// Whether the target's orientation was calibrated (orientations are compared only then).
     pub orientation_calibrated: bool,
+    /// Physical effects with their identified parameters.
+    pub effects: Vec<(EffectSpec, Vec<f64>)>,
 }
 
 impl CalibratedModel {
-    /// Predicted `T_device_target` for joint readings `q`.
+    /// Effective joint values and length scale of `row` under the joint offsets and effects.
+    pub fn effective(&self, row: &PoseMeasurement) -> Result<(Vec<f64>, f64)> {
+        if row.q.len() != self.joint_offsets.len() {
+            return Err(CalibError::Data(format!(
+                "the robot has {} joints, the row {}",
+                self.joint_offsets.len(),
+                row.q.len()
+            )));
+        }
+        let mut dq = self.joint_offsets.clone();
+        let mut scale = 1.0;
+        for (e, theta) in &self.effects {
+            e.add_joint_delta(&self.model, row, theta, &mut dq)?;
+            scale *= e.length_scale(row, theta);
+        }
+        Ok((row.q.iter().zip(&dq).map(|(a, b)| a + b).collect(), scale))
+    }
+
+    /// Predicted `T_device_target` for a measured row (its joints and, for effects, its
+    /// approach directions, temperature, time and payload).
+    pub fn predict_row(&self, row: &PoseMeasurement) -> Result<Isometry3<f64>> {
+        let (q, scale) = self.effective(row)?;
+        let mut t = self.model.forward(&q)? * self.tool;
+        if scale != 1.0 {
+            t.translation.vector *= scale;
+        }
+        Ok(self.device_frame * t)
+    }
+
+    /// Predicted `T_device_target` for joint readings `q`, without the effects (which need a
+    /// row's inputs: see [`CalibratedModel::predict_row`]).
     pub fn predict(&self, q: &[f64]) -> Result<Isometry3<f64>> {
         if q.len() != self.joint_offsets.len() {
             return Err(CalibError::Data(format!(
@@ -298,7 +350,7 @@ impl CalibratedModel {
         let mut pos = Vec::with_capacity(rows.len());
         let mut ori = Vec::new();
         for r in rows {
-            let t = self.predict(&r.q).map_err(|e| row_error(r, e))?;
+            let t = self.predict_row(r).map_err(|e| row_error(r, e))?;
             pos.push(r.position_m - t.translation.vector);
             if let (true, Some(qm)) = (self.orientation_calibrated, &r.orientation) {
                 ori.push(qm.angle_to(&t.rotation));
@@ -370,6 +422,7 @@ struct KinProblem<'a> {
     free: Vec<usize>,
     sigma_pos: Vec<f64>,
     sigma_ori: Vec<f64>,
+    effects: Vec<EffectSpec>,
 }
 
 impl KinProblem<'_> {
@@ -409,6 +462,12 @@ impl KinProblem<'_> {
             tool,
             joint_offsets: full[self.layout.offsets.clone()].to_vec(),
             orientation_calibrated: self.use_ori,
+            effects: self
+                .effects
+                .iter()
+                .zip(&self.layout.effects)
+                .map(|(e, r)| (e.clone(), full[r.clone()].to_vec()))
+                .collect(),
         })
     }
 
@@ -425,7 +484,7 @@ impl KinProblem<'_> {
         let b = self.block();
         let mut r = DVector::zeros(self.rows.len() * b);
         for (k, row) in self.rows.iter().enumerate() {
-            let t = cm.predict(&row.q).map_err(|e| row_error(row, e))?;
+            let t = cm.predict_row(row).map_err(|e| row_error(row, e))?;
             let e = (row.position_m - t.translation.vector) / self.sigma_pos[k];
             r.fixed_rows_mut::<3>(k * b).copy_from(&e);
             if self.use_ori {
@@ -449,7 +508,7 @@ impl Problem for KinProblem<'_> {
         self.block()
     }
     fn scales(&self) -> Vec<f64> {
-        self.free.iter().map(|&i| self.layout.units[i].typical_scale()).collect()
+        self.free.iter().map(|&i| self.layout.scales[i]).collect()
     }
     fn residuals(&self, x: &[f64]) -> Result<DVector<f64>> {
         let full = self.full(x);
@@ -500,7 +559,7 @@ impl KinProblem<'_> {
         };
         let params = self.base_model.parameters();
         for (k, row) in self.rows.iter().enumerate() {
-            let qq: Vec<f64> = row.q.iter().zip(&cm.joint_offsets).map(|(a, b)| a + b).collect();
+            let (qq, _) = cm.effective(row).map_err(|e| row_error(row, e))?;
             let t_base_flange = cm.model.forward(&qq).map_err(|e| row_error(row, e))?;
             let t_dev_tool = cm.device_frame * t_base_flange * cm.tool;
             let p = t_dev_tool.translation.vector;
@@ -555,6 +614,18 @@ impl KinProblem<'_> {
             }
             let _ = kinds.len();
         }
+        // Numeric columns: effect parameters.
+        for r in &self.layout.effects {
+            for col in r.clone() {
+                let h = 1e-3 * self.layout.scales[col];
+                let mut fp = full.to_vec();
+                fp[col] += h;
+                let rp = self.residuals_of(&self.calibrated(&fp)?)?;
+                fp[col] -= 2.0 * h;
+                let rm = self.residuals_of(&self.calibrated(&fp)?)?;
+                jac.set_column(col, &((rp - rm) / (2.0 * h)));
+            }
+        }
         // Numeric columns: model parameters without an analytic form.
         let analytic: Vec<usize> = corr_cols.iter().map(|c| c.0).collect();
         for (kk, &pi) in self.layout.model_index.iter().enumerate() {
@@ -601,7 +672,16 @@ pub fn calibrate(
     }
     let use_ori = opts.use_orientation && rows.iter().all(|r| r.orientation.is_some());
     let tool_dim = if use_ori { 6 } else { 3 };
-    let layout = StateLayout::new(model, tool_dim, &opts.model_params);
+    for e in &opts.effects {
+        e.validate(model)?;
+        if let Some(r) = rows.iter().find(|r| e.missing_input(r).is_some()) {
+            return Err(row_error(
+                r,
+                format!("effect {} needs {}, which this row lacks", e.name(), e.missing_input(r).unwrap_or("inputs")),
+            ));
+        }
+    }
+    let layout = StateLayout::new(model, tool_dim, &opts.model_params, &opts.effects);
     let tool0 = Isometry3::identity();
 
     // Start: register the nominal model's positions to the measurements.
@@ -637,14 +717,15 @@ pub fn calibrate(
         free: all.clone(),
         sigma_pos,
         sigma_ori,
+        effects: opts.effects.clone(),
     };
     let train_before = problem.calibrated(&start)?.evaluate(rows)?;
 
     // Structural identifiability at the start, on the scaled Jacobian.
     let scaled = |jac: &DMatrix<f64>| {
         let mut s = jac.clone();
-        for (c, u) in layout.units.iter().enumerate() {
-            s.column_mut(c).scale_mut(u.typical_scale());
+        for (c, sc) in layout.scales.iter().enumerate() {
+            s.column_mut(c).scale_mut(*sc);
         }
         s
     };

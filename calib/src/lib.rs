@@ -9,6 +9,7 @@
 //! SI units inside; see `docs/conventions.md` at the workspace root.
 #![deny(missing_docs)]
 
+pub mod effects;
 pub mod error;
 pub mod file;
 pub mod frames;

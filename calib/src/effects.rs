@@ -1,0 +1,209 @@
+//! Named physical effects beyond the geometric model, as regressor families that calibration can
+//! identify jointly with the geometric parameters (and `diagnose` can test).
+//!
+//! This is the identification side's own description of the physics; the cell simulator in
+//! `ferrocal-datasets` describes the same effects independently (no shared code), so a mistake
+//! in one is not silently mirrored in the other.
+//!
+//! Each effect changes the joint values the kinematics sees (`q -> q + dq`) or scales the
+//! model's lengths, as a function of the row's inputs (joints, approach directions, temperature,
+//! time, payload) and the effect's parameters `theta`:
+//!
+//! | effect | parameters | correction |
+//! | --- | --- | --- |
+//! | `joint_compliance` | `c` (rad/(N m) or m/N) | `dq_j = -c tau_j(q, payload)`, `tau` the holding torque from the model's inertials (a serial chain's links, or 1 kg at the tool for other models, when `c` then absorbs the mass) |
+//! | `backlash` | `b` (rad or m) | `dq_j = -b d_j / 2`, `d_j` the approach direction |
+//! | `joint_scale_error` | `s` | `dq_j = s q_j` |
+//! | `periodic_joint_error` | `a, b` (rad or m), period `P` fixed | `dq_j = a sin(2 pi q_j / P) + b cos(2 pi q_j / P)` |
+//! | `thermal_expansion` | `alpha` (1/K) | every length scales by `1 + alpha (T - T_ref)`: the target position in the model's base frame scales by that factor |
+//! | `time_drift` | `v` (per hour) | as thermal expansion with `t` in hours instead of `T - T_ref` |
+
+use ferrocal_robot::{JointKind, Kinematics, RobotModel, Unit};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{CalibError, Result};
+use crate::measurement::PoseMeasurement;
+
+/// One effect with its fixed settings (joint numbers are 1-based).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "effect", rename_all = "snake_case")]
+pub enum EffectSpec {
+    /// A joint deflects in proportion to the load torque it carries.
+    JointCompliance {
+        /// Joint (1-based).
+        joint: usize,
+    },
+    /// A joint's position depends on the direction it was approached from.
+    Backlash {
+        /// Joint (1-based).
+        joint: usize,
+    },
+    /// A joint's reading is off by a factor.
+    JointScaleError {
+        /// Joint (1-based).
+        joint: usize,
+    },
+    /// A joint's error repeats with a fixed period in its own travel.
+    PeriodicJointError {
+        /// Joint (1-based).
+        joint: usize,
+        /// Period in joint units (rad or m).
+        period_si: f64,
+    },
+    /// Lengths change with temperature.
+    ThermalExpansion {
+        /// Temperature at which the geometric parameters hold.
+        reference_temp_c: f64,
+    },
+    /// Lengths change with time (warm-up without a temperature reading).
+    TimeDrift,
+}
+
+impl EffectSpec {
+    /// The effect's name in `shared/spec/diagnose.md`'s vocabulary.
+    pub fn name(&self) -> &'static str {
+        match self {
+            EffectSpec::JointCompliance { .. } => "joint_compliance",
+            EffectSpec::Backlash { .. } => "backlash",
+            EffectSpec::JointScaleError { .. } => "joint_scale_error",
+            EffectSpec::PeriodicJointError { .. } => "periodic_joint_error",
+            EffectSpec::ThermalExpansion { .. } => "thermal_expansion",
+            EffectSpec::TimeDrift => "thermal_expansion",
+        }
+    }
+
+    /// The joint it belongs to (1-based), if any.
+    pub fn joint(&self) -> Option<usize> {
+        match self {
+            EffectSpec::JointCompliance { joint }
+            | EffectSpec::Backlash { joint }
+            | EffectSpec::JointScaleError { joint }
+            | EffectSpec::PeriodicJointError { joint, .. } => Some(*joint),
+            EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift => None,
+        }
+    }
+
+    /// Names and units of its parameters (joint units follow the joint's kind).
+    pub fn parameters(&self, kinds: &[JointKind]) -> Vec<(String, Unit)> {
+        let ju = |j: usize| match kinds.get(j - 1) {
+            Some(JointKind::Prismatic) => (Unit::Metre, "m"),
+            _ => (Unit::Radian, "rad"),
+        };
+        match self {
+            EffectSpec::JointCompliance { joint } => {
+                let per = if ju(*joint).0 == Unit::Metre { "m_per_n" } else { "rad_per_nm" };
+                vec![(format!("joint{joint}.compliance_{per}"), Unit::Dimensionless)]
+            }
+            EffectSpec::Backlash { joint } => {
+                let (u, s) = ju(*joint);
+                vec![(format!("joint{joint}.backlash_{s}"), u)]
+            }
+            EffectSpec::JointScaleError { joint } => vec![(format!("joint{joint}.scale_error"), Unit::Dimensionless)],
+            EffectSpec::PeriodicJointError { joint, .. } => {
+                let (u, s) = ju(*joint);
+                vec![(format!("joint{joint}.periodic_sin_{s}"), u), (format!("joint{joint}.periodic_cos_{s}"), u)]
+            }
+            EffectSpec::ThermalExpansion { .. } => vec![("thermal.alpha_per_k".into(), Unit::Dimensionless)],
+            EffectSpec::TimeDrift => vec![("drift.per_hour".into(), Unit::Dimensionless)],
+        }
+    }
+
+    /// The typical size of each parameter (for scaling the problem).
+    pub fn scales(&self) -> Vec<f64> {
+        match self {
+            EffectSpec::JointCompliance { .. } => vec![1e-6],
+            EffectSpec::Backlash { .. } => vec![1e-4],
+            EffectSpec::JointScaleError { .. } => vec![1e-4],
+            EffectSpec::PeriodicJointError { .. } => vec![1e-4, 1e-4],
+            EffectSpec::ThermalExpansion { .. } => vec![1e-5],
+            EffectSpec::TimeDrift => vec![1e-5],
+        }
+    }
+
+    /// Whether a row carries the inputs the effect needs (else it cannot be tested on it).
+    pub fn missing_input(&self, row: &PoseMeasurement) -> Option<&'static str> {
+        match self {
+            EffectSpec::Backlash { joint } => match &row.dir {
+                Some(d) if d.get(joint - 1).is_some_and(|v| *v != 0) => None,
+                _ => Some("approach directions (dir columns)"),
+            },
+            EffectSpec::ThermalExpansion { .. } => row.temp_c.is_none().then_some("temperature (temp_c)"),
+            EffectSpec::TimeDrift => row.t_s.is_none().then_some("time (t_s)"),
+            _ => None,
+        }
+    }
+
+    /// Checks the effect against the model.
+    pub fn validate(&self, model: &RobotModel) -> Result<()> {
+        if let Some(j) = self.joint() {
+            if j == 0 || j > model.dof() {
+                return Err(CalibError::Data(format!(
+                    "effect {}: joint {j} does not exist (the model has {} joints, numbered from 1)",
+                    self.name(),
+                    model.dof()
+                )));
+            }
+        }
+        if let EffectSpec::PeriodicJointError { period_si, .. } = self {
+            if !(period_si.is_finite() && *period_si > 0.0) {
+                return Err(CalibError::Data(format!(
+                    "periodic_joint_error: period must be positive, got {period_si}"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds the effect's joint corrections for `row` to `dq`.
+    pub fn add_joint_delta(
+        &self,
+        model: &RobotModel,
+        row: &PoseMeasurement,
+        theta: &[f64],
+        dq: &mut [f64],
+    ) -> Result<()> {
+        match self {
+            EffectSpec::JointCompliance { joint } => {
+                let tau = holding_torques(model, &row.q, row.payload_kg.unwrap_or(0.0))?;
+                dq[joint - 1] -= theta[0] * tau[joint - 1];
+            }
+            EffectSpec::Backlash { joint } => {
+                let d = row.dir.as_ref().and_then(|d| d.get(joint - 1)).copied().unwrap_or(0) as f64;
+                dq[joint - 1] -= theta[0] * d / 2.0;
+            }
+            EffectSpec::JointScaleError { joint } => dq[joint - 1] += theta[0] * row.q[joint - 1],
+            EffectSpec::PeriodicJointError { joint, period_si } => {
+                let x = std::f64::consts::TAU * row.q[joint - 1] / period_si;
+                dq[joint - 1] += theta[0] * x.sin() + theta[1] * x.cos();
+            }
+            EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift => {}
+        }
+        Ok(())
+    }
+
+    /// The factor by which the effect scales lengths for `row` (1 for joint effects).
+    pub fn length_scale(&self, row: &PoseMeasurement, theta: &[f64]) -> f64 {
+        match self {
+            EffectSpec::ThermalExpansion { reference_temp_c } => {
+                1.0 + theta[0] * (row.temp_c.unwrap_or(*reference_temp_c) - reference_temp_c)
+            }
+            EffectSpec::TimeDrift => 1.0 + theta[0] * row.t_s.unwrap_or(0.0) / 3600.0,
+            _ => 1.0,
+        }
+    }
+}
+
+/// Holding torques (forces for prismatic joints) at `q` under gravity with `payload_kg` at the
+/// tool: a serial chain's link inertials through the Jacobian transpose; for other models, 1 kg
+/// plus the payload at the tool.
+pub fn holding_torques(model: &RobotModel, q: &[f64], payload_kg: f64) -> Result<Vec<f64>> {
+    match model {
+        RobotModel::Serial(chain) => Ok(chain.gravity_torques(q, payload_kg)?),
+        other => {
+            let jac = other.jacobian(q)?;
+            let f = Vector3::new(0.0, 0.0, 9.80665 * (1.0 + payload_kg));
+            Ok((0..other.dof()).map(|i| jac[(0, i)] * f.x + jac[(1, i)] * f.y + jac[(2, i)] * f.z).collect())
+        }
+    }
+}
