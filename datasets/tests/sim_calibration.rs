@@ -180,3 +180,68 @@ fn ur5_joint_compliance_identified_jointly_with_the_geometry() {
     assert!((c - true_c).abs() < 3.0 * sd, "compliance {c:e} +- {sd:e}, truth {true_c:e}");
     assert!(after < 0.8 * before, "modelling the compliance must improve the held-out fit: {before} -> {after}");
 }
+
+#[test]
+fn f1_redundant_parameters_are_found_and_fixed_automatically() {
+    let nominal = RobotModel::load("gantry-tau-f1").unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let errors = GeometricErrors { length_sigma_mm: 0.3, dimensionless_sigma: 5e-4, ..Default::default() };
+    let truth = TrueRobot::new(nominal.clone(), &errors, vec![], 0.0, &mut rng).unwrap();
+    let tracker = TrackerConfig {
+        position_m: [0.0, 0.0, 0.0],
+        rpy_deg: [0.0, 0.0, 0.0],
+        sigma_const_um: 15.0,
+        sigma_per_m_um: 6.0,
+        six_dof: true,
+        sigma_angle_mrad: 0.02,
+        reflector_in_tool_m: [0.0, 0.0, 0.0],
+    };
+    let plan = make_plan(
+        &PlanConfig::Random { n: 185, joint_ranges_si: vec![], seconds_per_pose: 5.0, home_si: vec![] },
+        &nominal,
+        None,
+        &mut rng,
+    )
+    .unwrap();
+    let rows: Vec<PoseMeasurement> = plan
+        .poses
+        .iter()
+        .enumerate()
+        .map(|(k, q)| {
+            let t = truth.tool_pose(q, &Conditions { temp_c: 20.0, dir: vec![0; 6], ..Default::default() }).unwrap();
+            let r = tracker.measure(&t, &mut rng);
+            let mut m = PoseMeasurement::new(format!("{k}"), q.clone(), r.position_m);
+            m.orientation = r.orientation;
+            m.sigma_m = Some(r.sigma_m);
+            m.sigma_rad = Some(2e-5);
+            m
+        })
+        .collect();
+    let refs: Vec<&PoseMeasurement> = rows.iter().collect();
+    let opts = KinematicOptions {
+        model_params: ModelParams::All,
+        estimate_device_frame: false,
+        fixed_device_frame: Some(Isometry3::identity()),
+        joint_offsets: false,
+        estimate_tool: false,
+        ..KinematicOptions::default()
+    };
+    let cal = calibrate(&nominal, &refs, &opts).unwrap();
+    let fixed: Vec<&str> = cal
+        .params
+        .iter()
+        .filter(|p| !p.free && p.fixed_because.as_deref().is_some_and(|r| r.contains("not identifiable")))
+        .map(|p| p.name.as_str())
+        .collect();
+    eprintln!("F1: {} of {} parameters fixed as redundant: {fixed:?}", fixed.len(), cal.params.len());
+    eprintln!("{}", cal.identifiability_before.describe_groups().join("\n"));
+    // The source fixed six on the F1 arms: frame positions along a rotation axis and rotations
+    // about it. Here: for each of the three rotary stages, the position of its frame along its
+    // axis, and the length of its (unnormalised) axis vector, this parameterisation's
+    // counterpart of a rotation about the axis.
+    assert_eq!(fixed.len(), 6, "{fixed:?}");
+    let axis_like = fixed.iter().filter(|n| n.contains(".axis_")).count();
+    assert_eq!(axis_like, 3, "{fixed:?}");
+    let after = cal.train_after.rms_mm;
+    assert!(after < 0.06, "the fit must reach the noise: {after} mm");
+}
