@@ -22,7 +22,7 @@
 use std::ops::Range;
 
 use ferrocal_robot::{JointKind, Kinematics, Parameterized, RobotModel, Unit};
-use nalgebra::{DMatrix, DVector, Isometry3, Point3, Vector3};
+use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::effects::EffectSpec;
@@ -48,6 +48,21 @@ pub enum ModelParams {
         /// Name prefixes, e.g. `arm1.` or `joint2.corr_`.
         prefixes: Vec<String>,
     },
+}
+
+/// The cost whose squares are summed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Cost {
+    /// Measured minus predicted pose through the forward kinematics (any model).
+    #[default]
+    ForwardKinematics,
+    /// Parallel robots: the closure equations of every leg at the measured pose, as leg-length
+    /// errors `||A(q) - B(T)|| - L` (metres). Always real-valued, even far from the nominal
+    /// model where the forward kinematics has no solution; the arms of a Gantry-Tau decouple
+    /// (the Jacobian is block-diagonal per arm when the frames are fixed). Needs measured
+    /// orientations unless the platform keeps a constant orientation.
+    Closure,
 }
 
 /// Options of [`calibrate`].
@@ -81,6 +96,8 @@ pub struct KinematicOptions {
     pub practical_threshold: Option<f64>,
     /// Physical effects identified together with the geometry.
     pub effects: Vec<EffectSpec>,
+    /// The cost.
+    pub cost: Cost,
     /// Solver options.
     pub lm: LmOptions,
 }
@@ -100,6 +117,7 @@ impl Default for KinematicOptions {
             rank_tolerance: 1e-8,
             practical_threshold: None,
             effects: Vec::new(),
+            cost: Cost::ForwardKinematics,
             lm: LmOptions { max_iterations: 200, ..LmOptions::default() },
         }
     }
@@ -423,6 +441,9 @@ struct KinProblem<'a> {
     sigma_pos: Vec<f64>,
     sigma_ori: Vec<f64>,
     effects: Vec<EffectSpec>,
+    cost: Cost,
+    /// Legs of a parallel robot (closure cost).
+    n_legs: usize,
 }
 
 impl KinProblem<'_> {
@@ -472,6 +493,9 @@ impl KinProblem<'_> {
     }
 
     fn block(&self) -> usize {
+        if self.cost == Cost::Closure {
+            return self.n_legs;
+        }
         if self.use_ori {
             6
         } else {
@@ -479,8 +503,37 @@ impl KinProblem<'_> {
         }
     }
 
+    /// Closure residuals: leg-length errors at the measured pose, over the row's sigma.
+    fn closure_residuals(&self, cm: &CalibratedModel) -> Result<DVector<f64>> {
+        let b = self.block();
+        let par =
+            cm.model.parallel().ok_or_else(|| CalibError::Data("the closure cost needs a parallel robot".into()))?;
+        let mech = par.mechanism()?;
+        let mut r = DVector::zeros(self.rows.len() * b);
+        let f_inv = cm.device_frame.inverse();
+        let tool_inv = cm.tool.inverse();
+        for (k, row) in self.rows.iter().enumerate() {
+            let (q, scale) = cm.effective(row).map_err(|e| row_error(row, e))?;
+            let rot = row.orientation.unwrap_or_else(UnitQuaternion::identity);
+            let t_dev = Isometry3::from_parts(Translation3::from(row.position_m), rot);
+            let mut t_base_target = f_inv * t_dev;
+            if scale != 1.0 {
+                t_base_target.translation.vector /= scale;
+            }
+            let t_base_tool = t_base_target * tool_inv;
+            let legs = mech.leg_states(&q, &t_base_tool).map_err(|e| row_error(row, e))?;
+            for (j, leg) in legs.iter().enumerate() {
+                r[k * b + j] = leg.length_error_m() / self.sigma_pos[k];
+            }
+        }
+        Ok(r)
+    }
+
     /// Whitened residuals of every row for a calibrated model.
     fn residuals_of(&self, cm: &CalibratedModel) -> Result<DVector<f64>> {
+        if self.cost == Cost::Closure {
+            return self.closure_residuals(cm);
+        }
         let b = self.block();
         let mut r = DVector::zeros(self.rows.len() * b);
         for (k, row) in self.rows.iter().enumerate() {
@@ -529,6 +582,19 @@ impl Problem for KinProblem<'_> {
 impl KinProblem<'_> {
     /// Jacobian of the whitened residuals with respect to every candidate at `full`.
     fn full_jacobian(&self, full: &[f64]) -> Result<DMatrix<f64>> {
+        if self.cost == Cost::Closure {
+            let mut jac = DMatrix::zeros(self.n_residuals(), self.layout.len());
+            for col in 0..self.layout.len() {
+                let h = 1e-3 * self.layout.scales[col];
+                let mut fp = full.to_vec();
+                fp[col] += h;
+                let rp = self.residuals_of(&self.calibrated(&fp)?)?;
+                fp[col] -= 2.0 * h;
+                let rm = self.residuals_of(&self.calibrated(&fp)?)?;
+                jac.set_column(col, &((rp - rm) / (2.0 * h)));
+            }
+            return Ok(jac);
+        }
         let b = self.block();
         let cm = self.calibrated(full)?;
         let n_cand = self.layout.len();
@@ -671,6 +737,20 @@ pub fn calibrate(
         }
     }
     let use_ori = opts.use_orientation && rows.iter().all(|r| r.orientation.is_some());
+    if opts.cost == Cost::Closure {
+        let Some(p) = model.parallel() else {
+            return Err(CalibError::Data(format!(
+                "the closure cost needs a parallel robot; '{}' is serial",
+                model.name()
+            )));
+        };
+        if p.mobility() != ferrocal_robot::Mobility::Translation3 && !use_ori {
+            return Err(CalibError::Data(format!(
+                "the closure cost of '{}' needs measured orientations (its platform orientation varies)",
+                model.name()
+            )));
+        }
+    }
     let tool_dim = if use_ori { 6 } else { 3 };
     for e in &opts.effects {
         e.validate(model)?;
@@ -718,6 +798,8 @@ pub fn calibrate(
         sigma_pos,
         sigma_ori,
         effects: opts.effects.clone(),
+        cost: opts.cost,
+        n_legs: model.parallel().and_then(|p| p.mechanism().ok()).map_or(0, |m| m.legs.len()),
     };
     let train_before = problem.calibrated(&start)?.evaluate(rows)?;
 

@@ -245,3 +245,53 @@ fn f1_redundant_parameters_are_found_and_fixed_automatically() {
     let after = cal.train_after.rms_mm;
     assert!(after < 0.06, "the fit must reach the noise: {after} mm");
 }
+
+#[test]
+fn closure_cost_converges_from_a_tape_measure_guess() {
+    use ferrocal_calib::kinematic::Cost;
+    let nominal = RobotModel::load("gantry-tau-l1").unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    // The true robot is 15 mm (positions, lengths) and 1e-2 (directions) away from the guess.
+    let errors = GeometricErrors { length_sigma_mm: 15.0, dimensionless_sigma: 1e-2, ..Default::default() };
+    let truth = TrueRobot::new(nominal.clone(), &errors, vec![], 0.0, &mut rng).unwrap();
+    let tracker = TrackerConfig {
+        position_m: [0.0, 0.0, 0.0],
+        rpy_deg: [0.0, 0.0, 0.0],
+        sigma_const_um: 15.0,
+        sigma_per_m_um: 6.0,
+        six_dof: false,
+        sigma_angle_mrad: 0.0,
+        reflector_in_tool_m: [0.0, 0.0, 0.0],
+    };
+    // Poses the TRUE robot can reach (the guess may not reach all of them).
+    let plan = make_plan(
+        &PlanConfig::Random { n: 80, joint_ranges_si: vec![[-0.7, 0.7]; 3], seconds_per_pose: 5.0, home_si: vec![] },
+        &truth.truth,
+        None,
+        &mut rng,
+    )
+    .unwrap();
+    let rows = simulate_rows(&truth, &plan.poses, &tracker, &mut rng);
+    let refs: Vec<&PoseMeasurement> = rows.iter().collect();
+    let opts = KinematicOptions {
+        model_params: ModelParams::All,
+        estimate_device_frame: false,
+        fixed_device_frame: Some(Isometry3::identity()),
+        joint_offsets: false,
+        estimate_tool: false,
+        cost: Cost::Closure,
+        ..KinematicOptions::default()
+    };
+    let cal = calibrate(&nominal, &refs, &opts).unwrap();
+    let true_vals = truth.truth.parameter_values();
+    let names: Vec<String> = nominal.parameters().into_iter().map(|p| p.name).collect();
+    let mut worst_z: f64 = 0.0;
+    for (k, name) in names.iter().enumerate() {
+        let p = cal.params.iter().find(|p| &p.name == name).unwrap();
+        worst_z = worst_z.max((p.value - true_vals[k]).abs() / p.std.unwrap());
+    }
+    let stats = cal.calibrated.evaluate(&refs).unwrap();
+    eprintln!("closure cost from a 15 mm guess: worst |z| {worst_z:.2}, forward-kinematics RMS {:.4} mm", stats.rms_mm);
+    assert!(worst_z < 4.0, "worst parameter {worst_z:.2} sigma from the truth");
+    assert!(stats.rms_mm < 0.06, "{} mm", stats.rms_mm);
+}

@@ -58,8 +58,8 @@ fn rendered_chessboard_views_calibrate_to_the_true_camera() {
     assert!(cal.rms_px < 0.1, "rms {}", cal.rms_px);
     // Focal lengths and principal point within 4 sigma (the detector's small systematic corner
     // errors are not in the noise model), and within a pixel.
-    for i in 0..4 {
-        let d = (est[i].value - camera.parameters()[i].value).abs();
-        assert!(d < 4.0 * cal.std[i] && d < 1.0, "{}: off by {d} px (std {})", est[i].name, cal.std[i]);
+    for ((e, t), s) in est.iter().zip(camera.parameters()).zip(&cal.std).take(4) {
+        let d = (e.value - t.value).abs();
+        assert!(d < 4.0 * s && d < 1.0, "{}: off by {d} px (std {s})", e.name);
     }
 }

@@ -24,6 +24,9 @@ pub enum Command {
     /// Robot models: information, forward and inverse kinematics, safety checks.
     #[command(subcommand)]
     Robot(RobotCommand),
+    /// Cameras: calibrate one camera or a stereo pair from images of a chessboard.
+    #[command(subcommand)]
+    Camera(crate::commands::camera::CameraCommand),
     /// Write a recorded session from a simulated cell (TOML): images, joints, tracker, truth.
     Simulate(crate::commands::simulate::SimulateArgs),
     /// Convert a real recording (UR5, UR10 laser-tracker sets) into the measurement table.

@@ -78,6 +78,109 @@ pub enum VisionError {
         /// Number of coefficients found.
         count: usize,
     },
+    // ---- calibration and pose estimation (`calib`, `pose`) ----
+    /// An image that cannot be used: unreadable, empty, or the pattern was not found in it.
+    #[error("{}: {reason}", image.display())]
+    ImageUnusable {
+        /// The image file (or the view's name).
+        image: PathBuf,
+        /// What is wrong and what to do about it.
+        reason: String,
+    },
+    /// A pattern string (e.g. `chessboard:9x6:25mm`) that cannot be parsed.
+    #[error("bad pattern '{text}': {reason}")]
+    PatternSpec {
+        /// The text given.
+        text: String,
+        /// What is wrong, with the accepted forms.
+        reason: String,
+    },
+    /// Fewer usable views than the calibration needs.
+    #[error("{usable} usable view(s), at least {needed} needed: {detail}")]
+    TooFewViews {
+        /// Views that could be used.
+        usable: usize,
+        /// Views needed.
+        needed: usize,
+        /// Why the others were not usable and what to do.
+        detail: String,
+    },
+    /// Views of different image sizes were given to one calibration.
+    #[error("images of different sizes in one calibration: {detail}")]
+    ImageSizeMismatch {
+        /// The images and their sizes.
+        detail: String,
+    },
+    /// The views cannot determine the requested parameters (e.g. all boards parallel).
+    #[error("degenerate views: {detail}")]
+    DegenerateViews {
+        /// What is degenerate, the numbers that show it, and how to take better views.
+        detail: String,
+    },
+    /// Inputs of inconsistent shape or value given to a calibration or pose function.
+    #[error("invalid input: {detail}")]
+    InvalidInput {
+        /// What is wrong.
+        detail: String,
+    },
+    /// The optimiser failed or returned an unusable solution.
+    #[error("{stage} failed: {detail}")]
+    SolverFailed {
+        /// Which stage (e.g. `bundle adjustment`, `PnP`).
+        stage: String,
+        /// The solver's report.
+        detail: String,
+    },
+    /// A pattern string (`--pattern`) that does not parse.
+    #[error("pattern '{pattern}' does not parse: {problem}; expected {expected}")]
+    PatternSyntax {
+        /// The string as given.
+        pattern: String,
+        /// What is wrong with it.
+        problem: String,
+        /// The accepted forms.
+        expected: String,
+    },
+    /// An image that cannot be opened or decoded, or that has no pixels.
+    #[error("cannot read image {path}: {reason}")]
+    ImageRead {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's or the file system's reason.
+        reason: String,
+    },
+    /// An image held in memory that the detectors cannot use (empty, or a size mismatch).
+    #[error("unusable image: {reason}")]
+    BadImage {
+        /// What is wrong.
+        reason: String,
+    },
+    /// The pattern was not found in an image.
+    #[error("pattern '{pattern}' not found: {reason}")]
+    PatternNotFound {
+        /// The pattern looked for (its string form).
+        pattern: String,
+        /// What was seen instead (e.g. how many corners, how large a grid).
+        reason: String,
+    },
+    /// An external library (OpenCV, the AprilTag C library, kornia-rs) failed.
+    #[error("{library} failed: {message}")]
+    Backend {
+        /// The library.
+        library: &'static str,
+        /// Its message.
+        message: String,
+    },
+    /// Options that the detector or refiner cannot accept.
+    #[error("invalid option '{name}' = {value}: {reason}")]
+    BadOption {
+        /// Option name.
+        name: &'static str,
+        /// Offending value.
+        value: String,
+        /// The accepted range.
+        reason: String,
+    },
 }
 
 /// Result alias of the vision crate.

@@ -11,7 +11,9 @@
 #![deny(missing_docs)]
 
 pub mod backends;
+pub mod calib;
 pub mod camera;
 pub mod error;
+pub mod pose;
 
 pub use error::{Result, VisionError};

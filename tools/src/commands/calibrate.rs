@@ -58,6 +58,10 @@ pub struct CalibrateArgs {
     /// Drop parameters whose parameter-to-noise ratio is below this (practical identifiability).
     #[arg(long)]
     pub practical_threshold: Option<f64>,
+    /// The cost: `fk` (measured minus predicted pose; any robot) or `closure` (parallel robots:
+    /// leg-length errors at the measured pose; converges from poor start models).
+    #[arg(long, default_value = "fk")]
+    pub cost: String,
 }
 
 /// `ferrocal evaluate`.
@@ -135,6 +139,11 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
         sigma_orientation_rad: args.sigma_deg.to_radians(),
         loss: parse_loss(&args.loss)?,
         practical_threshold: args.practical_threshold,
+        cost: match args.cost.as_str() {
+            "fk" => ferrocal_calib::kinematic::Cost::ForwardKinematics,
+            "closure" => ferrocal_calib::kinematic::Cost::Closure,
+            other => bail!("--cost {other}: use fk or closure"),
+        },
         ..KinematicOptions::default()
     })
 }

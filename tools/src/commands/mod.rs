@@ -1,6 +1,7 @@
 //! One module per command; each is a library call plus I/O.
 
 pub mod calibrate;
+pub mod camera;
 mod demo;
 mod doctor;
 mod robot;
@@ -19,6 +20,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Demo(a) => demo::run(&a),
         Command::Doctor => doctor::run(),
         Command::Robot(c) => robot::run(c),
+        Command::Camera(c) => camera::run(c),
         Command::Simulate(a) => simulate::run_simulate(&a),
         Command::Import(a) => simulate::run_import(&a),
         Command::Calibrate(a) => calibrate::run_calibrate(&a),

@@ -1,0 +1,412 @@
+//! `ferrocal camera ...`: calibration of one camera and of a stereo pair from images of a
+//! planar pattern (JSON per `shared/spec/cli.md`, optional OpenCV and ROS YAML files).
+//!
+//! A bad image (unreadable, empty, pattern not found, another image size) is reported on stderr
+//! and in the JSON's `skipped` list, and the batch goes on; too few usable views is an error that
+//! says how many were usable and why.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use ferrocal_datasets::import::images::{list_images, ImageFolderOptions};
+use ferrocal_vision::calib::corners::{detect_view_slots, SkippedImage, SubpixWindow};
+use ferrocal_vision::calib::{
+    calibrate_camera, calibrate_stereo, CalibrationOptions, CameraCalibration, Pattern, RobustLoss, MIN_VIEWS,
+};
+use ferrocal_vision::camera::{io, DistortionKind};
+use serde_json::{json, Value};
+
+/// `ferrocal camera ...`.
+#[derive(Debug, Subcommand)]
+pub enum CameraCommand {
+    /// Calibrate one camera from images of a planar pattern.
+    Calibrate(CalibrateArgs),
+    /// Calibrate a stereo pair from simultaneous left and right images of a planar pattern.
+    Stereo(StereoArgs),
+}
+
+/// The lens model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ModelArg {
+    /// OpenCV's 5 coefficients k1 k2 p1 p2 k3.
+    #[value(name = "brown5")]
+    Brown5,
+    /// OpenCV's rational model, 8 coefficients.
+    #[value(name = "rational8")]
+    Rational8,
+    /// Kannala-Brandt (OpenCV fisheye), 4 coefficients.
+    #[value(name = "kannala_brandt", alias = "kannala-brandt")]
+    KannalaBrandt,
+}
+
+impl ModelArg {
+    fn kind(self) -> DistortionKind {
+        match self {
+            ModelArg::Brown5 => DistortionKind::Brown5,
+            ModelArg::Rational8 => DistortionKind::Rational8,
+            ModelArg::KannalaBrandt => DistortionKind::KannalaBrandt,
+        }
+    }
+}
+
+/// Settings shared by both calibrations.
+#[derive(Debug, Args)]
+pub struct SolveArgs {
+    /// The pattern, e.g. `chessboard:9x6:25mm` (inner corners, square size).
+    #[arg(long)]
+    pub pattern: String,
+    /// Keep fx = fy (OpenCV's CALIB_FIX_ASPECT_RATIO with ratio 1).
+    #[arg(long)]
+    pub fix_aspect: bool,
+    /// Lens model.
+    #[arg(long, value_enum, default_value = "brown5")]
+    pub model: ModelArg,
+    /// Robust loss of the bundle adjustment: none, huber:<px> or cauchy:<px>.
+    #[arg(long, default_value = "none")]
+    pub loss: String,
+    /// Remove outlier views and corners and solve again.
+    #[arg(long)]
+    pub reject_outliers: bool,
+    /// cornerSubPix window: `opencv` (11 x 11 half-size, OpenCV's sample recipe, reproduces its
+    /// published numbers) or `adaptive` (shrunk where the squares are smaller than the window).
+    #[arg(long, value_enum, default_value = "opencv")]
+    pub subpix_window: WindowArg,
+}
+
+/// The cornerSubPix window.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum WindowArg {
+    /// OpenCV's sample recipe.
+    #[value(name = "opencv")]
+    OpenCv,
+    /// Shrunk to the squares.
+    #[value(name = "adaptive")]
+    Adaptive,
+}
+
+impl WindowArg {
+    fn window(self) -> SubpixWindow {
+        match self {
+            WindowArg::OpenCv => SubpixWindow::OpenCv,
+            WindowArg::Adaptive => SubpixWindow::Adaptive,
+        }
+    }
+}
+
+impl SolveArgs {
+    fn options(&self) -> Result<(Pattern, CalibrationOptions)> {
+        let pattern = Pattern::parse(&self.pattern)?;
+        let options = CalibrationOptions {
+            model: self.model.kind(),
+            fix_aspect: self.fix_aspect,
+            loss: RobustLoss::parse(&self.loss)?,
+            reject_outliers: self.reject_outliers,
+            ..CalibrationOptions::default()
+        };
+        options.validate()?;
+        Ok((pattern, options))
+    }
+}
+
+/// `ferrocal camera calibrate`.
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    /// Images: files, directories or glob patterns (quoted), any number.
+    #[arg(long, required = true, num_args = 1..)]
+    pub images: Vec<PathBuf>,
+    /// Solver settings.
+    #[command(flatten)]
+    pub solve: SolveArgs,
+    /// Write the report as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the camera as OpenCV FileStorage YAML to this file.
+    #[arg(long)]
+    pub opencv_yaml: Option<PathBuf>,
+    /// Write the camera as ROS camera_info YAML to this file.
+    #[arg(long)]
+    pub ros_yaml: Option<PathBuf>,
+    /// Camera name in the ROS file.
+    #[arg(long, default_value = "camera")]
+    pub camera_name: String,
+}
+
+/// `ferrocal camera stereo`.
+#[derive(Debug, Args)]
+pub struct StereoArgs {
+    /// Left images (files, directories or quoted globs); paired with the right ones by sorted order.
+    #[arg(long, required = true, num_args = 1..)]
+    pub left: Vec<PathBuf>,
+    /// Right images, as many as left ones.
+    #[arg(long, required = true, num_args = 1..)]
+    pub right: Vec<PathBuf>,
+    /// Solver settings.
+    #[command(flatten)]
+    pub solve: SolveArgs,
+    /// Write the report as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the left camera as OpenCV FileStorage YAML.
+    #[arg(long)]
+    pub left_opencv_yaml: Option<PathBuf>,
+    /// Write the right camera as OpenCV FileStorage YAML.
+    #[arg(long)]
+    pub right_opencv_yaml: Option<PathBuf>,
+    /// Write the left camera as ROS camera_info YAML.
+    #[arg(long)]
+    pub left_ros_yaml: Option<PathBuf>,
+    /// Write the right camera as ROS camera_info YAML.
+    #[arg(long)]
+    pub right_ros_yaml: Option<PathBuf>,
+}
+
+/// Runs a camera command.
+pub fn run(cmd: CameraCommand) -> Result<ExitCode> {
+    match cmd {
+        CameraCommand::Calibrate(a) => calibrate(&a),
+        CameraCommand::Stereo(a) => stereo(&a),
+    }
+}
+
+/// Expands files, directories and globs into image paths (natural order, duplicates removed);
+/// a missing path is reported as skipped.
+fn expand(specs: &[PathBuf], skipped: &mut Vec<SkippedImage>) -> Vec<PathBuf> {
+    let mut out: Vec<PathBuf> = Vec::new();
+    for spec in specs {
+        match list_images(spec, &ImageFolderOptions { joints_table: None, decode: false }) {
+            Ok(folder) => {
+                // Unreadable files are kept: the detector reports them with a uniform reason.
+                let mut found: Vec<PathBuf> = folder.images.into_iter().map(|e| e.path).collect();
+                found.extend(folder.skipped.into_iter().map(|s| s.path));
+                found.sort_by(|a, b| {
+                    ferrocal_datasets::import::images::natural_cmp(&a.to_string_lossy(), &b.to_string_lossy())
+                });
+                if found.is_empty() {
+                    skipped.push(SkippedImage { image: spec.clone(), reason: "no image files match".into() });
+                }
+                for p in found {
+                    if !out.contains(&p) {
+                        out.push(p);
+                    }
+                }
+            }
+            Err(e) => skipped.push(SkippedImage { image: spec.clone(), reason: e.to_string() }),
+        }
+    }
+    out
+}
+
+fn report_skipped(skipped: &[SkippedImage]) {
+    for s in skipped {
+        eprintln!("ferrocal: skipped {s}");
+    }
+}
+
+fn skipped_json(skipped: &[SkippedImage]) -> Value {
+    Value::Array(skipped.iter().map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason})).collect())
+}
+
+fn too_few(what: &str, usable: usize, total: usize, skipped: &[SkippedImage]) -> anyhow::Error {
+    let reasons: Vec<String> = skipped.iter().map(ToString::to_string).collect();
+    anyhow::anyhow!(
+        "{what}: {usable} usable view(s) of {total} image(s), at least {MIN_VIEWS} needed{}",
+        if reasons.is_empty() { String::new() } else { format!("; skipped: {}", reasons.join("; ")) }
+    )
+}
+
+fn model_name(kind: DistortionKind) -> &'static str {
+    match kind {
+        DistortionKind::None => "pinhole",
+        DistortionKind::Brown5 => "brown5",
+        DistortionKind::Rational8 => "rational8",
+        DistortionKind::KannalaBrandt => "kannala_brandt",
+    }
+}
+
+/// The camera part of the JSON report (`shared/spec/cli.md`) plus extras.
+fn camera_json(cal: &CameraCalibration) -> Value {
+    let c = &cal.camera;
+    let k = c.intrinsics;
+    let per_view: Vec<Value> = cal
+        .views
+        .iter()
+        .map(|v| {
+            json!({
+                "image": v.name, "rms_px": v.rms_px, "n_corners": v.n_corners, "outlier": v.outlier,
+                "used": v.used, "n_outlier_corners": v.n_outlier_corners,
+            })
+        })
+        .collect();
+    let outliers: Vec<Value> = cal
+        .outlier_corners
+        .iter()
+        .map(|o| json!({"image": o.view, "corner": o.point_id, "residual_px": o.residual_px, "removed": o.removed}))
+        .collect();
+    json!({
+        "image_size": [c.image_size.width_px, c.image_size.height_px],
+        "model": model_name(c.distortion.kind()),
+        "fx": k.fx_px, "fy": k.fy_px, "cx": k.cx_px, "cy": k.cy_px,
+        "distortion": c.distortion.coefficients(),
+        "rms_px": cal.rms_px,
+        "per_view": per_view,
+        "std": {
+            "fx": cal.std[0], "fy": cal.std[1], "cx": cal.std[2], "cy": cal.std[3],
+            "distortion": cal.std[4..].to_vec(),
+        },
+        "outlier_corners": outliers,
+        "summary": {
+            "n_views_used": cal.views.iter().filter(|v| v.used).count(),
+            "n_corners": cal.summary.n_corners,
+            "s0_px": cal.summary.s0_px,
+            "zhang_condition": cal.summary.zhang_condition,
+            "normal_condition": cal.summary.normal_condition,
+            "max_board_angle_deg": cal.summary.max_board_angle_deg,
+            "removed_views": cal.summary.removed_views,
+            "warnings": cal.summary.warnings,
+            "solver_report": cal.summary.solver_report,
+        },
+    })
+}
+
+fn write_json(path: &Path, v: &Value) -> Result<()> {
+    crate::report::write_atomic(path, serde_json::to_string_pretty(v)?.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+fn print_camera(label: &str, cal: &CameraCalibration) {
+    let k = cal.camera.intrinsics;
+    println!(
+        "{label}: fx {:.3} +- {:.3}, fy {:.3} +- {:.3}, cx {:.3} +- {:.3}, cy {:.3} +- {:.3} px; distortion {:?}; RMS {:.4} px over {} views",
+        k.fx_px,
+        cal.std[0],
+        k.fy_px,
+        cal.std[1],
+        k.cx_px,
+        cal.std[2],
+        k.cy_px,
+        cal.std[3],
+        cal.camera.distortion.coefficients(),
+        cal.rms_px,
+        cal.views.iter().filter(|v| v.used).count()
+    );
+    for w in &cal.summary.warnings {
+        eprintln!("ferrocal: warning: {w}");
+    }
+}
+
+fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
+    let (pattern, options) = a.solve.options()?;
+    let mut skipped = Vec::new();
+    let paths = expand(&a.images, &mut skipped);
+    let (slots, detect_skipped) = detect_view_slots(&paths, &pattern, a.solve.subpix_window.window());
+    skipped.extend(detect_skipped);
+    report_skipped(&skipped);
+    let views: Vec<_> = slots.into_iter().flatten().collect();
+    if views.len() < MIN_VIEWS {
+        return Err(too_few("camera calibrate", views.len(), paths.len(), &skipped));
+    }
+    let target = pattern.target();
+    let cal = calibrate_camera(&views, &target, &options).map_err(|e| {
+        anyhow::anyhow!("camera calibrate: {e} ({} usable views of {} images)", views.len(), paths.len())
+    })?;
+    print_camera("camera", &cal);
+    if let Some(p) = &a.json {
+        let mut v = camera_json(&cal);
+        v["pattern"] = json!(pattern.to_string());
+        v["fix_aspect"] = json!(a.solve.fix_aspect);
+        v["skipped"] = skipped_json(&skipped);
+        write_json(p, &v)?;
+    }
+    if let Some(p) = &a.opencv_yaml {
+        io::write_opencv_yaml(&cal.camera, p)?;
+    }
+    if let Some(p) = &a.ros_yaml {
+        io::write_ros_yaml(&cal.camera, &a.camera_name, p)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn stereo(a: &StereoArgs) -> Result<ExitCode> {
+    let (pattern, options) = a.solve.options()?;
+    let mut skipped = Vec::new();
+    let left_paths = expand(&a.left, &mut skipped);
+    let right_paths = expand(&a.right, &mut skipped);
+    if left_paths.len() != right_paths.len() {
+        report_skipped(&skipped);
+        bail!(
+            "camera stereo: {} left and {} right images; the pairs are formed by sorted order, so give as many of each",
+            left_paths.len(),
+            right_paths.len()
+        );
+    }
+    let window = a.solve.subpix_window.window();
+    let (left, ls) = detect_view_slots(&left_paths, &pattern, window);
+    let (right, rs) = detect_view_slots(&right_paths, &pattern, window);
+    skipped.extend(ls);
+    skipped.extend(rs);
+    report_skipped(&skipped);
+    let n_left = left.iter().flatten().count();
+    let n_right = right.iter().flatten().count();
+    if n_left < MIN_VIEWS || n_right < MIN_VIEWS {
+        let (side, n, total) =
+            if n_left < MIN_VIEWS { ("left", n_left, left_paths.len()) } else { ("right", n_right, right_paths.len()) };
+        return Err(too_few(&format!("camera stereo ({side} camera)"), n, total, &skipped));
+    }
+    let n_pairs = left.iter().zip(&right).filter(|(l, r)| l.is_some() && r.is_some()).count();
+    if n_pairs == 0 {
+        bail!("camera stereo: the pattern was never found in both images of a pair");
+    }
+    let target = pattern.target();
+    let st = calibrate_stereo(&left, &right, &target, &options).map_err(|e| anyhow::anyhow!("camera stereo: {e}"))?;
+    print_camera("left", st.left());
+    print_camera("right", st.right());
+    println!(
+        "T_right_left: rotation {:.4?} deg (std {:.4?}), translation {:.3?} mm (std {:.3?}), baseline {:.3} +- {:.3} mm; RMS {:.4} px ({n_pairs} pairs)",
+        st.rotation_deg.as_slice(),
+        st.rotation_std_deg.as_slice(),
+        st.translation_mm.as_slice(),
+        st.translation_std_mm.as_slice(),
+        st.baseline_mm,
+        st.baseline_std_mm,
+        st.calibration.rms_px
+    );
+    if let Some(p) = &a.json {
+        let v = json!({
+            "left": camera_json(st.left()),
+            "right": camera_json(st.right()),
+            "rotation_deg": st.rotation_deg.as_slice(),
+            "translation_mm": st.translation_mm.as_slice(),
+            "rms_px": st.calibration.rms_px,
+            "rotation_std_deg": st.rotation_std_deg.as_slice(),
+            "translation_std_mm": st.translation_std_mm.as_slice(),
+            "baseline_mm": st.baseline_mm,
+            "baseline_std_mm": st.baseline_std_mm,
+            "rms_left_px": st.left().rms_px,
+            "rms_right_px": st.right().rms_px,
+            "convention": "T_right_left (OpenCV stereoCalibrate R, T): p_right = R p_left + T; rotation as a rotation vector",
+            "n_pairs": n_pairs,
+            "n_views": st.calibration.n_views,
+            "s0_px": st.calibration.s0_px,
+            "reversed_views": st.calibration.reversed_views.iter().map(|(k, n)| json!({"camera": k, "image": n})).collect::<Vec<_>>(),
+            "pattern": pattern.to_string(),
+            "fix_aspect": a.solve.fix_aspect,
+            "skipped": skipped_json(&skipped),
+            "solver_report": st.calibration.solver_report,
+        });
+        write_json(p, &v)?;
+    }
+    for (cal, path, ros, name) in [
+        (st.left(), &a.left_opencv_yaml, &a.left_ros_yaml, "left"),
+        (st.right(), &a.right_opencv_yaml, &a.right_ros_yaml, "right"),
+    ] {
+        if let Some(p) = path {
+            io::write_opencv_yaml(&cal.camera, p)?;
+        }
+        if let Some(p) = ros {
+            io::write_ros_yaml(&cal.camera, name, p)?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,447 @@
+//! The bundle adjustment behind every calibration: camera parameter blocks, rig extrinsics and
+//! target poses solved by Ceres with analytic Jacobians, then the covariance of the camera and
+//! rig parameters with the target poses marginalised (Schur complement of the normal matrix).
+//!
+//! # State layout
+//! Blocks, in this order (the "global" part first, then the "local" part):
+//! 1. one block per camera: its *free* parameters, `fx fy cx cy k...` in
+//!    [`crate::camera::CameraModel::parameters`] order, or `f cx cy k...` with a fixed aspect ratio
+//!    (`fx = f`, `fy = a f`);
+//! 2. one block per camera 1.. : `[w, t]` of `T_cam_cam0` (left increment, radians; metres);
+//! 3. one block per view: `[w, t]` of `T_cam0_target`.
+//!
+//! [`Bundle::global_index`] gives the offset of a camera's or an extrinsic's block in the
+//! global covariance. Measurements: one residual block per corner and camera, `projected -
+//! observed` in pixels (two rows), with the robust loss applied to its squared length.
+
+use ceres_solver::solver::LinearSolverType;
+use ceres_solver::{CostFunctionType, LossFunction, NllsProblem, ParameterBlockOrIndex, SolverOptions};
+use nalgebra::{DMatrix, Matrix2xX, Matrix6, Point2, Point3, Vector2};
+
+use super::RobustLoss;
+use crate::camera::{CameraModel, Distortion, DistortionKind, ImageSize, Intrinsics};
+use crate::error::{Result, VisionError};
+use crate::pose::{observe, LocalPose};
+
+/// How a camera's parameters are optimised.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct CameraLayout {
+    pub kind: DistortionKind,
+    /// `fy = aspect * fx` held fixed.
+    pub fix_aspect: bool,
+    /// The fixed ratio `fy / fx` (1 unless the caller says otherwise).
+    pub aspect: f64,
+    pub image_size: ImageSize,
+}
+
+impl CameraLayout {
+    pub fn n_model(&self) -> usize {
+        4 + self.kind.coefficient_names().len()
+    }
+
+    pub fn n_free(&self) -> usize {
+        self.n_model() - usize::from(self.fix_aspect)
+    }
+
+    pub fn free_from_model(&self, m: &CameraModel) -> Vec<f64> {
+        let k = &m.intrinsics;
+        let mut v =
+            if self.fix_aspect { vec![k.fx_px, k.cx_px, k.cy_px] } else { vec![k.fx_px, k.fy_px, k.cx_px, k.cy_px] };
+        v.extend(m.distortion.coefficients());
+        v
+    }
+
+    /// The camera of free parameters `p` (not validated: the optimiser may pass through odd
+    /// values; projection fails where they make no sense).
+    pub fn model(&self, p: &[f64]) -> Result<CameraModel> {
+        let (intr, d) = if self.fix_aspect {
+            (Intrinsics { fx_px: p[0], fy_px: self.aspect * p[0], cx_px: p[1], cy_px: p[2] }, &p[3..])
+        } else {
+            (Intrinsics { fx_px: p[0], fy_px: p[1], cx_px: p[2], cy_px: p[3] }, &p[4..])
+        };
+        Ok(CameraModel {
+            intrinsics: intr,
+            distortion: Distortion::from_coefficients(self.kind, d)?,
+            image_size: self.image_size,
+        })
+    }
+
+    /// `d(model parameters) / d(free parameters)` (n_model x n_free, constant).
+    pub fn free_to_model(&self) -> DMatrix<f64> {
+        let (nm, nf) = (self.n_model(), self.n_free());
+        let mut m = DMatrix::zeros(nm, nf);
+        if self.fix_aspect {
+            m[(0, 0)] = 1.0;
+            m[(1, 0)] = self.aspect;
+            for i in 2..nm {
+                m[(i, i - 1)] = 1.0;
+            }
+        } else {
+            for i in 0..nm {
+                m[(i, i)] = 1.0;
+            }
+        }
+        m
+    }
+
+    /// Jacobian with respect to the free parameters from the one with respect to the model's.
+    pub fn free_jacobian(&self, d_model: &Matrix2xX<f64>) -> Matrix2xX<f64> {
+        if !self.fix_aspect {
+            return d_model.clone();
+        }
+        let n = self.n_free();
+        let mut j = Matrix2xX::zeros(n);
+        for r in 0..2 {
+            j[(r, 0)] = d_model[(r, 0)] + self.aspect * d_model[(r, 1)];
+            for c in 1..n {
+                j[(r, c)] = d_model[(r, c + 1)];
+            }
+        }
+        j
+    }
+}
+
+/// One corner seen by one camera in one view.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Obs {
+    pub cam: usize,
+    pub view: usize,
+    /// Index of the point in the target (for reports).
+    pub point_id: usize,
+    pub point: Point3<f64>,
+    pub pixel: Point2<f64>,
+}
+
+/// A bundle-adjustment problem (see the module documentation for the layout).
+#[derive(Clone, Debug)]
+pub(crate) struct Bundle {
+    pub layouts: Vec<CameraLayout>,
+    /// Free parameters of every camera.
+    pub cameras: Vec<Vec<f64>>,
+    /// `T_cam_cam0` of cameras 1.. .
+    pub extrinsics: Vec<LocalPose>,
+    /// `T_cam0_target` of every view.
+    pub views: Vec<LocalPose>,
+    pub obs: Vec<Obs>,
+    pub loss: RobustLoss,
+}
+
+/// The marginal covariance of the global parameters.
+#[derive(Clone, Debug)]
+pub(crate) struct GlobalCovariance {
+    /// `s0^2 S^-1`, S the Schur complement of the view blocks (free parameters).
+    pub covariance: DMatrix<f64>,
+    /// A-posteriori standard error of unit weight, pixels.
+    pub s0_px: f64,
+    /// Condition number of the correlation-scaled Schur complement.
+    pub condition: f64,
+}
+
+/// Weight `rho'(s)` of a residual with squared length `s` under the loss.
+pub(crate) fn loss_weight(loss: RobustLoss, s: f64) -> f64 {
+    match loss {
+        RobustLoss::None => 1.0,
+        RobustLoss::Huber { scale_px } => {
+            if s <= scale_px * scale_px {
+                1.0
+            } else {
+                scale_px / s.sqrt()
+            }
+        }
+        RobustLoss::Cauchy { scale_px } => 1.0 / (1.0 + s / (scale_px * scale_px)),
+    }
+}
+
+fn solver_failed(detail: impl Into<String>) -> VisionError {
+    VisionError::SolverFailed { stage: "bundle adjustment".into(), detail: detail.into() }
+}
+
+impl Bundle {
+    pub fn n_global(&self) -> usize {
+        self.layouts.iter().map(CameraLayout::n_free).sum::<usize>() + 6 * self.extrinsics.len()
+    }
+
+    /// Offset of camera `k`'s free parameters in the global vector.
+    pub fn global_index_camera(&self, k: usize) -> usize {
+        self.layouts[..k].iter().map(CameraLayout::n_free).sum()
+    }
+
+    /// Offset of `T_cam_cam0` of camera `k >= 1` in the global vector.
+    pub fn global_index_extrinsic(&self, k: usize) -> usize {
+        self.layouts.iter().map(CameraLayout::n_free).sum::<usize>() + 6 * (k - 1)
+    }
+
+    pub fn camera_model(&self, k: usize) -> Result<CameraModel> {
+        self.layouts[k].model(&self.cameras[k])
+    }
+
+    /// Solves with Ceres; rotation increments are folded into their references afterwards and
+    /// the problem re-solved while an increment came out larger than 0.3 rad (at most 4
+    /// rounds). Returns Ceres' brief report of the last round and the iterations in all.
+    pub fn solve(&mut self, max_iterations: usize) -> Result<(String, usize)> {
+        let mut report = String::new();
+        let mut iterations = 0;
+        for _round in 0..4 {
+            let (r, it, max_w) = self.solve_once(max_iterations)?;
+            report = r;
+            iterations += it;
+            if max_w < 0.3 {
+                break;
+            }
+        }
+        Ok((report, iterations))
+    }
+
+    fn solve_once(&mut self, max_iterations: usize) -> Result<(String, usize, f64)> {
+        let nc = self.cameras.len();
+        let ne = self.extrinsics.len();
+        let n_blocks = nc + ne + self.views.len();
+        let mut ceres_index: Vec<Option<usize>> = vec![None; n_blocks];
+        let mut next = 0usize;
+        let mut problem = NllsProblem::new();
+        for o in &self.obs {
+            let layout = self.layouts[o.cam];
+            let ext_ref = (o.cam > 0).then(|| self.extrinsics[o.cam - 1].r_ref);
+            let view_ref = self.views[o.view].r_ref;
+            let (point, pixel) = (o.point, o.pixel);
+            let cost: CostFunctionType =
+                Box::new(move |p: &[&[f64]], res: &mut [f64], jac: Option<&mut [Option<&mut [&mut [f64]]>]>| {
+                    let Ok(camera) = layout.model(p[0]) else { return false };
+                    let (ext, view_block) = match ext_ref {
+                        Some(r) => (
+                            Some(LocalPose { r_ref: r, w: Default::default(), t: Default::default() }.with_block(p[1])),
+                            p[2],
+                        ),
+                        None => (None, p[1]),
+                    };
+                    let view = LocalPose { r_ref: view_ref, w: Default::default(), t: Default::default() }
+                        .with_block(view_block);
+                    let Ok(ob) = observe(&camera, ext.as_ref(), &view, &point, &pixel) else { return false };
+                    if !(ob.residual.x.is_finite() && ob.residual.y.is_finite()) {
+                        return false;
+                    }
+                    res[0] = ob.residual.x;
+                    res[1] = ob.residual.y;
+                    if let Some(jac) = jac {
+                        if let Some(d) = &mut jac[0] {
+                            let jf = layout.free_jacobian(&ob.d_model);
+                            for r in 0..2 {
+                                for c in 0..jf.ncols() {
+                                    d[r][c] = jf[(r, c)];
+                                }
+                            }
+                        }
+                        let view_slot = if ext.is_some() {
+                            if let Some(d) = &mut jac[1] {
+                                for r in 0..2 {
+                                    for c in 0..6 {
+                                        d[r][c] = ob.d_ext[(r, c)];
+                                    }
+                                }
+                            }
+                            2
+                        } else {
+                            1
+                        };
+                        if let Some(d) = &mut jac[view_slot] {
+                            for r in 0..2 {
+                                for c in 0..6 {
+                                    d[r][c] = ob.d_view[(r, c)];
+                                }
+                            }
+                        }
+                    }
+                    true
+                });
+            let mut ids = vec![o.cam];
+            if o.cam > 0 {
+                ids.push(nc + o.cam - 1);
+            }
+            ids.push(nc + ne + o.view);
+            let mut params: Vec<ParameterBlockOrIndex> = Vec::with_capacity(ids.len());
+            for &id in &ids {
+                match ceres_index[id] {
+                    Some(i) => params.push(i.into()),
+                    None => {
+                        ceres_index[id] = Some(next);
+                        next += 1;
+                        params.push(self.block_values(id).into());
+                    }
+                }
+            }
+            let mut builder = problem.residual_block_builder().set_cost(cost, 2).set_parameters(params);
+            builder = match self.loss {
+                RobustLoss::None => builder,
+                RobustLoss::Huber { scale_px } => builder.set_loss(LossFunction::huber(scale_px)),
+                RobustLoss::Cauchy { scale_px } => builder.set_loss(LossFunction::cauchy(scale_px)),
+            };
+            problem = builder.build_into_problem().map_err(|e| solver_failed(e.to_string()))?.0;
+        }
+        let options = SolverOptions::builder()
+            .max_num_iterations(max_iterations as i32)
+            .function_tolerance(1e-14)
+            .gradient_tolerance(1e-16)
+            .parameter_tolerance(1e-14)
+            .linear_solver_type(LinearSolverType::DENSE_QR)
+            .build()
+            .map_err(|e| solver_failed(e.to_string()))?;
+        let solution = problem.solve(&options).map_err(|e| solver_failed(e.to_string()))?;
+        let summary = &solution.summary;
+        if !summary.is_solution_usable() {
+            return Err(solver_failed(summary.brief_report()));
+        }
+        let iterations = (summary.num_successful_steps() + summary.num_unsuccessful_steps()).max(0) as usize;
+        let report = summary.brief_report();
+        let mut max_w: f64 = 0.0;
+        for (id, idx) in ceres_index.iter().enumerate() {
+            let Some(i) = idx else { continue };
+            let values = &solution.parameters[*i];
+            if id < nc {
+                self.cameras[id].copy_from_slice(values);
+            } else if id < nc + ne {
+                let e = &mut self.extrinsics[id - nc];
+                *e = e.with_block(values);
+                max_w = max_w.max(e.w.norm());
+                e.rebase();
+            } else {
+                let v = &mut self.views[id - nc - ne];
+                *v = v.with_block(values);
+                max_w = max_w.max(v.w.norm());
+                v.rebase();
+            }
+        }
+        Ok((report, iterations, max_w))
+    }
+
+    fn block_values(&self, id: usize) -> Vec<f64> {
+        let nc = self.cameras.len();
+        let ne = self.extrinsics.len();
+        if id < nc {
+            self.cameras[id].clone()
+        } else if id < nc + ne {
+            self.extrinsics[id - nc].block().to_vec()
+        } else {
+            self.views[id - nc - ne].block().to_vec()
+        }
+    }
+
+    /// Residuals (`projected - observed`, pixels) of every observation; `None` where the
+    /// point cannot be projected.
+    pub fn residuals(&self) -> Result<Vec<Option<Vector2<f64>>>> {
+        self.residuals_of(&self.obs)
+    }
+
+    /// Residuals of any observations (also ones not in the bundle) at the current state.
+    pub fn residuals_of(&self, obs: &[Obs]) -> Result<Vec<Option<Vector2<f64>>>> {
+        let models: Vec<CameraModel> = (0..self.cameras.len()).map(|k| self.camera_model(k)).collect::<Result<_>>()?;
+        Ok(obs
+            .iter()
+            .map(|o| {
+                let ext = (o.cam > 0).then(|| self.extrinsics[o.cam - 1]);
+                observe(&models[o.cam], ext.as_ref(), &self.views[o.view], &o.point, &o.pixel)
+                    .ok()
+                    .map(|ob| ob.residual)
+            })
+            .collect())
+    }
+
+    /// The covariance of the global parameters (cameras' free parameters, then extrinsics),
+    /// the view poses marginalised: `s0^2 (N_gg - sum_v N_gv N_vv^-1 N_vg)^-1` with the
+    /// robust loss as weights `rho'(|r|^2)` and `s0^2 = sum w |r|^2 / (m - n)`.
+    pub fn global_covariance(&self) -> Result<GlobalCovariance> {
+        let ng = self.n_global();
+        let nv = self.views.len();
+        let models: Vec<CameraModel> = (0..self.cameras.len()).map(|k| self.camera_model(k)).collect::<Result<_>>()?;
+        let mut n_gg = DMatrix::<f64>::zeros(ng, ng);
+        let mut n_gv: Vec<DMatrix<f64>> = vec![DMatrix::zeros(ng, 6); nv];
+        let mut n_vv: Vec<Matrix6<f64>> = vec![Matrix6::zeros(); nv];
+        let mut used = vec![0usize; nv];
+        let mut sum_wr2 = 0.0;
+        let mut m = 0usize;
+        for o in &self.obs {
+            let ext = (o.cam > 0).then(|| self.extrinsics[o.cam - 1]);
+            let ob = observe(&models[o.cam], ext.as_ref(), &self.views[o.view], &o.point, &o.pixel)?;
+            let s = ob.residual.norm_squared();
+            let w = loss_weight(self.loss, s);
+            sum_wr2 += w * s;
+            m += 2;
+            used[o.view] += 1;
+            let mut jg = DMatrix::<f64>::zeros(2, ng);
+            let jf = self.layouts[o.cam].free_jacobian(&ob.d_model);
+            let off = self.global_index_camera(o.cam);
+            jg.view_mut((0, off), (2, jf.ncols())).copy_from(&jf);
+            if o.cam > 0 {
+                let off = self.global_index_extrinsic(o.cam);
+                jg.view_mut((0, off), (2, 6)).copy_from(&ob.d_ext);
+            }
+            let jgt = jg.transpose();
+            n_gg += w * &jgt * &jg;
+            let jv = DMatrix::from_column_slice(2, 6, ob.d_view.as_slice());
+            n_gv[o.view] += w * &jgt * &jv;
+            n_vv[o.view] += w * ob.d_view.transpose() * ob.d_view;
+        }
+        let active = used.iter().filter(|&&u| u > 0).count();
+        let n = ng + 6 * active;
+        if m <= n {
+            return Err(VisionError::TooFewViews {
+                usable: active,
+                needed: active + 1,
+                detail: format!("{m} measurements for {n} unknowns: no redundancy left to estimate the noise"),
+            });
+        }
+        let mut s = n_gg;
+        for v in 0..nv {
+            if used[v] == 0 {
+                continue;
+            }
+            let inv = n_vv[v].try_inverse().ok_or_else(|| VisionError::DegenerateViews {
+                detail: format!("view {v}: its corners do not determine the target pose"),
+            })?;
+            let inv = DMatrix::from_column_slice(6, 6, inv.as_slice());
+            s -= &n_gv[v] * inv * n_gv[v].transpose();
+        }
+        let s = 0.5 * (&s + s.transpose());
+        let d: Vec<f64> = (0..ng).map(|i| s[(i, i)]).collect();
+        if d.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+            return Err(VisionError::DegenerateViews {
+                detail: format!(
+                    "a camera parameter has no influence on the corners (zero row in the normal matrix; state {:?})",
+                    self.cameras
+                ),
+            });
+        }
+        let mut scaled = s.clone();
+        for i in 0..ng {
+            for j in 0..ng {
+                scaled[(i, j)] /= (d[i] * d[j]).sqrt();
+            }
+        }
+        let eig = nalgebra::SymmetricEigen::new(scaled.clone());
+        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+        for &e in eig.eigenvalues.iter() {
+            lo = lo.min(e);
+            hi = hi.max(e);
+        }
+        let condition = if lo > 0.0 { hi / lo } else { f64::INFINITY };
+        if condition.is_nan() || condition >= 1e14 {
+            return Err(VisionError::DegenerateViews {
+                detail: format!(
+                    "the views do not determine all camera parameters (condition number of the scaled normal \
+                     matrix {condition:.2e}); take views with the board tilted about different axes and \
+                     covering the image"
+                ),
+            });
+        }
+        let inv_scaled = scaled.cholesky().map(|c| c.inverse()).ok_or_else(|| VisionError::DegenerateViews {
+            detail: "the normal matrix of the camera parameters is not positive definite".into(),
+        })?;
+        let s0_sq = sum_wr2 / (m - n) as f64;
+        let mut cov = inv_scaled;
+        for i in 0..ng {
+            for j in 0..ng {
+                cov[(i, j)] *= s0_sq / (d[i] * d[j]).sqrt();
+            }
+        }
+        Ok(GlobalCovariance { covariance: cov, s0_px: s0_sq.sqrt(), condition })
+    }
+}

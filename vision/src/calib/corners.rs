@@ -1,0 +1,228 @@
+//! Chessboard corners from OpenCV (`findChessboardCorners` + `cornerSubPix`, 11 x 11 window,
+//! stop at 30 iterations or a move below 0.1 px), the recipe that reproduces OpenCV's
+//! published calibration of its stereo sample; the window shrinks on boards whose squares are
+//! smaller than the window when asked ([`SubpixWindow::Adaptive`]). It stands in until ferrocal's own detector
+//! (`crate::detect`) lands; swap the call, not the calibration.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Point2;
+
+use crate::camera::ImageSize;
+use crate::error::{Result, VisionError};
+
+/// The corners found in one image, row by row (OpenCV's order), pixel-centre convention.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageCorners {
+    /// The image file.
+    pub image: PathBuf,
+    /// Its size.
+    pub image_size: ImageSize,
+    /// The inner corners, pixels.
+    pub corners_px: Vec<Point2<f64>>,
+}
+
+fn unusable(path: &Path, reason: impl Into<String>) -> VisionError {
+    VisionError::ImageUnusable { image: path.to_path_buf(), reason: reason.into() }
+}
+
+/// The `cornerSubPix` window.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SubpixWindow {
+    /// OpenCV's sample recipe: half-size 11 (23 x 23 px) whatever the square size; reproduces
+    /// OpenCV's published calibrations.
+    #[default]
+    OpenCv,
+    /// Half-size 11 shrunk to 40 % of the smallest corner spacing where the squares are smaller
+    /// ([`subpix_half_window`]), so the window never reaches the neighbouring corners.
+    Adaptive,
+}
+
+/// Reads an image (greyscale) and finds a chessboard of `inner_cols x inner_rows` inner corners
+/// with OpenCV's sample recipe ([`SubpixWindow::OpenCv`]). Errors name the image: missing or
+/// unreadable file, empty file, empty image, chessboard not found.
+pub fn chessboard_corners_opencv(path: &Path, inner_cols: u32, inner_rows: u32) -> Result<ImageCorners> {
+    chessboard_corners_opencv_with(path, inner_cols, inner_rows, SubpixWindow::OpenCv)
+}
+
+/// [`chessboard_corners_opencv`] with a choice of the `cornerSubPix` window.
+pub fn chessboard_corners_opencv_with(
+    path: &Path,
+    inner_cols: u32,
+    inner_rows: u32,
+    window: SubpixWindow,
+) -> Result<ImageCorners> {
+    use opencv::prelude::*;
+    let meta = std::fs::metadata(path).map_err(|e| unusable(path, format!("cannot open: {e}")))?;
+    if meta.len() == 0 {
+        return Err(unusable(path, "empty file (0 bytes)"));
+    }
+    let img = opencv::imgcodecs::imread(path, opencv::imgcodecs::IMREAD_GRAYSCALE)
+        .map_err(|e| unusable(path, format!("cannot decode: {e}")))?;
+    if img.empty() || img.cols() <= 0 || img.rows() <= 0 {
+        return Err(unusable(path, "cannot decode: not an image OpenCV can read, or truncated"));
+    }
+    let image_size = ImageSize { width_px: img.cols() as u32, height_px: img.rows() as u32 };
+    let corners =
+        find_in_mat(&img, inner_cols, inner_rows, window).map_err(|e| unusable(path, format!("OpenCV: {e}")))?;
+    match corners {
+        Some(corners_px) => Ok(ImageCorners { image: path.to_path_buf(), image_size, corners_px }),
+        None => Err(unusable(
+            path,
+            format!(
+                "chessboard with {inner_cols}x{inner_rows} inner corners not found (is the whole board in view, \
+                 and are cols x rows the inner corners?)"
+            ),
+        )),
+    }
+}
+
+/// The same on an 8-bit greyscale image in memory (`None` when the board is not found).
+pub fn chessboard_corners_opencv_gray(
+    image: &image::GrayImage,
+    inner_cols: u32,
+    inner_rows: u32,
+    window: SubpixWindow,
+) -> Result<Option<Vec<Point2<f64>>>> {
+    use opencv::core::{Mat, CV_8UC1};
+    use opencv::prelude::*;
+    let (w, h) = image.dimensions();
+    let to_err = |e: opencv::Error| VisionError::InvalidInput { detail: format!("OpenCV: {e}") };
+    let mut mat =
+        Mat::new_rows_cols_with_default(h as i32, w as i32, CV_8UC1, opencv::core::Scalar::all(0.0)).map_err(to_err)?;
+    mat.data_bytes_mut().map_err(to_err)?.copy_from_slice(image.as_raw());
+    find_in_mat(&mat, inner_cols, inner_rows, window).map_err(to_err)
+}
+
+/// Half-size of the `cornerSubPix` window: OpenCV's 11 (a 23 x 23 px window) unless the
+/// closest two corners are nearer than 2.5 times that; then 40 % of their distance (at least 2).
+pub fn subpix_half_window(corner_spacing_px: f64) -> i32 {
+    if !(corner_spacing_px.is_finite()) || corner_spacing_px >= 27.5 {
+        11
+    } else {
+        ((0.4 * corner_spacing_px).floor() as i32).clamp(2, 11)
+    }
+}
+
+fn find_in_mat(
+    img: &opencv::core::Mat,
+    inner_cols: u32,
+    inner_rows: u32,
+    window: SubpixWindow,
+) -> opencv::Result<Option<Vec<Point2<f64>>>> {
+    use opencv::core::{Point2f, Size, TermCriteria, Vector};
+    let size = Size::new(inner_cols as i32, inner_rows as i32);
+    let mut corners: Vector<Point2f> = Vector::new();
+    let found = opencv::calib3d::find_chessboard_corners(
+        img,
+        size,
+        &mut corners,
+        opencv::calib3d::CALIB_CB_ADAPTIVE_THRESH | opencv::calib3d::CALIB_CB_NORMALIZE_IMAGE,
+    )?;
+    if !found || corners.len() != (inner_cols * inner_rows) as usize {
+        return Ok(None);
+    }
+    // OpenCV's 11 x 11 half-window (23 x 23 px), shrunk where the squares are smaller so that
+    // the window never reaches the neighbouring corners.
+    let pts: Vec<(f64, f64)> = corners.iter().map(|p| (f64::from(p.x), f64::from(p.y))).collect();
+    let dist = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).hypot(a.1 - b.1);
+    let mut spacing = f64::INFINITY;
+    for r in 0..inner_rows as usize {
+        for c in 0..inner_cols as usize {
+            let i = r * inner_cols as usize + c;
+            if c + 1 < inner_cols as usize {
+                spacing = spacing.min(dist(pts[i], pts[i + 1]));
+            }
+            if r + 1 < inner_rows as usize {
+                spacing = spacing.min(dist(pts[i], pts[i + inner_cols as usize]));
+            }
+        }
+    }
+    let half = match window {
+        SubpixWindow::OpenCv => 11,
+        SubpixWindow::Adaptive => subpix_half_window(spacing),
+    };
+    let criteria = TermCriteria::new(opencv::core::TermCriteria_COUNT + opencv::core::TermCriteria_EPS, 30, 0.1)?;
+    opencv::imgproc::corner_sub_pix(img, &mut corners, Size::new(half, half), Size::new(-1, -1), criteria)?;
+    Ok(Some(corners.iter().map(|p| Point2::new(f64::from(p.x), f64::from(p.y))).collect()))
+}
+
+/// An image left out of a calibration, and why.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SkippedImage {
+    /// The image file.
+    pub image: PathBuf,
+    /// Why it was left out.
+    pub reason: String,
+}
+
+impl std::fmt::Display for SkippedImage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.image.display(), self.reason)
+    }
+}
+
+/// Finds the pattern in every image, one slot per path (`None` where the image is unusable).
+/// A bad image (missing, empty, undecodable, pattern not found) never stops the batch: it is
+/// listed in the second result with the reason. Images whose size differs from the most common
+/// size (ties: the first seen) are left out too, with the sizes in the reason.
+pub fn detect_view_slots(
+    paths: &[PathBuf],
+    pattern: &super::Pattern,
+    window: SubpixWindow,
+) -> (Vec<Option<super::View>>, Vec<SkippedImage>) {
+    let super::Pattern::Chessboard { inner_cols, inner_rows, .. } = *pattern;
+    let mut slots = Vec::with_capacity(paths.len());
+    let mut skipped = Vec::new();
+    for p in paths {
+        match chessboard_corners_opencv_with(p, inner_cols, inner_rows, window) {
+            Ok(c) => slots.push(Some(super::View::new(p.display().to_string(), c.image_size, c.corners_px))),
+            Err(VisionError::ImageUnusable { image, reason }) => {
+                skipped.push(SkippedImage { image, reason });
+                slots.push(None);
+            }
+            Err(e) => {
+                skipped.push(SkippedImage { image: p.clone(), reason: e.to_string() });
+                slots.push(None);
+            }
+        }
+    }
+    // The most common image size wins.
+    let mut counts: Vec<(ImageSize, usize)> = Vec::new();
+    for v in slots.iter().flatten() {
+        match counts.iter_mut().find(|(s, _)| *s == v.image_size) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((v.image_size, 1)),
+        }
+    }
+    if counts.len() > 1 {
+        let (main, n_main) = counts.iter().fold(counts[0], |best, c| if c.1 > best.1 { *c } else { best });
+        for (slot, path) in slots.iter_mut().zip(paths) {
+            if let Some(v) = slot {
+                if v.image_size != main {
+                    skipped.push(SkippedImage {
+                        image: path.clone(),
+                        reason: format!(
+                            "image is {}x{} but {n_main} other image(s) are {}x{}: one calibration needs one image size \
+                             (calibrate each camera and resolution separately)",
+                            v.image_size.width_px, v.image_size.height_px, main.width_px, main.height_px
+                        ),
+                    });
+                    *slot = None;
+                }
+            }
+        }
+    }
+    (slots, skipped)
+}
+
+/// [`detect_view_slots`] without the empty slots.
+pub fn detect_views(
+    paths: &[PathBuf],
+    pattern: &super::Pattern,
+    window: SubpixWindow,
+) -> (Vec<super::View>, Vec<SkippedImage>) {
+    let (slots, skipped) = detect_view_slots(paths, pattern, window);
+    (slots.into_iter().flatten().collect(), skipped)
+}

@@ -1,0 +1,706 @@
+//! Camera calibration from views of a planar target: one camera ([`calibrate_camera`]) and a rig
+//! of cameras that see the same target poses ([`calibrate_stereo`], [`calibrate_rig`]).
+//!
+//! Method (one camera):
+//! 1. per view, the plane-to-image homography by the normalised DLT
+//!    ([`crate::pose::homography`]);
+//! 2. Zhang's closed form for `fx fy cx cy` (zero skew, optionally `fx = fy`), with a check that
+//!    the views determine them at all (parallel boards do not); the target poses from the
+//!    homographies; distortion zero;
+//! 3. a bundle adjustment (Ceres, analytic Jacobians, optional Huber / Cauchy loss) of the
+//!    camera parameters and every target pose, rotations as left increments around the current
+//!    estimate ([`crate::pose::so3`]);
+//! 4. per-view RMS, outlier views (RMS and median corner error above
+//!    [`CalibrationOptions::outlier_view_factor`] times the median over views) and outlier corners (beyond [`CalibrationOptions::outlier_corner_sigmas`]
+//!    robust standard deviations), optionally removed and the problem re-solved;
+//! 5. the covariance `s0^2 (J^T J)^-1` of the camera parameters with the poses marginalised
+//!    (Schur complement), and from it the standard deviation of every parameter.
+//!
+//! A rig: every camera calibrated alone as above, `T_cam_cam0` started from the median of the
+//! per-view relative poses, then one bundle adjustment of all cameras' parameters, the rig's
+//! extrinsics and one target pose per view (shared by the cameras that see it).
+//!
+//! Entry points: [`calibrate_camera`], [`calibrate_stereo`], [`calibrate_rig`]; the inputs
+//! [`PlanarTarget`], [`View`], [`CalibrationOptions`]; [`Pattern`] strings; OpenCV corners
+//! for real images in [`corners`].
+//!
+//! # Conventions
+//! Pixel `(0, 0)` is the centre of the top-left pixel. Target points in metres in the target
+//! frame (on a plane). `T_a_b` maps frame `b` into frame `a`; a view's pose is
+//! `T_cam_target`. Stereo results are `T_right_left` (OpenCV's `R`, `T` of
+//! `stereoCalibrate`: `p_right = R p_left + T`). RMS values are the root mean square of the
+//! corners' 2D reprojection error lengths, as OpenCV reports them.
+
+mod bundle;
+pub mod corners;
+mod pattern;
+mod stereo;
+mod zhang;
+
+#[cfg(test)]
+mod tests;
+
+use nalgebra::{DMatrix, Isometry3, Point2, Point3};
+use serde::{Deserialize, Serialize};
+
+pub use pattern::Pattern;
+pub use stereo::{calibrate_rig, calibrate_stereo, RigCalibration, StereoCalibration};
+
+use crate::camera::{CameraModel, Distortion, DistortionKind, ImageSize};
+use crate::error::{Result, VisionError};
+use crate::pose::{homography, plane_frame, LocalPose};
+use bundle::{Bundle, CameraLayout, Obs};
+
+/// Fewest views a calibration accepts.
+pub const MIN_VIEWS: usize = 3;
+
+/// Zhang's system is called degenerate below this ratio of its second-smallest to its largest
+/// singular value (after normalisation): views of parallel boards give about the corner noise
+/// relative to the image size (1e-4 and below), well-tilted views 1e-2 and above.
+pub const MIN_ZHANG_CONDITION: f64 = 1.5e-3;
+
+/// Views whose board normals all lie within this angle (degrees) of each other cannot tell
+/// focal length from distance.
+pub const MIN_BOARD_ANGLE_DEG: f64 = 5.0;
+
+/// A planar calibration target.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlanarTarget {
+    /// The points in the target frame, metres, all on one plane.
+    pub points_m: Vec<Point3<f64>>,
+    /// Whether reversing the point order is a symmetry of the target (true for a chessboard
+    /// grid: a detector may number its corners from either end). Stereo calibration then
+    /// makes the numbering of every view consistent between the cameras.
+    pub reversible: bool,
+}
+
+impl PlanarTarget {
+    /// A chessboard's inner corners, `(col * square, row * square, 0)` row by row.
+    pub fn chessboard(inner_cols: u32, inner_rows: u32, square_m: f64) -> Self {
+        Pattern::Chessboard { inner_cols, inner_rows, square_m }.target()
+    }
+
+    /// Checks that there are at least four finite points on a plane.
+    pub fn validate(&self) -> Result<()> {
+        if self.points_m.len() < 4 {
+            return Err(VisionError::InvalidInput {
+                detail: format!("a target needs at least 4 points, this one has {}", self.points_m.len()),
+            });
+        }
+        if self.points_m.iter().any(|p| !p.coords.iter().all(|v| v.is_finite())) {
+            return Err(VisionError::InvalidInput { detail: "target point not finite".into() });
+        }
+        plane_frame(&self.points_m).map(|_| ())
+    }
+}
+
+/// The corners one camera saw of the target in one image.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct View {
+    /// A name for messages and reports (usually the image path).
+    pub name: String,
+    /// The image size.
+    pub image_size: ImageSize,
+    /// Which target point each corner is.
+    pub point_ids: Vec<usize>,
+    /// The corners, pixels.
+    pub corners_px: Vec<Point2<f64>>,
+}
+
+impl View {
+    /// A view of all target points, in the target's order.
+    pub fn new(name: impl Into<String>, image_size: ImageSize, corners_px: Vec<Point2<f64>>) -> Self {
+        let point_ids = (0..corners_px.len()).collect();
+        Self { name: name.into(), image_size, point_ids, corners_px }
+    }
+}
+
+/// A robust loss on the length of a corner's reprojection error.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum RobustLoss {
+    /// Plain least squares (as OpenCV).
+    #[default]
+    None,
+    /// Huber: quadratic up to `scale_px`, linear beyond.
+    Huber {
+        /// Where the loss turns linear, pixels.
+        scale_px: f64,
+    },
+    /// Cauchy: `s^2 log(1 + r^2 / s^2)`.
+    Cauchy {
+        /// Scale, pixels.
+        scale_px: f64,
+    },
+}
+
+impl RobustLoss {
+    /// Parses `none`, `huber:<px>` or `cauchy:<px>`.
+    pub fn parse(text: &str) -> Result<Self> {
+        let bad = || VisionError::InvalidInput {
+            detail: format!("loss '{text}': expected none, huber:<scale px> or cauchy:<scale px>"),
+        };
+        let t = text.trim().to_ascii_lowercase();
+        if t == "none" {
+            return Ok(RobustLoss::None);
+        }
+        let (kind, v) = t.split_once(':').ok_or_else(bad)?;
+        let scale_px: f64 = v.trim().trim_end_matches("px").parse().map_err(|_| bad())?;
+        if !(scale_px.is_finite() && scale_px > 0.0) {
+            return Err(bad());
+        }
+        match kind {
+            "huber" => Ok(RobustLoss::Huber { scale_px }),
+            "cauchy" => Ok(RobustLoss::Cauchy { scale_px }),
+            _ => Err(bad()),
+        }
+    }
+}
+
+/// Options of a calibration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationOptions {
+    /// Lens model (default: OpenCV's 5-coefficient Brown model).
+    pub model: DistortionKind,
+    /// Keep `fx = fy` (OpenCV's `CALIB_FIX_ASPECT_RATIO` with an initial ratio of 1).
+    pub fix_aspect: bool,
+    /// Robust loss of the bundle adjustment.
+    pub loss: RobustLoss,
+    /// A view is an outlier when its RMS and its median corner error both exceed this factor
+    /// times the median over the views (a single bad corner flags the corner, not the view).
+    pub outlier_view_factor: f64,
+    /// A corner is an outlier when its error exceeds this many robust standard deviations
+    /// (`1.4826 * median` of the absolute residual components).
+    pub outlier_corner_sigmas: f64,
+    /// Remove outlier views and corners and solve again.
+    pub reject_outliers: bool,
+    /// Ceres iteration limit per solve.
+    pub max_iterations: usize,
+}
+
+impl Default for CalibrationOptions {
+    fn default() -> Self {
+        Self {
+            model: DistortionKind::Brown5,
+            fix_aspect: false,
+            loss: RobustLoss::None,
+            outlier_view_factor: 2.5,
+            outlier_corner_sigmas: 5.0,
+            reject_outliers: false,
+            max_iterations: 200,
+        }
+    }
+}
+
+impl CalibrationOptions {
+    /// Checks the values.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |d: String| Err(VisionError::InvalidInput { detail: d });
+        if !(self.outlier_view_factor.is_finite() && self.outlier_view_factor > 1.0) {
+            return bad(format!("outlier_view_factor must be > 1, got {}", self.outlier_view_factor));
+        }
+        if !(self.outlier_corner_sigmas.is_finite() && self.outlier_corner_sigmas > 0.0) {
+            return bad(format!("outlier_corner_sigmas must be > 0, got {}", self.outlier_corner_sigmas));
+        }
+        if self.max_iterations == 0 {
+            return bad("max_iterations must be at least 1".into());
+        }
+        match self.loss {
+            RobustLoss::Huber { scale_px } | RobustLoss::Cauchy { scale_px }
+                if !(scale_px.is_finite() && scale_px > 0.0) =>
+            {
+                bad(format!("robust loss scale must be > 0, got {scale_px} px"))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// What the calibration found about one view.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ViewReport {
+    /// The view's name.
+    pub name: String,
+    /// RMS reprojection error of its corners, pixels (of the final solution; also for views
+    /// that were removed as outliers).
+    pub rms_px: f64,
+    /// Corners in the view.
+    pub n_corners: usize,
+    /// Whether the view's RMS marks it as an outlier.
+    pub outlier: bool,
+    /// Whether it took part in the final solution.
+    pub used: bool,
+    /// Corners of this view flagged as outliers.
+    pub n_outlier_corners: usize,
+    /// `T_cam_target` of the view.
+    pub t_cam_target: Isometry3<f64>,
+}
+
+/// A corner whose reprojection error is an outlier.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CornerOutlier {
+    /// The view's name.
+    pub view: String,
+    /// The target point.
+    pub point_id: usize,
+    /// Length of its reprojection error, pixels.
+    pub residual_px: f64,
+    /// Whether it was removed before the final solution.
+    pub removed: bool,
+}
+
+/// How the calibration went.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationSummary {
+    /// The closed-form camera the bundle adjustment started from.
+    pub initial: CameraModel,
+    /// Zhang's conditioning (`sigma_{m-1} / sigma_1`, see [`MIN_ZHANG_CONDITION`]).
+    pub zhang_condition: f64,
+    /// Whether Zhang's solution was unusable and the centred fallback was used instead.
+    pub zhang_fallback: bool,
+    /// Largest angle between two boards' normals, degrees.
+    pub max_board_angle_deg: f64,
+    /// Condition number of the correlation-scaled normal matrix of the camera parameters.
+    pub normal_condition: f64,
+    /// A-posteriori standard error of unit weight (the corner noise the fit implies), pixels.
+    pub s0_px: f64,
+    /// Corners used in the final solution.
+    pub n_corners: usize,
+    /// Views removed as outliers.
+    pub removed_views: Vec<String>,
+    /// Ceres iterations over all solves.
+    pub iterations: usize,
+    /// Ceres' report of the final solve.
+    pub solver_report: String,
+    /// Things worth a look that did not stop the calibration.
+    pub warnings: Vec<String>,
+}
+
+/// A calibrated camera with its uncertainty.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraCalibration {
+    /// The camera.
+    pub camera: CameraModel,
+    /// Standard deviation of every model parameter (`fx fy cx cy k...`, the order of
+    /// [`CameraModel::parameters`]); with a fixed aspect ratio `fx` and `fy` share theirs.
+    pub std: Vec<f64>,
+    /// Covariance of the model parameters, target poses marginalised.
+    pub covariance: DMatrix<f64>,
+    /// RMS reprojection error over all used corners, pixels.
+    pub rms_px: f64,
+    /// Every view, in input order.
+    pub views: Vec<ViewReport>,
+    /// Outlier corners.
+    pub outlier_corners: Vec<CornerOutlier>,
+    /// Conditioning, solver, outliers.
+    pub summary: CalibrationSummary,
+}
+
+/// Median of a non-empty list (0 for an empty one).
+pub(crate) fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+/// Checks the views' shapes against the target; all views must share one image size.
+pub(crate) fn check_views(views: &[&View], target: &PlanarTarget) -> Result<ImageSize> {
+    for v in views {
+        if v.point_ids.len() != v.corners_px.len() {
+            return Err(VisionError::InvalidInput {
+                detail: format!("{}: {} point ids for {} corners", v.name, v.point_ids.len(), v.corners_px.len()),
+            });
+        }
+        if let Some(&bad) = v.point_ids.iter().find(|&&i| i >= target.points_m.len()) {
+            return Err(VisionError::InvalidInput {
+                detail: format!("{}: point id {bad}, but the target has {} points", v.name, target.points_m.len()),
+            });
+        }
+        if v.corners_px.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
+            return Err(VisionError::InvalidInput { detail: format!("{}: a corner is not finite", v.name) });
+        }
+    }
+    let Some(first) = views.first() else {
+        return Err(VisionError::TooFewViews { usable: 0, needed: MIN_VIEWS, detail: "no views were given".into() });
+    };
+    let mut sizes: Vec<(ImageSize, Vec<&str>)> = Vec::new();
+    for v in views {
+        match sizes.iter_mut().find(|(s, _)| *s == v.image_size) {
+            Some((_, names)) => names.push(&v.name),
+            None => sizes.push((v.image_size, vec![&v.name])),
+        }
+    }
+    if sizes.len() > 1 {
+        sizes.sort_by_key(|(_, n)| std::cmp::Reverse(n.len()));
+        let detail = sizes
+            .iter()
+            .map(|(s, names)| format!("{}x{}: {}", s.width_px, s.height_px, names.join(", ")))
+            .collect::<Vec<_>>()
+            .join("; ");
+        return Err(VisionError::ImageSizeMismatch {
+            detail: format!("{detail} (calibrate each camera and resolution separately)"),
+        });
+    }
+    Ok(first.image_size)
+}
+
+/// The homography of a view (pixels from target-plane coordinates, metres), or why it has none.
+pub(crate) fn view_homography(
+    view: &View,
+    target: &PlanarTarget,
+    t_plane_target: &Isometry3<f64>,
+) -> std::result::Result<nalgebra::Matrix3<f64>, String> {
+    if view.corners_px.len() < 4 {
+        return Err(format!("{} corners, a view needs at least 4", view.corners_px.len()));
+    }
+    let src: Vec<Point2<f64>> = view
+        .point_ids
+        .iter()
+        .map(|&i| {
+            let q = t_plane_target * target.points_m[i];
+            Point2::new(q.x, q.y)
+        })
+        .collect();
+    homography::homography_dlt(&src, &view.corners_px)
+        .ok_or_else(|| "the corners are collinear or coincide (no homography)".to_string())
+}
+
+/// Calibrates one camera from views of a planar target (see the module documentation).
+///
+/// Errors: [`VisionError::TooFewViews`] (fewer than [`MIN_VIEWS`] usable views, with the reason
+/// for each unusable one), [`VisionError::ImageSizeMismatch`] (naming the images of each size),
+/// [`VisionError::DegenerateViews`] (e.g. all boards near-parallel, with the angles),
+/// [`VisionError::InvalidInput`], [`VisionError::SolverFailed`].
+pub fn calibrate_camera(
+    views: &[View],
+    target: &PlanarTarget,
+    options: &CalibrationOptions,
+) -> Result<CameraCalibration> {
+    options.validate()?;
+    target.validate()?;
+    let refs: Vec<&View> = views.iter().collect();
+    let size = check_views(&refs, target)?;
+    let t_target_plane = plane_frame(&target.points_m)?;
+    let t_plane_target = t_target_plane.inverse();
+
+    let mut usable: Vec<(usize, nalgebra::Matrix3<f64>)> = Vec::new();
+    let mut reasons = Vec::new();
+    for (i, v) in views.iter().enumerate() {
+        match view_homography(v, target, &t_plane_target) {
+            Ok(h) => usable.push((i, h)),
+            Err(r) => reasons.push(format!("{}: {r}", v.name)),
+        }
+    }
+    if usable.len() < MIN_VIEWS {
+        let mut detail =
+            format!("a full calibration needs views of the target from at least {MIN_VIEWS} different orientations");
+        if !reasons.is_empty() {
+            detail.push_str(&format!("; unusable: {}", reasons.join("; ")));
+        }
+        return Err(VisionError::TooFewViews { usable: usable.len(), needed: MIN_VIEWS, detail });
+    }
+    let hs: Vec<nalgebra::Matrix3<f64>> = usable.iter().map(|(_, h)| *h).collect();
+    let z = zhang::zhang_intrinsics(&hs, size, options.fix_aspect);
+    // Board orientations, for the explanation of degenerate sets.
+    let intr = z.intrinsics;
+    let poses_plane: Vec<Isometry3<f64>> =
+        hs.iter().filter_map(|h| zhang::extrinsics_from_homography(h, &intr)).collect();
+    let max_angle = zhang::max_normal_angle_deg(&poses_plane);
+    if z.condition < MIN_ZHANG_CONDITION {
+        return Err(VisionError::DegenerateViews {
+            detail: format!(
+                "the {} boards are nearly parallel (largest angle between board normals {max_angle:.1} deg; \
+                 Zhang's constraint system has condition {:.1e} < {MIN_ZHANG_CONDITION:.1e}), so the focal \
+                 length and principal point are not determined; tilt the board by 20 to 45 deg about \
+                 different axes between views",
+                usable.len(),
+                z.condition
+            ),
+        });
+    }
+    let layout = CameraLayout { kind: options.model, fix_aspect: options.fix_aspect, aspect: 1.0, image_size: size };
+    let mut initial = CameraModel {
+        intrinsics: intr,
+        distortion: Distortion::from_coefficients(options.model, &vec![0.0; options.model.coefficient_names().len()])?,
+        image_size: size,
+    };
+    if options.fix_aspect {
+        let f = 0.5 * (initial.intrinsics.fx_px + initial.intrinsics.fy_px);
+        initial.intrinsics.fx_px = f;
+        initial.intrinsics.fy_px = f;
+    }
+    let mut view_poses = Vec::new();
+    for (i, h) in &usable {
+        let t_cam_plane = zhang::extrinsics_from_homography(h, &initial.intrinsics).ok_or_else(|| {
+            VisionError::DegenerateViews { detail: format!("{}: no pose from its homography", views[*i].name) }
+        })?;
+        view_poses.push(LocalPose::from_isometry(&(t_cam_plane * t_plane_target)));
+    }
+    let mut obs = Vec::new();
+    for (k, (i, _)) in usable.iter().enumerate() {
+        let v = &views[*i];
+        for (pid, px) in v.point_ids.iter().zip(&v.corners_px) {
+            obs.push(Obs { cam: 0, view: k, point_id: *pid, point: target.points_m[*pid], pixel: *px });
+        }
+    }
+    let all_obs = obs.clone();
+    let mut bundle = Bundle {
+        layouts: vec![layout],
+        cameras: vec![layout.free_from_model(&initial)],
+        extrinsics: Vec::new(),
+        views: view_poses,
+        obs,
+        loss: options.loss,
+    };
+    let (mut report, mut iterations) = bundle.solve(options.max_iterations)?;
+    let mut flags = flag_outliers(&bundle, &all_obs, options)?;
+    let mut removed_views = Vec::new();
+    if options.reject_outliers && (flags.any_view() || !flags.corners.is_empty()) {
+        let keep_views: Vec<bool> = flags.view_outlier.clone();
+        let n_keep = keep_views.iter().filter(|o| !**o).count();
+        let drop_views = n_keep >= MIN_VIEWS;
+        let bad_corner: std::collections::HashSet<usize> = flags.corners.iter().map(|c| c.obs).collect();
+        bundle.obs.clear();
+        for (oi, o) in all_obs.iter().copied().enumerate() {
+            let view_out = drop_views && keep_views[o.view];
+            if !view_out && !bad_corner.contains(&oi) {
+                bundle.obs.push(o);
+            }
+        }
+        if drop_views {
+            for (k, out) in keep_views.iter().enumerate() {
+                if *out {
+                    removed_views.push(views[usable[k].0].name.clone());
+                }
+            }
+        }
+        let (r, it) = bundle.solve(options.max_iterations)?;
+        report = r;
+        iterations += it;
+        // Report the final residuals of every view, but keep the first pass's flags.
+        let used_obs = bundle.obs.clone();
+        let over_used = flag_outliers(&bundle, &used_obs, options)?;
+        let over_all = flag_outliers(&bundle, &all_obs, options)?;
+        flags.view_rms = over_used
+            .view_rms
+            .iter()
+            .zip(&over_all.view_rms)
+            .map(|(u, a)| if u.is_finite() { *u } else { *a })
+            .collect();
+        flags.removed_obs = bad_corner;
+        flags.dropped_views = drop_views;
+    }
+    let refined: Vec<Isometry3<f64>> = bundle.views.iter().map(|v| v.to_isometry()).collect();
+    let max_angle = zhang::max_normal_angle_deg(&refined);
+    if max_angle < MIN_BOARD_ANGLE_DEG {
+        return Err(VisionError::DegenerateViews {
+            detail: format!(
+                "the {} boards are nearly parallel (largest angle between board normals {max_angle:.1} deg < \
+                 {MIN_BOARD_ANGLE_DEG} deg), so focal length and distance cannot be told apart; tilt the board \
+                 by 20 to 45 deg about different axes between views",
+                refined.len()
+            ),
+        });
+    }
+    let m = layout.free_to_model();
+    let mut warnings: Vec<String> = reasons.iter().map(|r| format!("view skipped: {r}")).collect();
+    let (cov_model, s0_px, normal_condition) = match bundle.global_covariance() {
+        Ok(cov) => (&m * &cov.covariance * m.transpose(), cov.s0_px, cov.condition),
+        Err(VisionError::DegenerateViews { detail }) => {
+            warnings.push(format!(
+                "no covariance: {detail} (the lens model has more coefficients than these views determine; \
+                 standard deviations are reported as NaN)"
+            ));
+            let n = m.nrows();
+            (DMatrix::from_element(n, n, f64::NAN), f64::NAN, f64::INFINITY)
+        }
+        Err(e) => return Err(e),
+    };
+    let camera = bundle.camera_model(0)?;
+    camera.validate()?;
+    let std: Vec<f64> = (0..cov_model.nrows()).map(|i| cov_model[(i, i)].max(0.0).sqrt()).collect();
+    let std: Vec<f64> =
+        (0..cov_model.nrows()).map(|i| if cov_model[(i, i)].is_nan() { f64::NAN } else { std[i] }).collect();
+
+    // Reports.
+    let all_res = bundle.residuals()?;
+    let (mut sq, mut n_used) = (0.0, 0usize);
+    for r in all_res.iter().flatten() {
+        sq += r.norm_squared();
+        n_used += 1;
+    }
+    let rms_px = if n_used > 0 { (sq / n_used as f64).sqrt() } else { 0.0 };
+    let mut reports: Vec<ViewReport> = Vec::with_capacity(views.len());
+    let k_of = |i: usize| usable.iter().position(|(j, _)| *j == i);
+    for (i, v) in views.iter().enumerate() {
+        match k_of(i) {
+            Some(k) => {
+                let t = bundle.views[k].to_isometry();
+                let rms = flags.view_rms[k];
+                let used = !(flags.dropped_views && flags.view_outlier[k]);
+                let n_out = flags.corners.iter().filter(|c| c.view == k).count();
+                reports.push(ViewReport {
+                    name: v.name.clone(),
+                    rms_px: rms,
+                    n_corners: v.corners_px.len(),
+                    outlier: flags.view_outlier[k],
+                    used,
+                    n_outlier_corners: n_out,
+                    t_cam_target: t,
+                });
+            }
+            None => reports.push(ViewReport {
+                name: v.name.clone(),
+                rms_px: f64::NAN,
+                n_corners: v.corners_px.len(),
+                outlier: false,
+                used: false,
+                n_outlier_corners: 0,
+                t_cam_target: Isometry3::identity(),
+            }),
+        }
+    }
+    let outlier_corners = flags
+        .corners
+        .iter()
+        .map(|c| CornerOutlier {
+            view: views[usable[c.view].0].name.clone(),
+            point_id: c.point_id,
+            residual_px: c.residual_px,
+            removed: flags.removed_obs.contains(&c.obs),
+        })
+        .collect();
+    for r in reports.iter().filter(|r| r.outlier) {
+        warnings.push(format!(
+            "outlier view {}: RMS {:.3} px > {} x median {:.3} px{}",
+            r.name,
+            r.rms_px,
+            options.outlier_view_factor,
+            flags.median_rms,
+            if r.used { "" } else { " (removed)" }
+        ));
+    }
+    if z.fallback {
+        warnings.push(
+            "Zhang's closed form gave an implausible camera (strong distortion?); started from a centred principal point"
+                .into(),
+        );
+    }
+    for (name, i) in [("fx", 0), ("fy", 1)] {
+        if std[i] > 0.05 * camera.parameters()[i].value {
+            warnings.push(format!(
+                "{name} is poorly determined ({:.1} % standard deviation): add tilted views",
+                100.0 * std[i] / camera.parameters()[i].value
+            ));
+        }
+    }
+    Ok(CameraCalibration {
+        camera,
+        std,
+        covariance: cov_model,
+        rms_px,
+        views: reports,
+        outlier_corners,
+        summary: CalibrationSummary {
+            initial,
+            zhang_condition: z.condition,
+            zhang_fallback: z.fallback,
+            max_board_angle_deg: max_angle,
+            normal_condition,
+            s0_px,
+            n_corners: n_used,
+            removed_views,
+            iterations,
+            solver_report: report,
+            warnings,
+        },
+    })
+}
+
+/// An outlier corner found in a bundle's residuals.
+pub(crate) struct FlaggedCorner {
+    /// Index into the list of observations that was checked.
+    pub obs: usize,
+    /// The bundle's view index.
+    pub view: usize,
+    pub point_id: usize,
+    pub residual_px: f64,
+}
+
+/// Per-view RMS and outlier flags.
+pub(crate) struct Flags {
+    pub view_rms: Vec<f64>,
+    pub view_outlier: Vec<bool>,
+    pub median_rms: f64,
+    pub corners: Vec<FlaggedCorner>,
+    pub removed_obs: std::collections::HashSet<usize>,
+    pub dropped_views: bool,
+}
+
+impl Flags {
+    fn any_view(&self) -> bool {
+        self.view_outlier.iter().any(|o| *o)
+    }
+}
+
+/// Per-view RMS over `all_obs` (evaluated with the bundle's current state, whether or not an
+/// observation is still in the bundle), outlier views (RMS above the factor times the median)
+/// and outlier corners (beyond the given number of robust sigmas).
+pub(crate) fn flag_outliers(bundle: &Bundle, all_obs: &[Obs], options: &CalibrationOptions) -> Result<Flags> {
+    let res = bundle.residuals_of(all_obs)?;
+    let nv = bundle.views.len();
+    let mut sq = vec![0.0; nv];
+    let mut cnt = vec![0usize; nv];
+    let mut comps = Vec::new();
+    for (o, r) in all_obs.iter().zip(&res) {
+        if let Some(r) = r {
+            sq[o.view] += r.norm_squared();
+            cnt[o.view] += 1;
+            comps.push(r.x.abs());
+            comps.push(r.y.abs());
+        }
+    }
+    let view_rms: Vec<f64> =
+        (0..nv).map(|k| if cnt[k] > 0 { (sq[k] / cnt[k] as f64).sqrt() } else { f64::NAN }).collect();
+    // A view is an outlier when most of its corners are off, not when one corner is: compare
+    // the views' median corner errors (one bad corner is an outlier corner instead).
+    let mut lens: Vec<Vec<f64>> = vec![Vec::new(); nv];
+    for (o, r) in all_obs.iter().zip(&res) {
+        if let Some(r) = r {
+            lens[o.view].push(r.norm());
+        }
+    }
+    let view_median: Vec<f64> = lens.iter().map(|l| if l.is_empty() { f64::NAN } else { median(l) }).collect();
+    let finite: Vec<f64> = view_median.iter().copied().filter(|x| x.is_finite()).collect();
+    let median_all = median(&finite);
+    let finite_rms: Vec<f64> = view_rms.iter().copied().filter(|x| x.is_finite()).collect();
+    let median_rms = median(&finite_rms);
+    let view_outlier: Vec<bool> = view_median
+        .iter()
+        .zip(&view_rms)
+        .map(|(m, r)| {
+            m.is_finite()
+                && *m > options.outlier_view_factor * median_all
+                && *r > options.outlier_view_factor * median_rms
+        })
+        .collect();
+    let sigma = 1.4826 * median(&comps);
+    let mut corners = Vec::new();
+    for (oi, (o, r)) in all_obs.iter().zip(&res).enumerate() {
+        if let Some(r) = r {
+            let len = r.norm();
+            if sigma > 0.0 && len > options.outlier_corner_sigmas * sigma {
+                corners.push(FlaggedCorner { obs: oi, view: o.view, point_id: o.point_id, residual_px: len });
+            }
+        }
+    }
+    Ok(Flags { view_rms, view_outlier, median_rms, corners, removed_obs: Default::default(), dropped_views: false })
+}

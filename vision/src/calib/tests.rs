@@ -1,0 +1,184 @@
+//! Unit tests of the calibration internals: the residual's Jacobians against finite differences
+//! (the gradient checker every residual passes), Zhang's closed form on exact data, pattern
+//! strings.
+
+use super::bundle::CameraLayout;
+use super::*;
+use crate::camera::{Distortion, DistortionKind, ImageSize, Intrinsics};
+use crate::pose::{observe, LocalPose};
+use nalgebra::{Matrix3, Point2, Point3, Vector3};
+
+fn camera(distortion: Distortion) -> CameraModel {
+    CameraModel::new(
+        Intrinsics { fx_px: 812.0, fy_px: 806.0, cx_px: 331.0, cy_px: 247.0 },
+        distortion,
+        ImageSize { width_px: 640, height_px: 480 },
+    )
+    .unwrap()
+}
+
+fn distortions() -> Vec<Distortion> {
+    vec![
+        Distortion::Brown5 { k1: -0.21, k2: 0.08, p1: 0.001, p2: -0.0007, k3: 0.02 },
+        Distortion::Rational8 { k1: 0.4, k2: 0.05, p1: 0.001, p2: -0.0007, k3: 0.01, k4: 0.6, k5: 0.02, k6: 0.001 },
+        Distortion::KannalaBrandt { k1: -0.02, k2: 0.01, k3: -0.004, k4: 0.001 },
+    ]
+}
+
+/// Gradient checker: every column of the residual's analytic Jacobians (camera free parameters,
+/// rig extrinsics, target pose; increments away from zero) against central differences.
+#[test]
+fn residual_jacobians_match_finite_differences() {
+    let x = Point3::new(0.07, -0.04, 0.0);
+    let pixel = Point2::new(300.0, 200.0);
+    let ext = LocalPose::from_isometry(&nalgebra::Isometry3::new(
+        Vector3::new(-0.3, 0.02, 0.01),
+        Vector3::new(0.01, -0.2, 0.05),
+    ))
+    .with_block(&[0.01, -0.02, 0.03, -0.3, 0.02, 0.01]);
+    let view =
+        LocalPose::from_isometry(&nalgebra::Isometry3::new(Vector3::new(0.1, 0.0, 0.6), Vector3::new(2.9, 0.2, -0.1)))
+            .with_block(&[0.2, -0.1, 0.05, 0.1, 0.0, 0.6]);
+    for d in distortions() {
+        for fix_aspect in [false, true] {
+            let cam = camera(d);
+            let layout = CameraLayout { kind: d.kind(), fix_aspect, aspect: 1.0, image_size: cam.image_size };
+            let free = layout.free_from_model(&cam);
+            let res = |free: &[f64], e: &LocalPose, v: &LocalPose| {
+                observe(&layout.model(free).unwrap(), Some(e), v, &x, &pixel).unwrap().residual
+            };
+            let ob = observe(&layout.model(&free).unwrap(), Some(&ext), &view, &x, &pixel).unwrap();
+            let jf = layout.free_jacobian(&ob.d_model);
+            for c in 0..free.len() {
+                let h = 1e-6 * free[c].abs().max(1.0);
+                let (mut a, mut b) = (free.clone(), free.clone());
+                a[c] += h;
+                b[c] -= h;
+                let num = (res(&a, &ext, &view) - res(&b, &ext, &view)) / (2.0 * h);
+                for r in 0..2 {
+                    let tol = 1e-5 * (1.0 + jf[(r, c)].abs());
+                    assert!(
+                        (num[r] - jf[(r, c)]).abs() < tol,
+                        "{d:?} fix {fix_aspect} param {c}: {} vs {}",
+                        num[r],
+                        jf[(r, c)]
+                    );
+                }
+            }
+            for (which, analytic) in [(0, ob.d_ext), (1, ob.d_view)] {
+                for c in 0..6 {
+                    let h = 1e-7;
+                    let bump = |s: f64| {
+                        let (e, v) = (ext, view);
+                        let pick = if which == 0 { e } else { v };
+                        let mut blk = pick.block();
+                        blk[c] += s * h;
+                        let moved = pick.with_block(&blk);
+                        if which == 0 {
+                            res(&free, &moved, &v)
+                        } else {
+                            res(&free, &e, &moved)
+                        }
+                    };
+                    let num = (bump(1.0) - bump(-1.0)) / (2.0 * h);
+                    for r in 0..2 {
+                        let tol = 1e-4 * (1.0 + analytic[(r, c)].abs());
+                        assert!(
+                            (num[r] - analytic[(r, c)]).abs() < tol,
+                            "{d:?} block {which} col {c}: {} vs {}",
+                            num[r],
+                            analytic[(r, c)]
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn zhang_recovers_an_exact_pinhole() {
+    let cam = camera(Distortion::None);
+    let target = PlanarTarget::chessboard(8, 6, 0.03);
+    let poses = [
+        nalgebra::Isometry3::new(Vector3::new(-0.1, -0.07, 0.5), Vector3::new(0.4, 0.2, 0.1)),
+        nalgebra::Isometry3::new(Vector3::new(-0.05, -0.1, 0.6), Vector3::new(-0.3, 0.35, -0.2)),
+        nalgebra::Isometry3::new(Vector3::new(-0.12, -0.05, 0.55), Vector3::new(0.1, -0.45, 0.3)),
+        nalgebra::Isometry3::new(Vector3::new(-0.08, -0.08, 0.45), Vector3::new(-0.25, -0.2, 0.0)),
+    ];
+    let hs: Vec<Matrix3<f64>> = poses
+        .iter()
+        .map(|t| {
+            let src: Vec<Point2<f64>> = target.points_m.iter().map(|p| Point2::new(p.x, p.y)).collect();
+            let dst: Vec<Point2<f64>> = target.points_m.iter().map(|p| cam.project(&(t * p)).unwrap()).collect();
+            crate::pose::homography::homography_dlt(&src, &dst).unwrap()
+        })
+        .collect();
+    for fix in [false, true] {
+        let z = zhang::zhang_intrinsics(&hs, cam.image_size, fix);
+        assert!(!z.fallback);
+        assert!(z.condition > 0.01, "condition {}", z.condition);
+        let k = z.intrinsics;
+        if fix {
+            // fx != fy in the truth: the fixed-aspect solution lies between them.
+            assert!(k.fx_px > 800.0 && k.fx_px < 818.0, "{k:?}");
+        } else {
+            assert!((k.fx_px - 812.0).abs() < 1e-6 && (k.fy_px - 806.0).abs() < 1e-6, "{k:?}");
+            assert!((k.cx_px - 331.0).abs() < 1e-6 && (k.cy_px - 247.0).abs() < 1e-6, "{k:?}");
+            for (h, t) in hs.iter().zip(&poses) {
+                let p = zhang::extrinsics_from_homography(h, &k).unwrap();
+                assert!((p.translation.vector - t.translation.vector).norm() < 1e-9);
+            }
+        }
+    }
+    // Two views of parallel boards: no solution.
+    let par = [poses[0], poses[0] * nalgebra::Translation3::new(0.02, 0.01, 0.1)];
+    let hp: Vec<Matrix3<f64>> = par
+        .iter()
+        .map(|t| {
+            let src: Vec<Point2<f64>> = target.points_m.iter().map(|p| Point2::new(p.x, p.y)).collect();
+            let dst: Vec<Point2<f64>> = target.points_m.iter().map(|p| cam.project(&(t * p)).unwrap()).collect();
+            crate::pose::homography::homography_dlt(&src, &dst).unwrap()
+        })
+        .collect();
+    assert!(zhang::zhang_intrinsics(&hp, cam.image_size, false).condition < 1e-6);
+}
+
+#[test]
+fn pattern_strings() {
+    let p = Pattern::parse("chessboard:9x6:25mm").unwrap();
+    assert_eq!(p, Pattern::Chessboard { inner_cols: 9, inner_rows: 6, square_m: 0.025 });
+    assert_eq!(p.to_string(), "chessboard:9x6:25mm");
+    assert_eq!(
+        Pattern::parse("chessboard:7X5:0.03m").unwrap(),
+        Pattern::Chessboard { inner_cols: 7, inner_rows: 5, square_m: 0.03 }
+    );
+    let t = p.target();
+    assert_eq!(t.points_m.len(), 54);
+    assert_eq!(t.points_m[10], Point3::new(0.025, 0.025, 0.0));
+    for bad in [
+        "chessboard:9x6",
+        "chessboard:9x6:25",
+        "chessboard:9:25mm",
+        "chessboard:1x6:25mm",
+        "chessboard:9x6:-2mm",
+        "circles:4x11:20mm",
+    ] {
+        let e = Pattern::parse(bad).unwrap_err();
+        assert!(matches!(e, VisionError::PatternSpec { .. }), "{bad}: {e}");
+        assert!(e.to_string().contains(bad), "{e}");
+    }
+    assert!(Pattern::parse("apriltag:36h11").unwrap_err().to_string().contains("not supported"));
+}
+
+#[test]
+fn robust_loss_strings_and_weights() {
+    assert_eq!(RobustLoss::parse("none").unwrap(), RobustLoss::None);
+    assert_eq!(RobustLoss::parse("huber:1.5").unwrap(), RobustLoss::Huber { scale_px: 1.5 });
+    assert_eq!(RobustLoss::parse("Cauchy:0.5px").unwrap(), RobustLoss::Cauchy { scale_px: 0.5 });
+    assert!(RobustLoss::parse("huber:-1").is_err() && RobustLoss::parse("tukey:1").is_err());
+    assert_eq!(bundle::loss_weight(RobustLoss::Huber { scale_px: 1.0 }, 0.25), 1.0);
+    assert!((bundle::loss_weight(RobustLoss::Huber { scale_px: 1.0 }, 4.0) - 0.5).abs() < 1e-12);
+    assert!((bundle::loss_weight(RobustLoss::Cauchy { scale_px: 1.0 }, 1.0) - 0.5).abs() < 1e-12);
+    let _ = DistortionKind::Brown5;
+}
