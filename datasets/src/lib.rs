@@ -3,6 +3,8 @@
 //! Entry points:
 //! - [`import`]: the measurement CSV of `shared/spec/measurements.md`, the UR5 and UR10
 //!   laser-tracker recordings, image folders; export to the measurement CSV.
+//! - [`measure`]: from a session's images to metric target poses (camera rig calibrated from the
+//!   plate views, one pose with covariance per robot pose).
 //! - [`render`]: the physically modelled camera renderer of the synthetic cell.
 //! - [`sim`]: the synthetic measurement cell (true robot, plan, tracker, cameras) and the
 //!   recorded sessions it writes.
@@ -15,5 +17,6 @@
 
 pub mod error;
 pub mod import;
+pub mod measure;
 pub mod render;
 pub mod sim;

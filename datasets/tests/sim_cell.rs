@@ -24,6 +24,9 @@ fn small_cell() -> CellConfig {
         seconds_per_pose: 10.0,
         home_si: vec![],
     };
+    if let Some(b) = &mut cfg.calibration_board {
+        b.views = 2;
+    }
     cfg
 }
 
@@ -60,6 +63,8 @@ fn l1_cell_with_two_cameras_and_a_tracker_writes_a_complete_deterministic_sessio
             assert_eq!((i.width(), i.height()), (c.width_px, c.height_px));
         }
         assert!(a.join(&c.corners_truth).exists());
+        assert_eq!(c.board_images.iter().flatten().count(), 2, "two board views per camera");
+        assert!(a.join(c.board_corners_truth.as_ref().unwrap()).exists());
         // 20 plate corners per image, all inside.
         let text = std::fs::read_to_string(a.join(&c.corners_truth)).unwrap();
         assert_eq!(text.lines().count(), 1 + 3 * 20, "{}", c.corners_truth);

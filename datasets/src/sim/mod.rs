@@ -138,6 +138,34 @@ impl CameraSection {
     }
 }
 
+/// A calibration board shown to the cameras before the robot moves (TOML table
+/// `[calibration_board]`): the usual way to calibrate the cameras' intrinsics and their
+/// relative pose, since the plate on a constant-orientation robot is always seen from the same
+/// angle (all its views are parallel: focal length and distance cannot be told apart).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoardSection {
+    /// The board (a chessboard or an AprilTag board).
+    pub pattern: TargetConfig,
+    /// Number of board poses (each photographed by every camera at once).
+    pub views: usize,
+    /// Where the board is held (world), its centre.
+    pub centre_m: [f64; 3],
+    /// Random offset of the board centre, per axis, up to this.
+    #[serde(default = "default_spread")]
+    pub spread_m: f64,
+    /// Tilt of the board away from facing the cameras, degrees `[min, max]`.
+    #[serde(default = "default_tilt")]
+    pub tilt_deg: [f64; 2],
+}
+
+fn default_spread() -> f64 {
+    0.3
+}
+fn default_tilt() -> [f64; 2] {
+    [15.0, 40.0]
+}
+
 /// A complete simulated cell.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -164,9 +192,20 @@ pub struct CellConfig {
     /// The cameras.
     #[serde(default, rename = "camera")]
     pub cameras: Vec<CameraSection>,
-    /// Safety zones the plan must respect (serial robots).
+    /// Safety zones the plan must respect.
     #[serde(default)]
     pub safety: Option<SafetyConfig>,
+    /// Calibration board views for the cameras (written before the robot's poses).
+    #[serde(default)]
+    pub calibration_board: Option<BoardSection>,
+    /// Write the camera images (off: only the exact corners, for fast studies of everything
+    /// after detection).
+    #[serde(default = "default_true")]
+    pub render_images: bool,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 impl CellConfig {
@@ -257,6 +296,9 @@ pub struct SessionManifest {
     pub cameras: Vec<ManifestCamera>,
     /// The target's pattern, when cameras photograph one.
     pub target: Option<TargetConfig>,
+    /// The calibration board's pattern, when the cell shows one.
+    #[serde(default)]
+    pub calibration_board: Option<TargetConfig>,
     /// Ground truth (kept apart: a calibration must not read it).
     pub truth: String,
     /// Poses the plan left out and images not written, with reasons.
@@ -276,6 +318,12 @@ pub struct ManifestCamera {
     pub images: Vec<Option<String>>,
     /// Exact corner positions (truth folder).
     pub corners_truth: String,
+    /// Calibration board images, one per board view (`None` where it was not in view).
+    #[serde(default)]
+    pub board_images: Vec<Option<String>>,
+    /// Exact board corner positions (truth folder), pose ids `b001`, `b002`, ...
+    #[serde(default)]
+    pub board_corners_truth: Option<String>,
 }
 
 /// Runs the cell and writes the session to `out` (created; must not exist unless `force`).
@@ -363,6 +411,19 @@ pub fn simulate(
             for (ci, (cam, t_world_cam, renderer)) in renderers.iter().enumerate() {
                 let t_cam_target = t_world_cam.inverse() * t_world_tool * t_tool_target.expect("checked");
                 let image_seed = cfg.seed ^ ((k as u64 + 1) << 20) ^ ((ci as u64 + 1) << 52);
+                if !cfg.render_images {
+                    let truth = renderer.ground_truth(&t_cam_target)?;
+                    for c in &truth.corners {
+                        if let Some(p) = c.pixel {
+                            corner_csv[ci].push_str(&format!(
+                                "{pose_id},{},{},{:.9},{:.9},{}\n",
+                                c.corner.feature, c.corner.index, p.x, p.y, c.in_image as u8
+                            ));
+                        }
+                    }
+                    cam_images[ci].push(None);
+                    continue;
+                }
                 match renderer.render(&t_cam_target, image_seed) {
                     Ok(img) => {
                         let rel = format!("images/{}/pose_{pose_id}.png", cam.name);
@@ -388,6 +449,57 @@ pub fn simulate(
             truth_poses.push(PoseTruth { pose_id, q_cmd: q.clone(), q_eff, conditions: cond, t_world_tool });
         }
         progress(n, n);
+        // The calibration board, photographed by every camera at once.
+        let mut board_images: Vec<Vec<Option<String>>> = vec![Vec::new(); renderers.len()];
+        let mut board_csv: Vec<String> =
+            vec!["pose_id,feature,index,u_px,v_px,in_image\n".to_string(); renderers.len()];
+        if let Some(board) = &cfg.calibration_board {
+            let board_renderers = renderers
+                .iter()
+                .map(|(cam, _, _)| Renderer::new(cam.model, &board.pattern, cam.render.clone()))
+                .collect::<Result<Vec<_>, _>>()?;
+            let look_from = renderers.iter().fold(Vector3::zeros(), |s, (_, t, _)| s + t.translation.vector)
+                / renderers.len().max(1) as f64;
+            for v in 0..board.views {
+                let t_world_board = board_pose(board, &look_from, &mut rng);
+                let id = format!("b{:03}", v + 1);
+                for (ci, ((cam, t_world_cam, _), br)) in renderers.iter().zip(&board_renderers).enumerate() {
+                    let t_cam_board = t_world_cam.inverse() * t_world_board;
+                    let seed = cfg.seed ^ ((v as u64 + 1) << 30) ^ ((ci as u64 + 1) << 56);
+                    let truth = if cfg.render_images {
+                        match br.render(&t_cam_board, seed) {
+                            Ok(img) => {
+                                let rel = format!("images/{}/board_{id}.png", cam.name);
+                                img.image
+                                    .save(tmp.join(&rel))
+                                    .map_err(|e| DatasetError::Config(format!("cannot write {rel}: {e}")))?;
+                                board_images[ci].push(Some(rel));
+                                img.truth
+                            }
+                            Err(e) => {
+                                notes.push(format!("board view {id}, camera {}: no image ({e})", cam.name));
+                                board_images[ci].push(None);
+                                continue;
+                            }
+                        }
+                    } else {
+                        board_images[ci].push(None);
+                        match br.ground_truth(&t_cam_board) {
+                            Ok(t) => t,
+                            Err(_) => continue,
+                        }
+                    };
+                    for c in &truth.corners {
+                        if let Some(p) = c.pixel {
+                            board_csv[ci].push_str(&format!(
+                                "{id},{},{},{:.9},{:.9},{}\n",
+                                c.corner.feature, c.corner.index, p.x, p.y, c.in_image as u8
+                            ));
+                        }
+                    }
+                }
+            }
+        }
         let kinds = nominal.joint_kinds();
         // Joint readings: the measurement-table columns without a device position.
         write_joints_table(&tmp.join("joints.csv"), &joints_rows, &kinds)?;
@@ -411,12 +523,21 @@ pub fn simulate(
             let rel = format!("truth/corners_{}.csv", cam.name);
             write_file(&tmp.join(&rel), corner_csv[ci].as_bytes())?;
             let size = cam.model.image_size;
+            let board_corners_truth = if cfg.calibration_board.is_some() {
+                let rel_b = format!("truth/board_corners_{}.csv", cam.name);
+                write_file(&tmp.join(&rel_b), board_csv[ci].as_bytes())?;
+                Some(rel_b)
+            } else {
+                None
+            };
             cameras.push(ManifestCamera {
                 name: cam.name.clone(),
                 width_px: size.width_px,
                 height_px: size.height_px,
                 images: cam_images[ci].clone(),
                 corners_truth: rel,
+                board_images: board_images[ci].clone(),
+                board_corners_truth,
             });
         }
         let truth = SessionTruth {
@@ -440,6 +561,7 @@ pub fn simulate(
             tracker: tracker_file,
             cameras,
             target: cfg.target.as_ref().map(|t| t.pattern.clone()),
+            calibration_board: cfg.calibration_board.as_ref().map(|b| b.pattern.clone()),
             truth: "truth/truth.json".into(),
             notes,
         };
@@ -513,6 +635,30 @@ fn write_joints_table(
         s.push('\n');
     }
     write_file(path, s.as_bytes())
+}
+
+/// A random board pose: centred near `board.centre_m`, facing `look_from` (the cameras), tilted
+/// by an angle in `board.tilt_deg` about a random in-plane axis, turned randomly in its plane.
+fn board_pose(board: &BoardSection, look_from: &Vector3<f64>, rng: &mut impl rand::Rng) -> Isometry3<f64> {
+    let c = Vector3::from(board.centre_m)
+        + Vector3::new(
+            rng.random_range(-1.0..1.0) * board.spread_m,
+            rng.random_range(-1.0..1.0) * board.spread_m,
+            rng.random_range(-1.0..1.0) * board.spread_m,
+        );
+    // Board z (out of the printed face) towards the cameras.
+    let z = (look_from - c).normalize();
+    let helper = if z.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let x = helper.cross(&z).normalize();
+    let y = z.cross(&x);
+    let facing = UnitQuaternion::from_rotation_matrix(&Rotation3::from_basis_unchecked(&[x, y, z]));
+    let tilt = rng.random_range(board.tilt_deg[0]..=board.tilt_deg[1]).to_radians();
+    let axis_angle = rng.random_range(0.0..std::f64::consts::TAU);
+    let axis = Vector3::new(axis_angle.cos(), axis_angle.sin(), 0.0);
+    let spin = rng.random_range(-0.5..0.5);
+    let r =
+        facing * UnitQuaternion::from_scaled_axis(axis * tilt) * UnitQuaternion::from_scaled_axis(Vector3::z() * spin);
+    Isometry3::from_parts(Translation3::from(c), r)
 }
 
 /// Projects a world point into a camera (for checks and plots).
