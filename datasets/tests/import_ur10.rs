@@ -71,6 +71,8 @@ fn row_counts() {
     // -90, -90, 0, -90, 0, 0 deg), not a grid point; the importer keeps every row.
     let a = series_a();
     assert_eq!(a.rows.len(), 11_911);
+    // The first row is the start pose; the other 11,910 are the grid the publication counts.
+    assert_eq!(a.grid_rows().len(), 11_910);
     assert_eq!(a.rows[0].q_rad, [-1.5708, -1.5708, 0.0, -1.5708, 0.0, 0.0]);
     let b = series_b();
     assert_eq!(b.rows.len(), 1_495);

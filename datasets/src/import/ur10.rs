@@ -127,6 +127,19 @@ pub struct Ur10Recording {
 }
 
 impl Ur10Recording {
+    /// The grid poses only: the rows after a leading start pose. Series A's file holds 11,911
+    /// data rows; its first is the robot's start configuration (joints -90, -90, 0, -90, 0, 0
+    /// degrees), not a grid point, which leaves the 11,910 grid poses the publication counts.
+    /// A row is a start pose when all its joints are within 1e-3 rad of that configuration.
+    pub fn grid_rows(&self) -> &[Ur10Row] {
+        let start = [-90f64, -90.0, 0.0, -90.0, 0.0, 0.0].map(f64::to_radians);
+        let is_start = |r: &Ur10Row| r.q_rad.iter().zip(&start).all(|(a, b)| (a - b).abs() < 1e-3);
+        match self.rows.first() {
+            Some(r) if is_start(r) => &self.rows[1..],
+            _ => &self.rows,
+        }
+    }
+
     /// The rows as measurements: `pose_id` = the 0-based data row index, `q` in radians,
     /// `position_m` and `orientation` of the T-Mac in the tracker frame, `temp_c`, `t_s` = seconds
     /// since the first row's timestamp (series A; `None` when the timestamps are not usable),
