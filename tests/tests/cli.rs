@@ -1,0 +1,204 @@
+//! End-to-end tests of the `ferrocal` binary: the calls of shared/spec/cli.md on real recordings
+//! and on bad input. The binary is the one `cargo test --workspace` builds beside this test.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn ferrocal() -> Command {
+    // target/<profile>/deps/cli-xxxx -> target/<profile>/ferrocal
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().unwrap().parent().unwrap();
+    let bin = dir.join(format!("ferrocal{}", std::env::consts::EXE_SUFFIX));
+    assert!(bin.exists(), "{} not built: run `cargo test --workspace`", bin.display());
+    Command::new(bin)
+}
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(rel)
+}
+
+fn run(cmd: &mut Command) -> Output {
+    let out = cmd.output().unwrap();
+    if !out.status.success() {
+        eprintln!("stdout: {}\nstderr: {}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    }
+    out
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn ur5_calibrate_and_evaluate_through_the_binary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let table = tmp.path().join("ur5.csv");
+    let out = run(ferrocal()
+        .args(["import", "ur5", "--input"])
+        .arg(data("ur5_tracker/ur5_grid_train.csv"))
+        .arg("--out")
+        .arg(&table));
+    assert!(out.status.success());
+    let cal = tmp.path().join("cal.json");
+    let rep = tmp.path().join("rep.json");
+    let html = tmp.path().join("rep.html");
+    let out = run(ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--measurements"])
+        .arg(&table)
+        .arg("--out")
+        .arg(&cal)
+        .arg("--json")
+        .arg(&rep)
+        .arg("--report")
+        .arg(&html));
+    assert!(out.status.success());
+    let r = json(&rep);
+    let heldout = r["heldout"]["after"]["mean_mm"].as_f64().unwrap();
+    assert!(heldout < 0.12, "held-out mean {heldout} mm (every second grid pose)");
+    assert!(std::fs::read_to_string(&html).unwrap().contains("<svg"));
+    let ev = tmp.path().join("ev.json");
+    let out = run(ferrocal()
+        .args(["evaluate", "--robot", "ur5", "--calibration"])
+        .arg(&cal)
+        .arg("--measurements")
+        .arg(&table)
+        .arg("--json")
+        .arg(&ev));
+    assert!(out.status.success());
+    let e = json(&ev);
+    assert_eq!(e["n"].as_u64(), Some(1000));
+    let mean = e["mean_mm"].as_f64().unwrap();
+    assert!(mean < 0.11, "training mean {mean} mm");
+    for k in ["rms_mm", "max_mm"] {
+        assert!(e[k].as_f64().unwrap() >= mean);
+    }
+}
+
+/// Writes a measurement table of `rows` UR5 poses from the real recording, with joint 6
+/// optionally frozen.
+fn ur5_subset(dir: &Path, rows: usize, freeze_joint6: bool) -> PathBuf {
+    let text = std::fs::read_to_string(data("ur5_tracker/ur5_grid_train.csv")).unwrap();
+    let mut out = String::from("pose_id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n");
+    for line in text.lines().skip(1).take(rows) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let q6 = if freeze_joint6 { 0.0 } else { v[12] };
+        out.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{}\n",
+            v[0],
+            v[7],
+            v[8],
+            v[9],
+            v[10],
+            v[11],
+            q6,
+            v[1] + v[4],
+            v[2] + v[5],
+            v[3] + v[6]
+        ));
+    }
+    let p = dir.join(format!("ur5_{rows}_{freeze_joint6}.csv"));
+    std::fs::write(&p, out).unwrap();
+    p
+}
+
+#[test]
+fn calibration_bad_input_gives_clear_messages_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cal = tmp.path().join("cal.json");
+    // A robot file and a table that disagree on the number of joints.
+    let table = ur5_subset(tmp.path(), 50, false);
+    let out = ferrocal()
+        .args(["calibrate", "--robot", "gantry-tau-l1", "--measurements"])
+        .arg(&table)
+        .arg("--out")
+        .arg(&cal)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("6 joint columns") && err.contains("3 joints"), "{err}");
+    assert!(!cal.exists(), "nothing may be written on failure");
+    // Too few poses for the parameters.
+    let few = ur5_subset(tmp.path(), 4, false);
+    let out = ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--no-validation", "--measurements"])
+        .arg(&few)
+        .arg("--out")
+        .arg(&cal)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("poses") && err.contains("measure more poses"), "{err}");
+    assert!(!cal.exists());
+    // A non-numeric cell names file, line and column.
+    let bad = tmp.path().join("bad.csv");
+    std::fs::write(
+        &bad,
+        "pose_id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n1,0,0,0,0,0,0,1,2,3\n2,0,0,0,0,x,0,1,2,3\n",
+    )
+    .unwrap();
+    let out = ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--measurements"])
+        .arg(&bad)
+        .arg("--out")
+        .arg(&cal)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad.csv") && err.contains("line 3") && err.contains("q5_deg"),
+        "{err}"
+    );
+    // A joint that never moves: its parameters are not identifiable; the rest is still returned,
+    // with advice on which poses would fix it.
+    let frozen = ur5_subset(tmp.path(), 300, true);
+    let rep = tmp.path().join("rep.json");
+    let out = run(ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--no-validation", "--measurements"])
+        .arg(&frozen)
+        .arg("--out")
+        .arg(&cal)
+        .arg("--json")
+        .arg(&rep));
+    assert!(out.status.success());
+    let r = json(&rep);
+    let advice = r["advice"].to_string();
+    assert!(advice.contains("joint 6") && advice.contains("wide range"), "{advice}");
+    assert!(r["train_after"]["rms_mm"].as_f64().unwrap() < 0.2);
+}
+
+#[test]
+fn camera_calibrate_on_the_opencv_sample_matches_the_published_numbers() {
+    let tmp = tempfile::tempdir().unwrap();
+    let j = tmp.path().join("left.json");
+    let pattern = data("opencv_stereo").join("left*.jpg");
+    let out = run(ferrocal()
+        .args(["camera", "calibrate", "--images"])
+        .arg(pattern.to_str().unwrap())
+        .args(["--pattern", "chessboard:9x6:25mm", "--fix-aspect", "--json"])
+        .arg(&j));
+    assert!(out.status.success());
+    let v = json(&j);
+    let fx = v["fx"].as_f64().unwrap();
+    assert!((fx / 535.9157 - 1.0).abs() < 0.003, "fx {fx}");
+    assert!((v["cx"].as_f64().unwrap() - 342.2832).abs() < 1.5);
+    assert!((v["cy"].as_f64().unwrap() - 235.5708).abs() < 1.5);
+    assert!(v["rms_px"].as_f64().unwrap() <= 0.40);
+    assert_eq!(v["per_view"].as_array().unwrap().len(), 13);
+    assert!(v["std"]["fx"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn demo_writes_its_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().join("demo");
+    let out = run(ferrocal().args(["demo", "--samples", "100", "--out"]).arg(&out_dir));
+    assert!(out.status.success());
+    let html = std::fs::read_to_string(out_dir.join("index.html")).unwrap();
+    assert!(html.contains("Provenance") && html.contains("<svg"));
+    let r = json(&out_dir.join("report.json"));
+    for (k, v) in r["sections"].as_object().unwrap() {
+        if let Some(ok) = v.get("ok") {
+            assert!(ok.as_bool().unwrap(), "demo section {k} failed: {}", v["status"]);
+        }
+    }
+}
