@@ -19,6 +19,11 @@ use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 
 use crate::error::DatasetError;
+
+/// Corners per image id (`None`: the whole pattern was not seen).
+type CornersById = std::collections::HashMap<String, Option<Vec<Point2<f64>>>>;
+/// Exact corners per image id, per corner index (`None`: outside the image).
+type TruthCorners = std::collections::HashMap<String, Vec<Option<Point2<f64>>>>;
 use crate::sim::SessionManifest;
 
 /// Where the corners come from.
@@ -33,6 +38,64 @@ pub enum CornerSource {
         /// Seed of the noise.
         seed: u64,
     },
+    /// The project's detector with sub-pixel edge refinement on the session's images: the
+    /// real measuring chain.
+    Detector,
+}
+
+/// The detector's pattern for a target.
+pub fn detector_pattern(
+    target: &crate::render::TargetConfig,
+) -> Result<ferrocal_vision::detect::Pattern, DatasetError> {
+    use crate::render::TargetConfig;
+    use ferrocal_vision::detect::Pattern;
+    Ok(match target {
+        TargetConfig::Plate { square_m, .. } => Pattern::Plate { square_mm: square_m * 1e3 },
+        TargetConfig::Chessboard { inner_cols, inner_rows, square_m, .. } => {
+            Pattern::Chessboard { cols: *inner_cols, rows: *inner_rows, square_mm: square_m * 1e3 }
+        }
+        TargetConfig::AprilTagBoard { .. } => {
+            return Err(DatasetError::Input(
+                "measuring with AprilTag boards is not supported yet: use the plate or a chessboard".into(),
+            ))
+        }
+    })
+}
+
+/// Detects `pattern` in every image (`None` entries stay `None`); an image where the whole
+/// pattern is not found becomes `None` and a note.
+fn detect_images(
+    dir: &Path,
+    images: &[(String, Option<String>)],
+    pattern: &ferrocal_vision::detect::Pattern,
+    n_points: usize,
+    notes: &mut Vec<String>,
+) -> CornersById {
+    use ferrocal_vision::detect::{detect, load_gray, DetectOptions};
+    let opts = DetectOptions::default();
+    images
+        .iter()
+        .map(|(id, file)| {
+            let corners = file.as_ref().and_then(|f| {
+                let path = dir.join(f);
+                let found = load_gray(&path).and_then(|img| detect(&img, pattern, &opts, None));
+                match found {
+                    Ok(d) => match d.into_iter().find(|d| d.complete && d.corners.len() == n_points) {
+                        Some(d) => Some(d.corners_px()),
+                        None => {
+                            notes.push(format!("{f}: the whole pattern was not found"));
+                            None
+                        }
+                    },
+                    Err(e) => {
+                        notes.push(format!("{f}: {e}"));
+                        None
+                    }
+                }
+            });
+            (id.clone(), corners)
+        })
+        .collect()
 }
 
 /// Options of [`measure_session`].
@@ -117,14 +180,10 @@ pub fn read_session_joints(dir: &Path, manifest: &SessionManifest) -> Result<Vec
 }
 
 /// Reads the exact corners of one camera: per pose id, the pixels of every corner index.
-fn read_truth_corners(
-    dir: &Path,
-    file: &str,
-    n_points: usize,
-) -> Result<std::collections::HashMap<String, Vec<Option<Point2<f64>>>>, DatasetError> {
+fn read_truth_corners(dir: &Path, file: &str, n_points: usize) -> Result<TruthCorners, DatasetError> {
     let path = dir.join(file);
     let text = std::fs::read_to_string(&path).map_err(|source| DatasetError::Io { path: path.clone(), source })?;
-    let mut out: std::collections::HashMap<String, Vec<Option<Point2<f64>>>> = Default::default();
+    let mut out: TruthCorners = Default::default();
     let mut counter: std::collections::HashMap<String, usize> = Default::default();
     for (k, line) in text.lines().enumerate().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
@@ -148,15 +207,24 @@ fn read_truth_corners(
 
 /// Corners of every image of one camera from `file` (the session's exact corners), by pose id;
 /// `None` for an image where not every corner is in view.
+#[allow(clippy::too_many_arguments)]
 fn corners_for(
     dir: &Path,
     file: &str,
     n_points: usize,
     source: &CornerSource,
     camera: &str,
-) -> Result<std::collections::HashMap<String, Option<Vec<Point2<f64>>>>, DatasetError> {
+    images: &[(String, Option<String>)],
+    pattern: &crate::render::TargetConfig,
+    notes: &mut Vec<String>,
+) -> Result<CornersById, DatasetError> {
+    if let CornerSource::Detector = source {
+        let p = detector_pattern(pattern)?;
+        return Ok(detect_images(dir, images, &p, n_points, notes));
+    }
     let truth = read_truth_corners(dir, file, n_points)?;
     match source {
+        CornerSource::Detector => unreachable!("handled above"),
         CornerSource::TruthWithNoise { sigma_px, seed } => {
             let noise =
                 Normal::new(0.0, *sigma_px).map_err(|e| DatasetError::Input(format!("camera {camera}: {e}")))?;
@@ -201,14 +269,19 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
     let joints = read_session_joints(dir, &manifest)?;
     let n = points.len();
     // Corners per camera and pose.
+    let mut notes = Vec::new();
+    let target_pattern = manifest.target.clone().expect("checked by target_points");
     let mut corners: Vec<Vec<Option<Vec<Point2<f64>>>>> = Vec::new();
     for (ci, cam) in manifest.cameras.iter().enumerate() {
         let source = match &opts.corners {
             CornerSource::TruthWithNoise { sigma_px, seed } => {
                 CornerSource::TruthWithNoise { sigma_px: *sigma_px, seed: seed.wrapping_add(1000 * ci as u64) }
             }
+            CornerSource::Detector => CornerSource::Detector,
         };
-        let m = corners_for(dir, &cam.corners_truth, n, &source, &cam.name)?;
+        let images: Vec<(String, Option<String>)> =
+            joints.iter().zip(&cam.images).map(|(r, f)| (r.pose_id.clone(), f.clone())).collect();
+        let m = corners_for(dir, &cam.corners_truth, n, &source, &cam.name, &images, &target_pattern, &mut notes)?;
         corners.push(joints.iter().map(|row| m.get(&row.pose_id).cloned().flatten()).collect());
     }
     // Rig calibration: from the calibration board when the session has one (the usual way),
@@ -225,7 +298,9 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
                         cam.name
                     ))
                 })?;
-                per_cam.push(corners_for(dir, file, nb, &opts.corners, cam.name.as_str())?);
+                let images: Vec<(String, Option<String>)> =
+                    cam.board_images.iter().enumerate().map(|(k, f)| (format!("b{:03}", k + 1), f.clone())).collect();
+                per_cam.push(corners_for(dir, file, nb, &opts.corners, cam.name.as_str(), &images, board, &mut notes)?);
             }
             let mut ids: Vec<String> = per_cam.iter().flat_map(|m| m.keys().cloned()).collect();
             ids.sort();
@@ -316,6 +391,7 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
             Err(e) => skipped.push(format!("pose {}: {e}", row.pose_id)),
         }
     }
+    skipped.extend(notes);
     Ok(SessionMeasurement {
         rig,
         poses,

@@ -191,7 +191,7 @@ fn camera_calibrate_on_the_opencv_sample_matches_the_published_numbers() {
 fn demo_writes_its_report() {
     let tmp = tempfile::tempdir().unwrap();
     let out_dir = tmp.path().join("demo");
-    let out = run(ferrocal().args(["demo", "--samples", "100", "--out"]).arg(&out_dir));
+    let out = run(ferrocal().args(["demo", "--quick", "--samples", "100", "--out"]).arg(&out_dir));
     assert!(out.status.success());
     let html = std::fs::read_to_string(out_dir.join("index.html")).unwrap();
     assert!(html.contains("Provenance") && html.contains("<svg"));

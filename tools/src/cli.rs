@@ -24,6 +24,11 @@ pub enum Command {
     /// Robot models: information, forward and inverse kinematics, safety checks.
     #[command(subcommand)]
     Robot(RobotCommand),
+    /// Detect chessboards, the Gantry-Tau plate, AprilTags and tag boards, with sub-pixel corners.
+    Detect(crate::commands::detect::DetectArgs),
+    /// Corner accuracy study on rendered images: this project, OpenCV cornerSubPix and
+    /// findChessboardCornersSB, and the Cramer-Rao bound, at several blur and noise levels.
+    CornerStudy(crate::commands::corner_study::CornerStudyArgs),
     /// Cameras: calibrate one camera or a stereo pair from images of a chessboard.
     #[command(subcommand)]
     Camera(crate::commands::camera::CameraCommand),
@@ -52,6 +57,9 @@ pub struct DemoArgs {
     /// Seed of every random choice in the demo.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// A smaller simulated cell (fewer poses and board views): for tests and a first look.
+    #[arg(long)]
+    pub quick: bool,
 }
 
 /// `ferrocal robot ...`.

@@ -13,7 +13,9 @@
 pub mod backends;
 pub mod calib;
 pub mod camera;
+pub mod detect;
 pub mod error;
 pub mod pose;
+pub mod subpix;
 
 pub use error::{Result, VisionError};

@@ -2,7 +2,9 @@
 
 pub mod calibrate;
 pub mod camera;
+pub mod corner_study;
 mod demo;
+pub mod detect;
 mod doctor;
 mod robot;
 pub mod simulate;
@@ -20,6 +22,8 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Demo(a) => demo::run(&a),
         Command::Doctor => doctor::run(),
         Command::Robot(c) => robot::run(c),
+        Command::Detect(a) => detect::run(&a),
+        Command::CornerStudy(a) => corner_study::run(&a),
         Command::Camera(c) => camera::run(c),
         Command::Simulate(a) => simulate::run_simulate(&a),
         Command::Import(a) => simulate::run_import(&a),

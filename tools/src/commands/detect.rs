@@ -1,0 +1,206 @@
+//! `ferrocal detect`: find a pattern in images and write the corners as JSON
+//! (`shared/spec/cli.md`).
+//!
+//! Glue only: image lists come from `ferrocal_datasets::import::list_images`, detection and the
+//! per-image results from `ferrocal_vision::detect::Detector`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use ferrocal_datasets::import::{list_images, natural_cmp, ImageFolderOptions};
+use ferrocal_vision::detect::{
+    load_gray, median_background, AprilTagOptions, DetectOptions, Detector, ImageResult, Pattern, TagBackend, TagRefine,
+};
+
+use crate::report::write_atomic;
+
+/// `ferrocal detect`.
+#[derive(Debug, Args)]
+#[command(
+    after_help = "Output: [{\"image\": \"<path>\", \"detections\": [{\"id\": <int|null>, \"corners_px\": [[x, y], ...], ...}], \
+\"error\": \"<why>\" (only when the image failed)}]. Pixel (0, 0) is the centre of the top-left pixel. A chessboard is one \
+detection whose corners run row by row from the top-left as printed; the plate is one detection of 20 corners (squares \
+top-left, top-right, centre, bottom-left, bottom-right; corners top-left, top-right, bottom-right, bottom-left); tags are \
+one detection each, corners in the AprilTag library's order.\n\n\
+An image that cannot be read, is empty, or does not show the pattern is reported on stderr and in its JSON entry; the \
+batch goes on.\n\n\
+Exit status: 0 when the pattern was found in every image; 2 when at least one image failed (the JSON is still written); \
+1 when the command itself fails (a pattern that does not parse, no images at all, the JSON cannot be written)."
+)]
+pub struct DetectArgs {
+    /// Images: files, directories or glob patterns (quote globs); several may follow.
+    #[arg(long, required = true, num_args = 1..)]
+    pub images: Vec<String>,
+    /// The pattern: `chessboard:<cols>x<rows>:<square>mm` (inner corners),
+    /// `apriltag:<family>[:<tag size>mm]`, `plate:<square>mm` (the Gantry-Tau plate),
+    /// `aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]`.
+    #[arg(long)]
+    pub pattern: String,
+    /// Write the detections here (JSON).
+    #[arg(long)]
+    pub json: PathBuf,
+    /// Accept chessboards of which only a part is visible (extra fields `grid_index`, `complete`,
+    /// `anchored` say which corners they are).
+    #[arg(long)]
+    pub partial: bool,
+    /// Report the detector's coarse corners, without the sub-pixel edge fit.
+    #[arg(long)]
+    pub no_refine: bool,
+    /// Plate only: images of the same sequence whose per-pixel median is the static background
+    /// (files, directories or globs).
+    #[arg(long, num_args = 1..)]
+    pub background: Vec<String>,
+    /// AprilTags: refit the tag borders with the edge model and report covariances.
+    #[arg(long)]
+    pub tag_edge_refine: bool,
+    /// AprilTags: the decoder, `c` (the AprilTag C library) or `kornia` (kornia-apriltag).
+    #[arg(long, default_value = "c", value_parser = ["c", "kornia"])]
+    pub tag_backend: String,
+}
+
+/// Expands image specifications into a sorted list: `Ok(path)` for images to process,
+/// `Err((name, reason))` for entries that cannot be read.
+fn expand(specs: &[String]) -> Vec<std::result::Result<PathBuf, (String, String)>> {
+    let mut out = Vec::new();
+    for spec in specs {
+        let opts = ImageFolderOptions { joints_table: None, decode: false };
+        match list_images(spec, &opts) {
+            Ok(folder) => {
+                let mut entries: Vec<std::result::Result<PathBuf, (String, String)>> =
+                    folder.images.into_iter().map(|e| Ok(e.path)).collect();
+                entries.extend(folder.skipped.into_iter().map(|s| {
+                    let empty = std::fs::metadata(&s.path).is_ok_and(|m| m.is_file() && m.len() == 0);
+                    let reason = if empty {
+                        "the file is empty (0 bytes)".to_string()
+                    } else {
+                        s.reason.trim().replace('\n', " ")
+                    };
+                    Err((s.path.display().to_string(), reason))
+                }));
+                entries.sort_by(|a, b| {
+                    let name = |e: &std::result::Result<PathBuf, (String, String)>| match e {
+                        Ok(p) => p.display().to_string(),
+                        Err((n, _)) => n.clone(),
+                    };
+                    natural_cmp(&name(a), &name(b))
+                });
+                if entries.is_empty() {
+                    out.push(Err((spec.clone(), "no image files match".to_string())));
+                }
+                out.extend(entries);
+            }
+            Err(e) => out.push(Err((spec.clone(), e.to_string()))),
+        }
+    }
+    out
+}
+
+/// Runs `ferrocal detect`.
+pub fn run(args: &DetectArgs) -> Result<ExitCode> {
+    let pattern: Pattern = args.pattern.parse()?;
+    let mut options = DetectOptions { refine: !args.no_refine, partial: args.partial, ..DetectOptions::default() };
+    options.apriltag = AprilTagOptions {
+        backend: if args.tag_backend == "kornia" { TagBackend::Kornia } else { TagBackend::CLibrary },
+        refine: if args.tag_edge_refine && !args.no_refine { TagRefine::EdgeModel } else { TagRefine::Backend },
+        ..AprilTagOptions::default()
+    };
+    let background = if args.background.is_empty() {
+        None
+    } else {
+        let mut frames = Vec::new();
+        for entry in expand(&args.background) {
+            match entry {
+                Ok(p) => frames.push(load_gray(&p)?),
+                Err((name, reason)) => bail!("background image {name}: {reason}"),
+            }
+        }
+        Some(median_background(&frames).context("background median")?)
+    };
+    let entries = expand(&args.images);
+    if entries.is_empty() {
+        bail!("no images given");
+    }
+    let mut detector = Detector::new(pattern, options, background)?;
+    let mut results: Vec<ImageResult> = Vec::with_capacity(entries.len());
+    for entry in entries {
+        let r = match entry {
+            Ok(path) => detector.detect_file(&path),
+            Err((name, reason)) => ImageResult::failed(name, reason),
+        };
+        if let Some(e) = &r.error {
+            // The vision crate's messages already name the file; list_images' do not.
+            if e.contains(&r.image) {
+                eprintln!("ferrocal: {e}");
+            } else {
+                eprintln!("ferrocal: {}: {e}", r.image);
+            }
+        }
+        results.push(r);
+    }
+    let failed = results.iter().filter(|r| r.error.is_some()).count();
+    let json = serde_json::to_vec_pretty(&results)?;
+    write_atomic(&args.json, &json).with_context(|| format!("cannot write {}", args.json.display()))?;
+    println!(
+        "{} images: pattern found in {}, {} failed; wrote {}",
+        results.len(),
+        results.len() - failed,
+        failed,
+        args.json.display()
+    );
+    Ok(if failed == 0 { ExitCode::SUCCESS } else { ExitCode::from(2) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write_board(path: &std::path::Path) {
+        // A plain 4 x 3 inner-corner chessboard, 40 px squares, lightly blurred.
+        let (w, h) = (320u32, 260u32);
+        let img = image::GrayImage::from_fn(w, h, |x, y| {
+            let (u, v) = (x as f64 - 60.0, y as f64 - 50.0);
+            let inside = (0.0..200.0).contains(&u) && (0.0..160.0).contains(&v);
+            let dark = inside && ((u / 40.0).floor() as i64 + (v / 40.0).floor() as i64) % 2 == 0;
+            image::Luma([if dark { 30 } else { 210 }])
+        });
+        img.save(path).unwrap();
+    }
+
+    #[test]
+    fn bad_images_are_reported_and_the_batch_continues() {
+        let dir = std::env::temp_dir().join(format!("ferrocal_detect_test_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        write_board(&dir.join("a_board.png"));
+        std::fs::write(dir.join("b_empty.png"), b"").unwrap();
+        image::GrayImage::from_pixel(100, 80, image::Luma([128])).save(dir.join("c_blank.png")).unwrap();
+        let json = dir.join("out.json");
+        let args = DetectArgs {
+            images: vec![dir.display().to_string()],
+            pattern: "chessboard:4x3:20mm".into(),
+            json: json.clone(),
+            partial: false,
+            no_refine: false,
+            background: vec![],
+            tag_edge_refine: false,
+            tag_backend: "c".into(),
+        };
+        let code = run(&args).unwrap();
+        assert_eq!(code, ExitCode::from(2));
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let a = v.as_array().unwrap();
+        assert_eq!(a.len(), 3);
+        assert_eq!(a[0]["detections"][0]["corners_px"].as_array().unwrap().len(), 12);
+        assert!(a[0].get("error").is_none());
+        assert!(
+            a[1]["error"].as_str().unwrap().contains("b_empty.png")
+                || a[1]["image"].as_str().unwrap().contains("b_empty.png")
+        );
+        assert!(a[2]["error"].as_str().unwrap().contains("not found"));
+        let bad = DetectArgs { pattern: "chessboard:4x3".into(), ..args };
+        let e = run(&bad).unwrap_err().to_string();
+        assert!(e.contains("'chessboard:4x3'") && e.contains("expected"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -1,0 +1,337 @@
+//! Chessboards, full and partial views.
+//!
+//! X-corner candidates (saddles of the second derivatives, validated on circles) are grown
+//! into grids a whole row or column at a time; the largest grid whose cells alternate
+//! dark/light is labelled with board indices:
+//!
+//! 1. *Handedness*: the board is seen from its printed side, so the column axis turned towards
+//!    the row axis must turn clockwise in the image (x right, y down); otherwise the grid is
+//!    transposed.
+//! 2. *Rotation* (four choices): the grid must fit in the board (`rows x cols` inner corners)
+//!    and the dark cells must be those of the board: inner corner `(r, c)` has the dark square
+//!    at its top-left when `r + c` is even (the top-left square of the board is dark, as in
+//!    `ferrocal_datasets`' renderer). A board with `rows + cols` odd (e.g. 9 x 6) is therefore
+//!    labelled without ambiguity; otherwise the rotation whose column axis points most to the
+//!    right of the image (and row axis most downwards) is taken.
+//! 3. *Partial views*: an axis along which fewer corners are seen than the board has is
+//!    anchored by a visible board edge: beyond the last row of corners the board has one row
+//!    of squares and then the margin, so the "cells" two steps out are uniform, whereas a
+//!    board cut by the image border or by occlusion continues (the next row would be outside
+//!    the image or alternating). An axis without a visible edge keeps relative indices (from 0,
+//!    or 1 where the colours need it) and the detection says `anchored = false`.
+//!
+//! Corners are then refined by [`crate::subpix::refine_grid`] (the board is a checkerboard of
+//! `(rows + 1) x (cols + 1)` fields; border squares are used, the margin is not).
+
+use nalgebra::{Matrix2, Point2, Point3, Vector2};
+
+use super::grid::{cell_mean, cell_parity, grow_grids, Grid, Pos};
+use super::image::GrayF32;
+use super::xcorner::{find_xcorners, XCorner};
+use super::{Corner, DetectOptions, Detection};
+use crate::error::{Result, VisionError};
+use crate::subpix::{refine_grid, CheckerGrid};
+
+/// A labelled grid: board index `(row, col)` and coarse position of every corner.
+#[derive(Clone, Debug)]
+pub(crate) struct Labelled {
+    pub corners: Vec<((u32, u32), Vector2<f64>)>,
+    pub anchored: bool,
+    pub complete: bool,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Sides {
+    top: bool,
+    bottom: bool,
+    left: bool,
+    right: bool,
+}
+
+/// Whether the board visibly ends beyond the side of the grid reached by stepping `step`
+/// from the grid line `(line fixed)`: the cells two steps out do not alternate.
+fn side_closed(img: &GrayF32, cands: &[XCorner], g: &Grid, outward: Pos, contrast: f64) -> bool {
+    // Corners on the outermost line of that side, with their inner neighbours.
+    let mut edge: Vec<(i32, Vector2<f64>, Vector2<f64>)> = Vec::new();
+    for (&(i, j), &k) in &g.at {
+        let (ni, nj) = (i + outward.0, j + outward.1);
+        if g.at.contains_key(&(ni, nj)) {
+            continue;
+        }
+        let inner = (i - outward.0, j - outward.1);
+        if let Some(q) = g.point(cands, inner) {
+            // Position along the side.
+            let along = if outward.0 != 0 { j } else { i };
+            edge.push((along, cands[k].p, q));
+        }
+    }
+    edge.sort_by_key(|e| e.0);
+    let (w, h) = (img.width as f64, img.height as f64);
+    let mut vals: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    for pair in edge.windows(2) {
+        let (a, b) = (&pair[0], &pair[1]);
+        if b.0 != a.0 + 1 {
+            continue;
+        }
+        // Points one and two steps outward.
+        let a1 = a.1 * 2.0 - a.2;
+        let b1 = b.1 * 2.0 - b.2;
+        let a2 = a.1 * 3.0 - a.2 * 2.0;
+        let b2 = b.1 * 3.0 - b.2 * 2.0;
+        let inside = |p: Vector2<f64>| p.x >= 1.0 && p.y >= 1.0 && p.x <= w - 2.0 && p.y <= h - 2.0;
+        if !(inside(a2) && inside(b2) && inside(a1) && inside(b1)) {
+            continue;
+        }
+        // Middle of the cell two steps out (0.25..0.75 of the way from the 1-step line).
+        let m =
+            cell_mean(img, a1 * 0.75 + a2 * 0.25, b1 * 0.75 + b2 * 0.25, a1 * 0.25 + a2 * 0.75, b1 * 0.25 + b2 * 0.75);
+        vals[(a.0.rem_euclid(2)) as usize].push(m);
+    }
+    if vals[0].is_empty() || vals[1].is_empty() {
+        return false;
+    }
+    let mean = |v: &Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
+    (mean(&vals[0]) - mean(&vals[1])).abs() < 0.3 * contrast
+}
+
+/// Labels a grid with board indices, or `None` when it cannot be this board.
+pub(crate) fn label(img: &GrayF32, cands: &[XCorner], grid: &Grid, cols: u32, rows: u32) -> Option<Labelled> {
+    let (dark_parity, contrast) = cell_parity(img, cands, grid)?;
+    // Handedness.
+    let mut a = Vector2::zeros();
+    let mut b = Vector2::zeros();
+    for (&(i, j), &k) in &grid.at {
+        if let Some(q) = grid.point(cands, (i, j + 1)) {
+            a += q - cands[k].p;
+        }
+        if let Some(q) = grid.point(cands, (i + 1, j)) {
+            b += q - cands[k].p;
+        }
+    }
+    let mut g = grid.clone();
+    if a.x * b.y - a.y * b.x < 0.0 {
+        g.at = g.at.iter().map(|(&(i, j), &k)| ((j, i), k)).collect();
+        std::mem::swap(&mut g.rows, &mut g.cols);
+    }
+    let (r_ext, c_ext) = (g.rows, g.cols);
+    let sides = Sides {
+        top: side_closed(img, cands, &g, (-1, 0), contrast),
+        bottom: side_closed(img, cands, &g, (1, 0), contrast),
+        left: side_closed(img, cands, &g, (0, -1), contrast),
+        right: side_closed(img, cands, &g, (0, 1), contrast),
+    };
+    let (rows_i, cols_i) = (rows as i32, cols as i32);
+    let mut best: Option<(i32, f64, Labelled)> = None;
+    for k in 0..4 {
+        let (nr, nc) = if k % 2 == 0 { (r_ext, c_ext) } else { (c_ext, r_ext) };
+        if nr > rows_i || nc > cols_i {
+            continue;
+        }
+        let map = |(i, j): Pos| -> Pos {
+            match k {
+                0 => (i, j),
+                1 => (j, r_ext - 1 - i),
+                2 => (r_ext - 1 - i, c_ext - 1 - j),
+                _ => (c_ext - 1 - j, i),
+            }
+        };
+        let p_new = match k {
+            0 => dark_parity,
+            1 => (dark_parity + r_ext) % 2,
+            2 => (dark_parity + r_ext + c_ext) % 2,
+            _ => (dark_parity + c_ext) % 2,
+        };
+        let s = match k {
+            0 => sides,
+            1 => Sides { top: sides.left, bottom: sides.right, left: sides.bottom, right: sides.top },
+            2 => Sides { top: sides.bottom, bottom: sides.top, left: sides.right, right: sides.left },
+            _ => Sides { top: sides.right, bottom: sides.left, left: sides.top, right: sides.bottom },
+        };
+        let anchor = |n: i32, total: i32, lo: bool, hi: bool| -> std::result::Result<Option<i32>, ()> {
+            if n == total {
+                Ok(Some(0))
+            } else if lo && hi {
+                Err(())
+            } else if lo {
+                Ok(Some(0))
+            } else if hi {
+                Ok(Some(total - n))
+            } else {
+                Ok(None)
+            }
+        };
+        let Ok(or) = anchor(nr, rows_i, s.top, s.bottom) else { continue };
+        let Ok(oc) = anchor(nc, cols_i, s.left, s.right) else { continue };
+        let anchored_axes = or.is_some() as i32 + oc.is_some() as i32;
+        // Colour: (p_new + or + oc) even.
+        let (or, oc) = match (or, oc) {
+            (Some(r), Some(c)) => {
+                if (p_new + r + c) % 2 != 0 {
+                    continue;
+                }
+                (r, c)
+            }
+            (Some(r), None) => {
+                let c = (p_new + r) % 2;
+                if c > cols_i - nc {
+                    continue;
+                }
+                (r, c)
+            }
+            (None, Some(c)) => {
+                let r = (p_new + c) % 2;
+                if r > rows_i - nr {
+                    continue;
+                }
+                (r, c)
+            }
+            (None, None) => {
+                let c = p_new % 2;
+                if c > cols_i - nc {
+                    if rows_i - nr >= 1 {
+                        (1, 0)
+                    } else {
+                        continue;
+                    }
+                } else {
+                    (0, c)
+                }
+            }
+        };
+        // Upright score: new column axis along +x, new row axis along +y.
+        let mut ax = Vector2::zeros();
+        let mut ay = Vector2::zeros();
+        for (&q, &kk) in &g.at {
+            let nq = map(q);
+            for (&q2, &k2) in &g.at {
+                let n2 = map(q2);
+                if n2 == (nq.0, nq.1 + 1) {
+                    ax += cands[k2].p - cands[kk].p;
+                }
+                if n2 == (nq.0 + 1, nq.1) {
+                    ay += cands[k2].p - cands[kk].p;
+                }
+            }
+        }
+        let upright = ax.x / ax.norm().max(1e-9) + ay.y / ay.norm().max(1e-9);
+        let mut corners: Vec<((u32, u32), Vector2<f64>)> =
+            g.at.iter()
+                .map(|(&q, &kk)| {
+                    let n = map(q);
+                    (((n.0 + or) as u32, (n.1 + oc) as u32), cands[kk].p)
+                })
+                .collect();
+        corners.sort_by_key(|c| c.0);
+        let complete = corners.len() == (rows * cols) as usize;
+        let lab = Labelled { corners, anchored: anchored_axes == 2, complete };
+        if best.as_ref().is_none_or(|(ba, bu, _)| anchored_axes > *ba || (anchored_axes == *ba && upright > *bu + 1e-9))
+        {
+            best = Some((anchored_axes, upright, lab));
+        }
+    }
+    best.map(|b| b.2)
+}
+
+/// Finds a chessboard of `cols x rows` inner corners.
+pub(crate) fn detect_chessboard(
+    img: &GrayF32,
+    cols: u32,
+    rows: u32,
+    square_mm: f64,
+    options: &DetectOptions,
+    pattern_text: &str,
+) -> Result<Detection> {
+    let cands = find_xcorners(img, &options.xcorner(), None)?;
+    let grids = grow_grids(&cands, 4, 12, 300, (img.width as f64, img.height as f64), Some((cols * rows) as usize));
+    let mut best: Option<Labelled> = None;
+    let mut largest = 0usize;
+    for g in &grids {
+        largest = largest.max(g.at.len());
+        let Some(l) = label(img, &cands, g, cols, rows) else { continue };
+        let better = match &best {
+            None => true,
+            Some(b) => (l.complete && !b.complete) || (l.complete == b.complete && l.corners.len() > b.corners.len()),
+        };
+        if better {
+            best = Some(l);
+        }
+        if best.as_ref().is_some_and(|b| b.complete) {
+            break;
+        }
+    }
+    let not_found = |reason: String| VisionError::PatternNotFound { pattern: pattern_text.to_string(), reason };
+    let Some(lab) = best else {
+        return Err(not_found(if grids.is_empty() {
+            format!("no grid of X-corners ({} candidates)", cands.len())
+        } else {
+            format!("the largest grid of X-corners ({largest} corners) does not fit a {cols}x{rows} board")
+        }));
+    };
+    if !lab.complete && !options.partial {
+        return Err(not_found(format!(
+            "only {} of {} corners visible (partial views are off)",
+            lab.corners.len(),
+            rows * cols
+        )));
+    }
+    let square_m = square_mm * 1e-3;
+    let target = |r: u32, c: u32| {
+        Point3::new(
+            (c as f64 - 0.5 * (cols as f64 - 1.0)) * square_m,
+            (0.5 * (rows as f64 - 1.0) - r as f64) * square_m,
+            0.0,
+        )
+    };
+    let refined =
+        if options.refine { refine_chessboard(img, &lab, cols, rows, options)? } else { vec![None; lab.corners.len()] };
+    let corners = lab
+        .corners
+        .iter()
+        .zip(refined)
+        .map(|(((r, c), p), rc)| {
+            let (pos, cov, crb) = match rc {
+                Some((q, cov, crb)) => (q, Some(cov), crb),
+                None => (Point2::new(p.x, p.y), None, None),
+            };
+            Corner {
+                position_px: pos,
+                covariance_px2: cov,
+                crb_px2: crb,
+                target_m: Some(target(*r, *c)),
+                grid_index: Some([*r, *c]),
+            }
+        })
+        .collect();
+    Ok(Detection { id: None, corners, complete: lab.complete, anchored: lab.anchored })
+}
+
+type Refined = Option<(Point2<f64>, Matrix2<f64>, Option<Matrix2<f64>>)>;
+
+/// Refines labelled corners with the edge model; a corner whose fit fails or moves more than
+/// 3 px keeps its coarse position (and no covariance).
+pub(crate) fn refine_chessboard(
+    img: &GrayF32,
+    lab: &Labelled,
+    cols: u32,
+    rows: u32,
+    options: &DetectOptions,
+) -> Result<Vec<Refined>> {
+    let (fr, fc) = (rows as usize + 1, cols as usize + 1);
+    let mut points = vec![None; (fr + 1) * (fc + 1)];
+    for ((r, c), p) in &lab.corners {
+        points[(*r as usize + 1) * (fc + 1) + *c as usize + 1] = Some(Point2::new(p.x, p.y));
+    }
+    let grid = CheckerGrid::checkerboard(fr, fc, true, None, points);
+    let wanted: Vec<(usize, usize)> =
+        lab.corners.iter().map(|((r, c), _)| (*r as usize + 1, *c as usize + 1)).collect();
+    let (out, _) = refine_grid(img, &grid, &wanted, &options.refine_options)?;
+    Ok(out
+        .into_iter()
+        .zip(&lab.corners)
+        .map(|(rc, (_, p0))| {
+            let rc = rc?;
+            let d = Vector2::new(rc.position_px.x, rc.position_px.y) - p0;
+            (d.norm() <= 3.0).then_some((rc.position_px, rc.covariance_px2, rc.crb_px2))
+        })
+        .collect())
+}

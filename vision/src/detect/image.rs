@@ -1,0 +1,171 @@
+//! Grey-level images for the detectors: loading, conversion to floating point, smoothing.
+
+use std::path::Path;
+
+use image::GrayImage;
+
+use crate::error::{Result, VisionError};
+
+/// A single-channel floating-point image, row-major, values in digital numbers (0..255 for
+/// 8-bit sources). Pixel `(x, y)` is centred on `(x, y)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GrayF32 {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// `width * height` values, row by row.
+    pub data: Vec<f32>,
+}
+
+impl GrayF32 {
+    /// Converts an 8-bit image.
+    pub fn from_gray8(img: &GrayImage) -> Result<Self> {
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        if w == 0 || h == 0 {
+            return Err(VisionError::BadImage { reason: format!("the image has no pixels ({w}x{h})") });
+        }
+        Ok(Self { width: w, height: h, data: img.as_raw().iter().map(|v| f32::from(*v)).collect() })
+    }
+
+    /// Wraps row-major values; the length must be `width * height > 0`.
+    pub fn from_vec(width: usize, height: usize, data: Vec<f32>) -> Result<Self> {
+        if width == 0 || height == 0 || data.len() != width * height {
+            return Err(VisionError::BadImage {
+                reason: format!("{} values for a {width}x{height} image", data.len()),
+            });
+        }
+        Ok(Self { width, height, data })
+    }
+
+    /// The value at column `x`, row `y` (must be inside).
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> f32 {
+        self.data[y * self.width + x]
+    }
+
+    /// Bilinear interpolation at `(x, y)` (pixel-centre convention), clamped to the image.
+    pub fn bilinear(&self, x: f64, y: f64) -> f64 {
+        let xc = x.clamp(0.0, (self.width - 1) as f64);
+        let yc = y.clamp(0.0, (self.height - 1) as f64);
+        let (x0, y0) = (xc.floor() as usize, yc.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(self.width - 1), (y0 + 1).min(self.height - 1));
+        let (fx, fy) = (xc - x0 as f64, yc - y0 as f64);
+        let a = f64::from(self.get(x0, y0)) * (1.0 - fx) + f64::from(self.get(x1, y0)) * fx;
+        let b = f64::from(self.get(x0, y1)) * (1.0 - fx) + f64::from(self.get(x1, y1)) * fx;
+        a * (1.0 - fy) + b * fy
+    }
+
+    /// Gaussian smoothing with standard deviation `sigma_px` (kornia-rs separable filter,
+    /// kernel `2 round(4 sigma) + 1`; kornia pads with zeros, so the outer `4 sigma` pixels are
+    /// darkened: callers ignore them).
+    pub fn gaussian(&self, sigma_px: f64) -> Result<Self> {
+        use kornia_image::{Image, ImageSize};
+        let size = ImageSize { width: self.width, height: self.height };
+        let err =
+            |e: kornia_image::ImageError| VisionError::Backend { library: "kornia-imgproc", message: e.to_string() };
+        let src = Image::<f32, 1>::new(size, self.data.clone()).map_err(err)?;
+        let mut dst = Image::<f32, 1>::from_size_val(size, 0.0).map_err(err)?;
+        kornia_imgproc::filter::gaussian_blur(&src, &mut dst, (0, 0), (sigma_px as f32, sigma_px as f32))
+            .map_err(err)?;
+        Ok(Self { width: self.width, height: self.height, data: dst.as_slice().to_vec() })
+    }
+
+    /// Halves the resolution by 2 x 2 averaging; pixel `(x, y)` of the result is centred on
+    /// `(2x + 0.5, 2y + 0.5)` of this image.
+    pub fn downsample2(&self) -> Self {
+        let (w, h) = ((self.width / 2).max(1), (self.height / 2).max(1));
+        let mut data = vec![0.0f32; w * h];
+        for y in 0..h {
+            let (y0, y1) = ((2 * y).min(self.height - 1), (2 * y + 1).min(self.height - 1));
+            for x in 0..w {
+                let (x0, x1) = ((2 * x).min(self.width - 1), (2 * x + 1).min(self.width - 1));
+                data[y * w + x] = 0.25 * (self.get(x0, y0) + self.get(x1, y0) + self.get(x0, y1) + self.get(x1, y1));
+            }
+        }
+        Self { width: w, height: h, data }
+    }
+}
+
+/// Reads an image file as 8-bit grey (colour images are converted with the `image` crate's
+/// luma weights). An empty file, an undecodable file or a 0 x 0 image is an error naming the
+/// file.
+pub fn load_gray(path: impl AsRef<Path>) -> Result<GrayImage> {
+    let path = path.as_ref();
+    let fail =
+        |reason: String| VisionError::ImageRead { path: path.to_path_buf(), reason: reason.trim().replace('\n', " ") };
+    let meta = std::fs::metadata(path).map_err(|e| fail(e.to_string()))?;
+    if meta.is_dir() {
+        return Err(fail("is a directory".into()));
+    }
+    if meta.len() == 0 {
+        return Err(fail("the file is empty (0 bytes)".into()));
+    }
+    let reader = image::ImageReader::open(path)
+        .map_err(|e| fail(e.to_string()))?
+        .with_guessed_format()
+        .map_err(|e| fail(e.to_string()))?;
+    if reader.format().is_none() {
+        return Err(fail("not a recognised image format (PNG, JPEG, TIFF, BMP, PNM)".into()));
+    }
+    let img = reader.decode().map_err(|e| fail(format!("cannot decode: {e}")))?;
+    if img.width() == 0 || img.height() == 0 {
+        return Err(fail("the image has no pixels".into()));
+    }
+    Ok(to_gray(&img))
+}
+
+/// Grey level of a decoded image: 8-bit grey as is; colour by the JFIF / ITU-R BT.601 luma
+/// `Y = 0.299 R + 0.587 G + 0.114 B` (the Y plane of a colour JPEG, which is what the AprilTag
+/// library and OpenCV's `cvtColor(..., COLOR_RGB2GRAY)` use), rounded; alpha ignored; deeper
+/// images scaled to 8 bits.
+pub fn to_gray(img: &image::DynamicImage) -> GrayImage {
+    use image::DynamicImage as D;
+    match img {
+        D::ImageLuma8(g) => g.clone(),
+        D::ImageLuma16(_) | D::ImageLumaA8(_) | D::ImageLumaA16(_) => img.to_luma8(),
+        _ => {
+            let rgb = img.to_rgb8();
+            let data = rgb
+                .as_raw()
+                .chunks_exact(3)
+                .map(|p| {
+                    (0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2]))
+                        .round()
+                        .clamp(0.0, 255.0) as u8
+                })
+                .collect();
+            GrayImage::from_raw(rgb.width(), rgb.height(), data).expect("same size")
+        }
+    }
+}
+
+/// Per-pixel median of a sequence of equally sized images: the static background of a
+/// recording (the Gantry-Tau method uses 10 frames).
+pub fn median_background(frames: &[GrayImage]) -> Result<GrayImage> {
+    let first =
+        frames.first().ok_or_else(|| VisionError::BadImage { reason: "no frames for the background median".into() })?;
+    let (w, h) = first.dimensions();
+    if w == 0 || h == 0 {
+        return Err(VisionError::BadImage { reason: "the first frame has no pixels".into() });
+    }
+    for (k, f) in frames.iter().enumerate() {
+        if f.dimensions() != (w, h) {
+            return Err(VisionError::BadImage {
+                reason: format!("frame {k} is {}x{}, frame 0 is {w}x{h}", f.width(), f.height()),
+            });
+        }
+    }
+    let n = frames.len();
+    let mut out = vec![0u8; (w * h) as usize];
+    let mut buf = vec![0u8; n];
+    for (i, o) in out.iter_mut().enumerate() {
+        for (b, f) in buf.iter_mut().zip(frames) {
+            *b = f.as_raw()[i];
+        }
+        buf.sort_unstable();
+        *o =
+            if n % 2 == 1 { buf[n / 2] } else { (u16::from(buf[n / 2 - 1]) + u16::from(buf[n / 2])).div_ceil(2) as u8 };
+    }
+    GrayImage::from_raw(w, h, out).ok_or_else(|| VisionError::BadImage { reason: "size overflow".into() })
+}
