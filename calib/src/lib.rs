@@ -9,6 +9,8 @@
 //! SI units inside; see `docs/conventions.md` at the workspace root.
 #![deny(missing_docs)]
 
+pub mod design;
+pub mod diagnose;
 pub mod effects;
 pub mod error;
 pub mod file;

@@ -27,8 +27,10 @@ pub mod model;
 pub mod parallel;
 pub mod params;
 pub mod presets;
+pub mod program;
 pub mod safety;
 pub mod serial;
+pub mod workspace;
 
 pub use error::{Result, RobotError};
 pub use geometry::Pose;

@@ -36,8 +36,14 @@ pub enum Command {
     Simulate(crate::commands::simulate::SimulateArgs),
     /// Convert a real recording (UR5, UR10 laser-tracker sets) into the measurement table.
     Import(crate::commands::simulate::ImportArgs),
+    /// Plan measurement poses: safe and measurable workspace, pose selection (A/D/K/N), predicted
+    /// and simulated calibration, a checked path and robot programs (RAPID, CSV, G-code).
+    Plan(crate::commands::plan::PlanArgs),
     /// Kinematic calibration from a measurement table (laser tracker, cameras, CMM).
     Calibrate(crate::commands::calibrate::CalibrateArgs),
+    /// Find the physics a model leaves out: screen the residuals, test candidate effects
+    /// (compliance, backlash, scale, periodic, thermal) on held-out data, report what passes.
+    Diagnose(crate::commands::diagnose::DiagnoseArgs),
     /// Predict a measurement table with a calibrated model and report the position errors.
     Evaluate(crate::commands::calibrate::EvaluateArgs),
 }

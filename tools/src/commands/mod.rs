@@ -5,7 +5,9 @@ pub mod camera;
 pub mod corner_study;
 mod demo;
 pub mod detect;
+pub mod diagnose;
 mod doctor;
+pub mod plan;
 mod robot;
 pub mod simulate;
 
@@ -27,7 +29,9 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Camera(c) => camera::run(c),
         Command::Simulate(a) => simulate::run_simulate(&a),
         Command::Import(a) => simulate::run_import(&a),
+        Command::Plan(a) => plan::run(&a),
         Command::Calibrate(a) => calibrate::run_calibrate(&a),
+        Command::Diagnose(a) => diagnose::run(&a),
         Command::Evaluate(a) => calibrate::run_evaluate(&a),
     }
 }

@@ -1,0 +1,149 @@
+//! Simulated tracker recordings for the missing-physics diagnosis: a true robot (a nominal
+//! model with random geometric errors and at most one effect), random poses visited in order
+//! (approach directions from that order), a warm-up temperature history, a payload, and a
+//! laser tracker with 15 um + 6 um/m noise. Tables always carry `t_s`, `temp_c`, `dir` and
+//! `payload_kg`, whatever the effect. Shared by `tests/diagnose_*.rs` and
+//! `examples/diagnose_study.rs`.
+#![allow(dead_code)]
+
+use std::path::Path;
+
+use ferrocal_calib::PoseMeasurement;
+use ferrocal_datasets::sim::{
+    make_plan, Conditions, Effect, Environment, GeometricErrors, PlanConfig, TrackerConfig, TrueRobot,
+};
+use ferrocal_robot::RobotModel;
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// How the payload is set.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Payload {
+    /// The same mass on every pose.
+    Constant(f64),
+    /// A mass drawn uniformly per pose.
+    Varying(f64, f64),
+}
+
+/// One simulated recording.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// Preset name or model path.
+    pub robot: String,
+    /// The effect of the true robot, if any.
+    pub effect: Option<Effect>,
+    /// Number of poses.
+    pub n_poses: usize,
+    /// Seed.
+    pub seed: u64,
+    /// Payload.
+    pub payload: Payload,
+    /// Tracker noise as a multiple of 15 um + 6 um/m.
+    pub noise_scale: f64,
+    /// Temperature at the start and the end of the warm-up.
+    pub temp_c: (f64, f64),
+    /// Whether the table carries the tracker's sigma per row.
+    pub with_sigma: bool,
+    /// Joint ranges of the random plan (empty: the model's limits).
+    pub joint_ranges: Vec<[f64; 2]>,
+}
+
+impl Scenario {
+    /// Defaults: 250 poses, 2 kg payload, nominal noise, 20 -> 24 C warm-up, sigma column.
+    pub fn new(robot: &str, effect: Option<Effect>, seed: u64) -> Self {
+        Self {
+            robot: robot.to_string(),
+            effect,
+            n_poses: 250,
+            seed,
+            payload: Payload::Constant(2.0),
+            noise_scale: 1.0,
+            temp_c: (20.0, 24.0),
+            with_sigma: true,
+            joint_ranges: joint_ranges(),
+        }
+    }
+}
+
+/// The example URDF shipped with the robot crate.
+pub fn example_urdf() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../robot/models/example_arm6.urdf").display().to_string()
+}
+
+/// Joint ranges of the random plans (a working region of a 6-axis arm).
+pub fn joint_ranges() -> Vec<[f64; 2]> {
+    vec![[-1.5, 1.5], [-2.6, -0.5], [0.3, 2.5], [-2.5, 0.0], [0.5, 2.5], [-1.0, 1.0]]
+}
+
+/// Seconds per pose of the plans.
+pub const SECONDS_PER_POSE: f64 = 12.0;
+
+/// The tracker of the simulated cell.
+pub fn tracker(noise_scale: f64) -> TrackerConfig {
+    TrackerConfig {
+        position_m: [2.0, 0.5, 0.2],
+        rpy_deg: [0.0, 0.0, 160.0],
+        sigma_const_um: 15.0 * noise_scale,
+        sigma_per_m_um: 6.0 * noise_scale,
+        six_dof: false,
+        sigma_angle_mrad: 0.0,
+        reflector_in_tool_m: [0.0, 0.0, 0.05],
+    }
+}
+
+/// The recording: the nominal model and the rows.
+pub fn simulate(s: &Scenario) -> (RobotModel, Vec<PoseMeasurement>) {
+    let (m, rows, _) = simulate_with_truth(s);
+    (m, rows)
+}
+
+/// As [`simulate`], also returning the effect's displacement of the measured point per row.
+pub fn simulate_with_truth(s: &Scenario) -> (RobotModel, Vec<PoseMeasurement>, Vec<Vector3<f64>>) {
+    let nominal = RobotModel::load(&s.robot).expect("robot model loads");
+    let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
+    let errors = GeometricErrors { length_sigma_mm: 0.3, angle_sigma_mrad: 0.3, ..Default::default() };
+    let effects: Vec<Effect> = s.effect.iter().cloned().collect();
+    let truth = TrueRobot::new(nominal.clone(), &errors, effects, 0.0, &mut rng).expect("true robot");
+    let plain = TrueRobot { effects: Vec::new(), ..truth.clone() };
+    let plan_cfg = PlanConfig::Random {
+        n: s.n_poses,
+        joint_ranges_si: s.joint_ranges.clone(),
+        seconds_per_pose: SECONDS_PER_POSE,
+        home_si: if s.joint_ranges.is_empty() { vec![] } else { vec![0.0, -1.5, 1.4, -1.2, 1.5, 0.0] },
+    };
+    let plan = make_plan(&plan_cfg, &nominal, None, &mut rng).expect("plan");
+    let dirs = plan.directions();
+    let env =
+        Environment { temp_start_c: s.temp_c.0, temp_end_c: s.temp_c.1, warmup_tau_s: 1500.0, ..Default::default() };
+    let trk = tracker(s.noise_scale);
+    let t_wt = trk.t_world_tracker();
+    let mut rows = Vec::with_capacity(plan.poses.len());
+    let mut disp = Vec::with_capacity(plan.poses.len());
+    for (k, q) in plan.poses.iter().enumerate() {
+        let t_s = k as f64 * SECONDS_PER_POSE + rng.random_range(0.0..2.0);
+        let payload = match s.payload {
+            Payload::Constant(m) => m,
+            Payload::Varying(lo, hi) => rng.random_range(lo..hi),
+        };
+        let c = Conditions { t_s, temp_c: env.temperature_c(t_s), payload_kg: payload, dir: dirs[k].clone() };
+        let t = truth.tool_pose(q, &c).expect("true pose");
+        let t0 = plain.tool_pose(q, &c).expect("true pose without the effect");
+        let refl = nalgebra::Point3::from(Vector3::from(trk.reflector_in_tool_m));
+        disp.push((t_wt.inverse() * t * refl).coords - (t_wt.inverse() * t0 * refl).coords);
+        let r = trk.measure(&t, &mut rng);
+        let mut m = PoseMeasurement::new(format!("{k}"), q.clone(), r.position_m);
+        m.sigma_m = s.with_sigma.then_some(r.sigma_m);
+        m.t_s = Some((t_s * 10.0).round() / 10.0);
+        m.temp_c = Some((c.temp_c * 100.0).round() / 100.0);
+        m.payload_kg = Some(payload);
+        m.dir = Some(c.dir.clone());
+        rows.push(m);
+    }
+    (nominal, rows, disp)
+}
+
+/// RMS of the effect's displacements (metres).
+pub fn rms(v: &[Vector3<f64>]) -> f64 {
+    (v.iter().map(|d| d.norm_squared()).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}

@@ -1,0 +1,334 @@
+//! `ferrocal diagnose`: the missing-physics analysis of a measurement table (JSON per
+//! `shared/spec/diagnose.md`, optional HTML report with the evidence).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions, DiagnoseReport, Evidence, InputStructure};
+use serde_json::json;
+
+use crate::plot::{self, Series};
+use crate::report::{write_atomic, Provenance, Report, Section};
+
+/// `ferrocal diagnose`.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// Robot model: a preset name (ur5, ur10, ...), a URDF file (with inertials for load
+    /// torques) or a TOML model file.
+    #[arg(long)]
+    pub robot: Option<String>,
+    /// Measurement table (CSV per shared/spec/measurements.md).
+    #[arg(long)]
+    pub measurements: Option<PathBuf>,
+    /// Camera variant: image files, globs or folders.
+    #[arg(long, num_args = 1..)]
+    pub images: Vec<String>,
+    /// Camera variant: the calibration pattern.
+    #[arg(long)]
+    pub pattern: Option<String>,
+    /// Write the report (shared/spec/diagnose.md) as JSON here.
+    #[arg(long)]
+    pub json: PathBuf,
+    /// Write an HTML report with the evidence here.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Folds of the cross-validation.
+    #[arg(long, default_value_t = 5)]
+    pub folds: usize,
+    /// Family-wise significance level per step (Bonferroni over the candidates).
+    #[arg(long, default_value_t = 0.01)]
+    pub alpha: f64,
+    /// Fraction of the rows kept aside for the reported held-out figures when the table has no
+    /// split column (0: cross-validated figures).
+    #[arg(long, default_value_t = 0.25)]
+    pub validation_fraction: f64,
+    /// Position standard deviation of rows without a sigma column, mm.
+    #[arg(long, default_value_t = 0.02)]
+    pub sigma_mm: f64,
+    /// Data attribution printed in the HTML report (source and licence of the recording).
+    #[arg(long)]
+    pub attribution: Option<String>,
+}
+
+/// Runs `ferrocal diagnose`.
+pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
+    if !args.images.is_empty() || args.pattern.is_some() {
+        bail!(
+            "diagnose --images/--pattern (the camera variant) is not yet available: it needs the camera calibration of ferrocal-vision; use --robot and --measurements"
+        );
+    }
+    let (Some(robot), Some(meas)) = (&args.robot, &args.measurements) else {
+        bail!("diagnose needs --robot <model> and --measurements <csv>");
+    };
+    if !(args.sigma_mm.is_finite() && args.sigma_mm > 0.0) {
+        bail!("--sigma-mm must be positive");
+    }
+    let opts = DiagnoseOptions {
+        folds: args.folds,
+        alpha: args.alpha,
+        validation_fraction: args.validation_fraction,
+        sigma_position_m: args.sigma_mm * 1e-3,
+        ..DiagnoseOptions::default()
+    };
+    let (model, rows) = super::calibrate::load_model_and_rows(robot, meas)?;
+    let progress = crate::progress::bar(1, "diagnosing");
+    let rep = diagnose(&model, &rows, &opts).context("diagnosis")?;
+    progress.finish_and_clear();
+    write_atomic(&args.json, serde_json::to_string_pretty(&rep)?.as_bytes())?;
+    if let Some(h) = &args.report {
+        let mut prov = Provenance::new(json!({"robot": robot, "options": opts}));
+        prov.add_input(meas);
+        let mut r = Report::new(&format!("Missing physics: {} on {}", model.name(), meas.display()), prov);
+        r.sections = sections(&rep, args.attribution.as_deref());
+        write_atomic(h, r.to_html().as_bytes())?;
+    }
+    if let Some(d) = &rep.declined {
+        eprintln!("diagnose: {d}");
+    }
+    eprintln!(
+        "diagnosed {} on {} poses in {:.1} s: held-out RMS {:.4} mm (geometric model) -> {:.4} mm; {} finding(s){}",
+        model.name(),
+        rep.n_poses,
+        rep.elapsed_s,
+        rep.nominal.heldout_rms_mm,
+        rep.final_fit.heldout_rms_mm,
+        rep.findings.len(),
+        if rep.unexplained.structure_found {
+            format!("; unexplained structure against {}", rep.unexplained.depends_on.join(", "))
+        } else {
+            String::new()
+        }
+    );
+    for f in &rep.findings {
+        eprintln!("  {}: {}", f.effect, f.statement);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn f4(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.4}")
+    } else {
+        "-".into()
+    }
+}
+
+fn p_text(p: f64) -> String {
+    if p < 1e-15 {
+        "< 1e-15".into()
+    } else {
+        format!("{p:.2e}")
+    }
+}
+
+/// Report sections of a diagnosis.
+pub fn sections(rep: &DiagnoseReport, attribution: Option<&str>) -> Vec<Section> {
+    let mut out = Vec::new();
+    let mut s = Section::new("diagnose-summary", "What the model leaves out");
+    s.status(rep.declined.is_none(), if rep.declined.is_some() { "declined" } else { "analysed" });
+    if let Some(d) = &rep.declined {
+        s.text(format!("Nothing is claimed: {d}."));
+    }
+    s.table(
+        "Fits (RMS position error, mm)",
+        &["model", "training poses", "training RMS", "held-out poses", "held-out RMS", "cross-validated RMS"],
+        vec![
+            vec![
+                "geometric (identifiable parameters)".into(),
+                rep.nominal.n_train.to_string(),
+                f4(rep.nominal.train_rms_mm),
+                rep.nominal.n_heldout.to_string(),
+                f4(rep.nominal.heldout_rms_mm),
+                f4(rep.nominal.cv_rms_mm),
+            ],
+            vec![
+                "with the accepted effects".into(),
+                rep.nominal.n_train.to_string(),
+                f4(rep.final_fit.train_rms_mm),
+                rep.nominal.n_heldout.to_string(),
+                f4(rep.final_fit.heldout_rms_mm),
+                f4(rep.final_fit.cv_rms_mm),
+            ],
+        ],
+    );
+    s.text(format!("Held-out rows: {}.", rep.split));
+    if rep.findings.is_empty() && rep.declined.is_none() {
+        s.text("No effect beyond the geometric model is supported by these data.");
+    }
+    for (k, f) in rep.findings.iter().enumerate() {
+        s.text(format!("{}. {} (joints {:?}): {}", k + 1, f.effect, f.joints, f.statement));
+    }
+    if rep.unexplained.structure_found {
+        s.text(format!(
+            "Structure no candidate explains remains in the held-out residuals; it depends on: {}.",
+            rep.unexplained.depends_on.join(", ")
+        ));
+    } else if rep.declined.is_none() {
+        s.text("No structure remains in the held-out residuals against any recorded input.");
+    }
+    for n in &rep.notes {
+        s.text(format!("Note: {n}"));
+    }
+    if let Some(a) = attribution {
+        s.attribution(a);
+    }
+    s.data = serde_json::to_value(rep).unwrap_or_default();
+    out.push(s);
+
+    for (k, f) in rep.findings.iter().enumerate() {
+        let mut fs = Section::new(&format!("finding-{}", k + 1), &format!("Finding {}: {}", k + 1, f.effect));
+        fs.text(f.statement.clone());
+        fs.table(
+            "Identified parameters",
+            &["parameter", "value"],
+            f.parameters.iter().map(|(n, v)| vec![n.clone(), format!("{v:.6e}")]).collect(),
+        );
+        fs.table(
+            "Evidence",
+            &[
+                "held-out RMS before [mm]",
+                "after [mm]",
+                "explained fraction",
+                "p (corrected)",
+                "p (uncorrected)",
+                "candidates tried",
+                "jackknife rel. std",
+                "sin(angle to geometry)",
+            ],
+            vec![vec![
+                f4(f.heldout_rms_before_mm),
+                f4(f.heldout_rms_after_mm),
+                format!("{:.3}", f.explained_fraction),
+                p_text(f.p_value),
+                p_text(f.p_value_uncorrected),
+                f.candidates_tried.to_string(),
+                format!("{:.3}", f.relative_std),
+                format!("{:.3}", f.sin_angle_to_geometry),
+            ]],
+        );
+        if let Some(ev) = rep.evidence.iter().find(|e| e.finding == k) {
+            fs.figure(
+                &format!(
+                    "Cross-validated residual against {}: before (blue points, green line: binned means) and after (red points, orange line) modelling the effect",
+                    f.telling_input
+                ),
+                evidence_plot(ev),
+            );
+        }
+        out.push(fs);
+    }
+
+    let mut c = Section::new("diagnose-candidates", "Candidates tried");
+    for (k, st) in rep.steps.iter().enumerate() {
+        c.table(
+            &format!(
+                "Step {} ({} candidates; accepted: {})",
+                k + 1,
+                st.candidates.len(),
+                st.accepted.clone().unwrap_or_else(|| "none".into())
+            ),
+            &["candidate", "CV RMS before [mm]", "CV RMS after [mm]", "improvement [%]", "p", "p corrected", "verdict"],
+            st.candidates
+                .iter()
+                .map(|x| {
+                    vec![
+                        x.label.clone(),
+                        f4(x.cv_rms_before_mm),
+                        f4(x.cv_rms_after_mm),
+                        format!("{:.2}", x.improvement * 100.0),
+                        p_text(x.p_value),
+                        p_text(x.p_corrected),
+                        x.verdict.clone(),
+                    ]
+                })
+                .collect(),
+        );
+    }
+    out.push(c);
+
+    let mut u = Section::new("diagnose-untestable", "Candidates that could not be tested");
+    if rep.untestable.is_empty() {
+        u.text("Every candidate could be tested on this recording.");
+    } else {
+        u.table(
+            "Untestable candidates",
+            &["effect", "joints", "why"],
+            rep.untestable
+                .iter()
+                .map(|x| vec![x.effect.clone(), format!("{:?}", x.joints), x.reason.clone()])
+                .collect(),
+        );
+    }
+    out.push(u);
+
+    let mut sc = Section::new("diagnose-screening", "Held-out residuals against every recorded input");
+    sc.text(
+        "Weighted one-way analysis of variance of each joint's implied angle error and of the implied relative length change over bins of each input (cross-validated residuals; p corrected by Bonferroni over all tests).",
+    );
+    let row = |a: &InputStructure, b: Option<&InputStructure>| {
+        vec![
+            a.quantity.clone(),
+            a.input.clone(),
+            p_text(a.p_corrected),
+            format!("{:.3}", a.explained_fraction),
+            b.map(|b| p_text(b.p_corrected)).unwrap_or_default(),
+            b.map(|b| format!("{:.3}", b.explained_fraction)).unwrap_or_default(),
+        ]
+    };
+    let mut rows: Vec<Vec<String>> = rep
+        .screening_nominal
+        .iter()
+        .map(|a| row(a, rep.screening_final.iter().find(|b| b.quantity == a.quantity && b.input == a.input)))
+        .collect();
+    rows.sort_by(|a, b| a[2].cmp(&b[2]));
+    sc.table(
+        "Screening (geometric model, then with the accepted effects)",
+        &[
+            "residual quantity",
+            "input",
+            "p corrected (geometric)",
+            "explained (geometric)",
+            "p corrected (final)",
+            "explained (final)",
+        ],
+        rows,
+    );
+    out.push(sc);
+    out
+}
+
+/// Scatter of the residual quantity against the input, before and after, with binned means.
+fn evidence_plot(ev: &Evidence) -> String {
+    let before: Vec<(f64, f64)> = ev.x.iter().copied().zip(ev.before.iter().copied()).collect();
+    let after: Vec<(f64, f64)> = ev.x.iter().copied().zip(ev.after.iter().copied()).collect();
+    let bins = |pts: &[(f64, f64)]| -> Vec<(f64, f64)> {
+        let mut v: Vec<(f64, f64)> = pts.iter().copied().filter(|p| p.0.is_finite() && p.1.is_finite()).collect();
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let nb = (v.len() / 25).clamp(2, 12);
+        let mut out = Vec::new();
+        for chunk in v.chunks(v.len().div_ceil(nb).max(1)) {
+            let n = chunk.len() as f64;
+            out.push((chunk.iter().map(|p| p.0).sum::<f64>() / n, chunk.iter().map(|p| p.1).sum::<f64>() / n));
+        }
+        out
+    };
+    let mb = bins(&before);
+    let ma = bins(&after);
+    // Large recordings: every k-th point in the scatter (the binned means use all).
+    let step = before.len().div_ceil(2500).max(1);
+    let before: Vec<(f64, f64)> = before.into_iter().step_by(step).collect();
+    let after: Vec<(f64, f64)> = after.into_iter().step_by(step).collect();
+    plot::xy_plot(
+        "Residual against the telling input",
+        &ev.x_label,
+        &ev.y_label,
+        &[
+            Series { name: "before", points: &before, line: false },
+            Series { name: "after", points: &after, line: false },
+            Series { name: "binned mean before", points: &mb, line: true },
+            Series { name: "binned mean after", points: &ma, line: true },
+        ],
+    )
+}
