@@ -9,7 +9,7 @@ fn ferrocal() -> Command {
     let exe = std::env::current_exe().unwrap();
     let dir = exe.parent().unwrap().parent().unwrap();
     let bin = dir.join(format!("ferrocal{}", std::env::consts::EXE_SUFFIX));
-    assert!(bin.exists(), "{} not built: run `cargo test --workspace`", bin.display());
+    assert!(bin.exists(), "{} not built: run `cargo build -p ferrocal` or `cargo test --workspace`", bin.display());
     Command::new(bin)
 }
 

@@ -38,6 +38,7 @@
 //! A candidate whose inputs the recording lacks (no `dir`, `temp_c`, `t_s`) is untestable and
 //! said so; with too few poses for held-out scoring nothing is claimed.
 
+pub mod camera;
 mod linear;
 pub mod stats;
 

@@ -55,9 +55,7 @@ pub struct DiagnoseArgs {
 /// Runs `ferrocal diagnose`.
 pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
     if !args.images.is_empty() || args.pattern.is_some() {
-        bail!(
-            "diagnose --images/--pattern (the camera variant) is not yet available: it needs the camera calibration of ferrocal-vision; use --robot and --measurements"
-        );
+        return run_camera(args);
     }
     let (Some(robot), Some(meas)) = (&args.robot, &args.measurements) else {
         bail!("diagnose needs --robot <model> and --measurements <csv>");
@@ -100,6 +98,139 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
         } else {
             String::new()
         }
+    );
+    for f in &rep.findings {
+        eprintln!("  {}: {}", f.effect, f.statement);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The camera variant: detect the pattern in every image, calibrate with the default lens model
+/// and a flat target, test what the images show beyond it.
+fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
+    use ferrocal_calib::diagnose::camera::{diagnose_camera, CameraDiagnoseOptions};
+    use ferrocal_vision::calib::{PlanarTarget, View};
+    use ferrocal_vision::camera::ImageSize;
+    use ferrocal_vision::detect::{load_gray, DetectOptions, Detector, Pattern};
+    let Some(pattern_text) = &args.pattern else {
+        bail!("diagnose --images needs --pattern (e.g. chessboard:9x6:25mm)");
+    };
+    if args.images.is_empty() {
+        bail!("diagnose --pattern needs --images");
+    }
+    let pattern: Pattern = pattern_text.parse()?;
+    let mut detector = Detector::new(pattern, DetectOptions::default(), None)?;
+    let mut files = Vec::new();
+    for spec in &args.images {
+        let folder = ferrocal_datasets::import::list_images(spec, &Default::default())?;
+        for s in &folder.skipped {
+            eprintln!("ferrocal: skipped {}: {}", s.path.display(), s.reason);
+        }
+        files.extend(folder.images.into_iter().map(|e| e.path));
+    }
+    // Target points by their position on the target (1 um grid), views by image.
+    let mut points: Vec<nalgebra::Point3<f64>> = Vec::new();
+    let mut key_of = std::collections::HashMap::new();
+    let mut views = Vec::new();
+    let pb = crate::progress::bar(files.len() as u64, "detecting");
+    for f in &files {
+        pb.inc(1);
+        let found = load_gray(f).and_then(|img| {
+            let size = ImageSize { width_px: img.width(), height_px: img.height() };
+            detector.detect(&img).map(|d| (d, size))
+        });
+        let (dets, size) = match found {
+            Ok(x) => x,
+            Err(e) => {
+                eprintln!("ferrocal: {}: {e}", f.display());
+                continue;
+            }
+        };
+        let mut ids = Vec::new();
+        let mut px = Vec::new();
+        for c in dets.iter().filter(|d| d.complete).flat_map(|d| &d.corners) {
+            let Some(t) = c.target_m else { continue };
+            let key = ((t.x * 1e6).round() as i64, (t.y * 1e6).round() as i64, (t.z * 1e6).round() as i64);
+            let id = *key_of.entry(key).or_insert_with(|| {
+                points.push(t);
+                points.len() - 1
+            });
+            ids.push(id);
+            px.push(c.position_px);
+        }
+        if px.len() < 4 {
+            eprintln!(
+                "ferrocal: {}: the pattern was not found whole (or has no size in the pattern string)",
+                f.display()
+            );
+            continue;
+        }
+        let mut v = View::new(f.display().to_string(), size, px);
+        v.point_ids = ids;
+        views.push(v);
+    }
+    pb.finish_and_clear();
+    if let Some(first) = views.first() {
+        let size = first.image_size;
+        if let Some(bad) = views.iter().find(|v| v.image_size != size) {
+            bail!(
+                "{} is {}x{} px but {} is {}x{}: one camera, one image size",
+                bad.name,
+                bad.image_size.width_px,
+                bad.image_size.height_px,
+                first.name,
+                size.width_px,
+                size.height_px
+            );
+        }
+    }
+    let target = PlanarTarget { points_m: points, reversible: false };
+    let opts = CameraDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..CameraDiagnoseOptions::default() };
+    let rep = diagnose_camera(&views, &target, &opts).context("camera diagnosis")?;
+    write_atomic(&args.json, serde_json::to_string_pretty(&rep)?.as_bytes())?;
+    if let Some(h) = &args.report {
+        let prov = Provenance::new(json!({"images": args.images, "pattern": pattern_text, "options": opts}));
+        let mut r =
+            Report::new(&format!("Missing physics of a camera ({} views of {pattern_text})", views.len()), prov);
+        let mut s = Section::new("camera-diagnose", "Camera: what the 5-coefficient model and a flat target leave out");
+        if let Some(a) = &args.attribution {
+            s.attribution(a);
+        }
+        s.text(format!(
+            "Default model: reprojection RMS {:.4} px on all views, {:.4} px on held-out views (each view held out once over {} folds; its pose alone refitted). Final: {:.4} px held out.",
+            rep.nominal.train_rms_px, rep.nominal.heldout_rms_px, opts.folds, rep.final_fit.heldout_rms_px
+        ));
+        if let Some(d) = &rep.declined {
+            s.text(d.clone());
+        }
+        for f in &rep.findings {
+            s.text(format!("{}: {}", f.effect, f.statement));
+        }
+        if rep.findings.is_empty() && rep.declined.is_none() {
+            s.text("No candidate passes: the default model describes these images.");
+        }
+        for (k, round) in rep.candidates.iter().enumerate() {
+            s.table(
+                &format!("Candidates, round {}", k + 1),
+                &["candidate", "held-out RMS [px]", "p (corrected)", "verdict"],
+                round
+                    .iter()
+                    .map(|c| vec![c.candidate.clone(), f4(c.heldout_rms_px), p_text(c.p_value), c.verdict.clone()])
+                    .collect(),
+            );
+        }
+        r.sections.push(s);
+        write_atomic(h, r.to_html().as_bytes())?;
+    }
+    if let Some(d) = &rep.declined {
+        eprintln!("diagnose: {d}");
+    }
+    eprintln!(
+        "diagnosed a camera from {} views: held-out reprojection RMS {:.4} px -> {:.4} px; {} finding(s)",
+        rep.n_views,
+        rep.nominal.heldout_rms_px,
+        rep.final_fit.heldout_rms_px,
+        rep.findings.len()
     );
     for f in &rep.findings {
         eprintln!("  {}: {}", f.effect, f.statement);

@@ -1,0 +1,691 @@
+//! Missing physics in a camera calibration: calibrate with the default lens model (5-coefficient
+//! Brown) and a rigid, flat target, then test what the images show that this model leaves out.
+//!
+//! Candidates (JSON `effect` names of `shared/spec/diagnose.md`):
+//! - `lens_distortion`: the rational radial model (`k4, k5, k6`, OpenCV's 8 coefficients) in
+//!   place of the 5-coefficient one;
+//! - `target_nonflatness`: the target is bent: its points move out of plane by
+//!   `z = b (u^2 + v^2) + s (u^2 - v^2) + t u v`, with `(u, v)` the in-plane position divided by
+//!   the target's half-size, so `b`, `s`, `t` are the sags (metres) at the target's edge of a bowl,
+//!   a saddle and a twist, the same for every view (one physical target).
+//!
+//! Held-out figures come from whole views held out (K-fold over views): the model is fitted on
+//! the other views, then only the held-out view's pose is fitted to its corners (intrinsics,
+//! distortion and target shape fixed) and its reprojection RMS is the score. A candidate is
+//! accepted when the held-out improvement is significant in a paired test over the held-out
+//! views, corrected for the number of candidates (Bonferroni), at least `min_improvement`, and
+//! physically plausible; then the search repeats from the enlarged model.
+
+use ferrocal_vision::calib::{calibrate_camera, CalibrationOptions, PlanarTarget, View};
+use ferrocal_vision::camera::{CameraModel, Distortion, DistortionKind};
+use nalgebra::{DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+
+use super::stats::{bonferroni, paired_test};
+use crate::error::{CalibError, Result};
+use crate::lsq::{solve, LmOptions, Problem};
+
+/// Options of [`diagnose_camera`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraDiagnoseOptions {
+    /// Folds over views (at most the number of views: leave-one-out then).
+    pub folds: usize,
+    /// Family-wise significance level.
+    pub alpha: f64,
+    /// Least relative held-out RMS improvement for a finding.
+    pub min_improvement: f64,
+    /// Largest plausible sag of a target at its edge, metres.
+    pub max_sag_m: f64,
+    /// Largest plausible size of a rational coefficient.
+    pub max_rational: f64,
+}
+
+impl Default for CameraDiagnoseOptions {
+    fn default() -> Self {
+        Self { folds: 5, alpha: 0.01, min_improvement: 0.02, max_sag_m: 0.01, max_rational: 50.0 }
+    }
+}
+
+/// One accepted effect.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CameraFinding {
+    /// `lens_distortion` or `target_nonflatness`.
+    pub effect: String,
+    /// Always empty for a camera (no joints).
+    pub joints: Vec<usize>,
+    /// The effect's parameters by name.
+    pub parameters: std::collections::BTreeMap<String, f64>,
+    /// Held-out reprojection RMS before, pixels.
+    pub heldout_rms_before_px: f64,
+    /// Held-out reprojection RMS after, pixels.
+    pub heldout_rms_after_px: f64,
+    /// Share of the held-out mean squared error explained.
+    pub explained_fraction: f64,
+    /// Corrected p-value.
+    pub p_value: f64,
+    /// Plain words.
+    pub statement: String,
+}
+
+/// RMS figures of a fit.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct CameraFit {
+    /// Views used for fitting (per fold: all but the held-out ones).
+    pub n_train: usize,
+    /// Views held out (over all folds: every view once).
+    pub n_heldout: usize,
+    /// Reprojection RMS on all views fitted together, pixels.
+    pub train_rms_px: f64,
+    /// Held-out reprojection RMS, pixels.
+    pub heldout_rms_px: f64,
+}
+
+/// The final fit.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct CameraFinalFit {
+    /// Reprojection RMS on all views, pixels.
+    pub train_rms_px: f64,
+    /// Held-out reprojection RMS, pixels.
+    pub heldout_rms_px: f64,
+}
+
+/// What is left.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct CameraUnexplained {
+    /// Whether residual structure remains that no candidate explains.
+    pub structure_found: bool,
+    /// What it depends on (`image position`, ...).
+    pub depends_on: Vec<String>,
+}
+
+/// One candidate tried in a round.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CameraCandidateScore {
+    /// Effect name and variant.
+    pub candidate: String,
+    /// Held-out RMS with it, pixels.
+    pub heldout_rms_px: f64,
+    /// Corrected p-value.
+    pub p_value: f64,
+    /// Accepted or why not.
+    pub verdict: String,
+}
+
+/// The report (`ferrocal diagnose --images`), the JSON of `shared/spec/diagnose.md` with `_px`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CameraDiagnoseReport {
+    /// The default model's fit.
+    pub nominal: CameraFit,
+    /// Accepted effects.
+    pub findings: Vec<CameraFinding>,
+    /// With every accepted effect.
+    #[serde(rename = "final")]
+    pub final_fit: CameraFinalFit,
+    /// Structure left.
+    pub unexplained: CameraUnexplained,
+    /// Why nothing was claimed, when the analysis declined.
+    pub declined: Option<String>,
+    /// Every candidate of every round.
+    pub candidates: Vec<Vec<CameraCandidateScore>>,
+    /// Settings.
+    pub settings: CameraDiagnoseOptions,
+    /// Views used.
+    pub n_views: usize,
+}
+
+/// A model variant: lens model and whether the target may bend.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Variant {
+    lens: Lens,
+    bent: bool,
+}
+
+/// Lens model of a variant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Lens {
+    Brown5,
+    Rational8,
+    KannalaBrandt,
+}
+
+/// A fitted variant.
+#[derive(Clone, Debug)]
+struct Fit {
+    camera: CameraModel,
+    bend: [f64; 3],
+    poses: Vec<Isometry3<f64>>,
+    rms_px: f64,
+}
+
+fn bent_points(points: &[Point3<f64>], bend: &[f64; 3], half: f64) -> Vec<Point3<f64>> {
+    points
+        .iter()
+        .map(|p| {
+            let (u, v) = (p.x / half, p.y / half);
+            Point3::new(p.x, p.y, p.z + bend[0] * (u * u + v * v) + bend[1] * (u * u - v * v) + bend[2] * u * v)
+        })
+        .collect()
+}
+
+/// Target centred on its centroid (so the bending terms do not trade with the pose).
+fn centred(target: &PlanarTarget) -> (Vec<Point3<f64>>, f64) {
+    let n = target.points_m.len() as f64;
+    let c = target.points_m.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
+    let pts: Vec<Point3<f64>> = target.points_m.iter().map(|p| Point3::from(p.coords - c)).collect();
+    let half = pts.iter().map(|p| p.x.abs().max(p.y.abs())).fold(1e-9, f64::max);
+    (pts, half)
+}
+
+struct BundleProblem<'a> {
+    views: &'a [&'a View],
+    points: &'a [Point3<f64>],
+    half: f64,
+    base_camera: CameraModel,
+    n_cam: usize,
+    bent: bool,
+    poses0: Vec<Isometry3<f64>>,
+    /// Fixed camera and bend (pose-only problem) when set.
+    fixed: Option<(CameraModel, [f64; 3])>,
+}
+
+impl BundleProblem<'_> {
+    fn n_shape(&self) -> usize {
+        if self.fixed.is_some() {
+            0
+        } else {
+            self.n_cam + if self.bent { 3 } else { 0 }
+        }
+    }
+
+    fn unpack(&self, x: &[f64]) -> Result<(CameraModel, [f64; 3], Vec<Isometry3<f64>>)> {
+        let (camera, bend) = match &self.fixed {
+            Some((c, b)) => (*c, *b),
+            None => {
+                let mut c = self.base_camera;
+                c.set_parameter_values(&x[..self.n_cam]).map_err(|e| CalibError::Numeric(e.to_string()))?;
+                let b = if self.bent { [x[self.n_cam], x[self.n_cam + 1], x[self.n_cam + 2]] } else { [0.0; 3] };
+                (c, b)
+            }
+        };
+        let s = self.n_shape();
+        let poses = self
+            .poses0
+            .iter()
+            .enumerate()
+            .map(|(k, p0)| {
+                let d = &x[s + 6 * k..s + 6 * k + 6];
+                Isometry3::from_parts(
+                    Translation3::new(d[3], d[4], d[5]),
+                    UnitQuaternion::from_scaled_axis(Vector3::new(d[0], d[1], d[2])),
+                ) * p0
+            })
+            .collect();
+        Ok((camera, bend, poses))
+    }
+}
+
+impl Problem for BundleProblem<'_> {
+    fn n_params(&self) -> usize {
+        self.n_shape() + 6 * self.views.len()
+    }
+    fn n_residuals(&self) -> usize {
+        self.views.iter().map(|v| 2 * v.corners_px.len()).sum()
+    }
+    fn block_size(&self) -> usize {
+        2
+    }
+    fn residuals(&self, x: &[f64]) -> Result<DVector<f64>> {
+        let (camera, bend, poses) = self.unpack(x)?;
+        let pts = bent_points(self.points, &bend, self.half);
+        let mut r = DVector::zeros(self.n_residuals());
+        let mut k = 0;
+        for (v, pose) in self.views.iter().zip(&poses) {
+            for (id, obs) in v.point_ids.iter().zip(&v.corners_px) {
+                let p = camera.project(&(pose * pts[*id])).map_err(|e| CalibError::Numeric(e.to_string()))?;
+                r[k] = p.x - obs.x;
+                r[k + 1] = p.y - obs.y;
+                k += 2;
+            }
+        }
+        Ok(r)
+    }
+    fn scales(&self) -> Vec<f64> {
+        let mut s = Vec::with_capacity(self.n_params());
+        if self.fixed.is_none() {
+            for p in self.base_camera.parameters() {
+                s.push(match p.name {
+                    "fx_px" | "fy_px" | "cx_px" | "cy_px" => 1.0,
+                    _ => 1e-3,
+                });
+            }
+            if self.bent {
+                s.extend([1e-4; 3]);
+            }
+        }
+        for _ in self.views {
+            s.extend([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3]);
+        }
+        s
+    }
+}
+
+fn lm() -> LmOptions {
+    LmOptions { max_iterations: 100, ..LmOptions::default() }
+}
+
+/// Fits a variant on `views`, starting from a default-model calibration.
+fn fit_variant(views: &[&View], target: &PlanarTarget, variant: Variant, start: Option<&Fit>) -> Result<Fit> {
+    let (points, half) = centred(target);
+    let (camera0, poses0) = match start {
+        Some(f) => (f.camera, f.poses.clone()),
+        None => {
+            let owned: Vec<View> = views.iter().map(|v| (*v).clone()).collect();
+            let centred_target = PlanarTarget { points_m: points.clone(), reversible: target.reversible };
+            let cal = calibrate_camera(&owned, &centred_target, &CalibrationOptions::default())
+                .map_err(|e| CalibError::Data(format!("camera calibration: {e}")))?;
+            (cal.camera, cal.views.iter().map(|v| v.t_cam_target).collect())
+        }
+    };
+    let mut camera = camera0;
+    let to_numeric = |e: ferrocal_vision::VisionError| CalibError::Numeric(e.to_string());
+    match (variant.lens, camera.distortion.kind()) {
+        (Lens::Rational8, DistortionKind::Brown5) => {
+            let c = camera.distortion.coefficients();
+            camera.distortion = Distortion::from_coefficients(
+                DistortionKind::Rational8,
+                &[c[0], c[1], c[2], c[3], c[4], 0.0, 0.0, 0.0],
+            )
+            .map_err(to_numeric)?;
+        }
+        (Lens::KannalaBrandt, DistortionKind::Brown5) => {
+            camera.distortion =
+                Distortion::from_coefficients(DistortionKind::KannalaBrandt, &[0.0; 4]).map_err(to_numeric)?;
+        }
+        _ => {}
+    }
+    let n_cam = camera.n_parameters();
+    let problem = BundleProblem {
+        views,
+        points: &points,
+        half,
+        base_camera: camera,
+        n_cam,
+        bent: variant.bent,
+        poses0,
+        fixed: None,
+    };
+    let mut x0 = camera.parameter_values();
+    if variant.bent {
+        x0.extend(start.map_or([0.0; 3], |f| f.bend));
+    }
+    x0.extend(std::iter::repeat_n(0.0, 6 * views.len()));
+    let res = solve(&problem, &x0, &lm())?;
+    let (camera, bend, poses) = problem.unpack(&res.x)?;
+    let rms_px = (res.residuals.norm_squared() / (res.residuals.len() / 2).max(1) as f64).sqrt();
+    Ok(Fit { camera, bend, poses, rms_px })
+}
+
+/// Squared reprojection errors of a held-out view under a fitted camera and target shape: the
+/// view's pose alone is fitted.
+fn heldout_sq(view: &View, target: &PlanarTarget, fit: &Fit) -> Result<f64> {
+    Ok(heldout_residuals(view, target, fit)?.map_or(f64::INFINITY, |r| r.norm_squared()))
+}
+
+/// Reprojection residuals (projected - observed, x and y per corner) of a held-out view with its
+/// pose alone fitted; `None` when the model cannot place the view.
+fn heldout_residuals(view: &View, target: &PlanarTarget, fit: &Fit) -> Result<Option<DVector<f64>>> {
+    let (points, half) = centred(target);
+    let flat = PlanarTarget { points_m: points.clone(), reversible: false };
+    let pts_flat: Vec<Point3<f64>> = flat.points_m.clone();
+    // A model that cannot even place the held-out view predicts it infinitely badly.
+    let Ok(est) = ferrocal_vision::pose::estimate_pose(
+        &fit.camera,
+        &pts_flat,
+        &view.point_ids,
+        &view.corners_px,
+        &ferrocal_vision::pose::CornerNoise::Isotropic { sigma_px: 0.1 },
+    ) else {
+        return Ok(None);
+    };
+    let views = [view];
+    let problem = BundleProblem {
+        views: &views,
+        points: &points,
+        half,
+        base_camera: fit.camera,
+        n_cam: 0,
+        bent: false,
+        poses0: vec![est.t_cam_target],
+        fixed: Some((fit.camera, fit.bend)),
+    };
+    Ok(solve(&problem, &[0.0; 6], &lm()).ok().map(|res| res.residuals))
+}
+
+/// Per held-out view (each view once over the folds): squared reprojection errors and corner
+/// counts under `variant`.
+fn cross_validate(views: &[View], target: &PlanarTarget, variant: Variant, folds: usize) -> Result<Vec<(f64, usize)>> {
+    let n = views.len();
+    let k = folds.clamp(2, n);
+    let mut out = vec![(0.0, 0); n];
+    for f in 0..k {
+        let train: Vec<&View> = views.iter().enumerate().filter(|(i, _)| i % k != f).map(|(_, v)| v).collect();
+        let base = fit_variant(&train, target, Variant { lens: Lens::Brown5, bent: false }, None)?;
+        let fit = if variant == (Variant { lens: Lens::Brown5, bent: false }) {
+            base
+        } else {
+            fit_variant(&train, target, variant, Some(&base))?
+        };
+        for (i, v) in views.iter().enumerate().filter(|(i, _)| i % k == f) {
+            out[i] = (heldout_sq(v, target, &fit)?, v.corners_px.len());
+        }
+    }
+    Ok(out)
+}
+
+/// Residual structure of the final model on held-out views: does the mean residual depend on
+/// where a corner lies in the image (a 4 x 4 grid of cells) or on its distance from the image
+/// centre (five rings, radial component)? Views are the independent units (corners of one view
+/// share its detection errors): per cell, the views' mean residuals are tested against zero with
+/// a t test, Bonferroni-corrected over all cells; a dependence counts when significant at `alpha`
+/// and larger than a quarter of the held-out RMS.
+fn unexplained_structure(
+    views: &[View],
+    target: &PlanarTarget,
+    variant: Variant,
+    opts: &CameraDiagnoseOptions,
+) -> Result<CameraUnexplained> {
+    let n = views.len();
+    let k = opts.folds.clamp(2, n);
+    // Per view: (corner position, residual).
+    let mut per_view: Vec<Vec<(nalgebra::Point2<f64>, nalgebra::Vector2<f64>)>> = vec![Vec::new(); n];
+    for f in 0..k {
+        let train: Vec<&View> = views.iter().enumerate().filter(|(i, _)| i % k != f).map(|(_, v)| v).collect();
+        let base = fit_variant(&train, target, Variant { lens: Lens::Brown5, bent: false }, None)?;
+        let fit = if variant == (Variant { lens: Lens::Brown5, bent: false }) {
+            base
+        } else {
+            fit_variant(&train, target, variant, Some(&base))?
+        };
+        for (i, v) in views.iter().enumerate().filter(|(i, _)| i % k == f) {
+            if let Some(r) = heldout_residuals(v, target, &fit)? {
+                per_view[i] = v
+                    .corners_px
+                    .iter()
+                    .enumerate()
+                    .map(|(c, p)| (*p, nalgebra::Vector2::new(r[2 * c], r[2 * c + 1])))
+                    .collect();
+            }
+        }
+    }
+    let all: Vec<f64> = per_view.iter().flatten().map(|(_, r)| r.norm_squared()).collect();
+    if all.is_empty() {
+        return Ok(CameraUnexplained::default());
+    }
+    let rms_px = (all.iter().sum::<f64>() / all.len() as f64 / 2.0).sqrt();
+    let size = views[0].image_size;
+    let (w, h) = (size.width_px as f64, size.height_px as f64);
+    let centre = nalgebra::Point2::new(w / 2.0, h / 2.0);
+    let r_max = (centre.x * centre.x + centre.y * centre.y).sqrt();
+    const GRID: usize = 4;
+    const RINGS: usize = 5;
+    let grid = |p: &nalgebra::Point2<f64>| {
+        let gx = ((p.x / w * GRID as f64) as usize).min(GRID - 1);
+        let gy = ((p.y / h * GRID as f64) as usize).min(GRID - 1);
+        gy * GRID + gx
+    };
+    let mut depends_on = Vec::new();
+    // Grid: x and y components per cell.
+    let mut grid_units: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); n]; 2 * GRID * GRID];
+    let mut ring_units: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); n]; RINGS];
+    for (vi, corners) in per_view.iter().enumerate() {
+        for (p, r) in corners {
+            let g = grid(p);
+            grid_units[2 * g][vi].push(r.x);
+            grid_units[2 * g + 1][vi].push(r.y);
+            let d = p - centre;
+            let rad = d.norm();
+            let ring = ((rad / r_max * RINGS as f64) as usize).min(RINGS - 1);
+            if rad > 1e-9 {
+                ring_units[ring][vi].push(r.dot(&(d / rad)));
+            }
+        }
+    }
+    for (label, units) in [("image position", &grid_units), ("image radius", &ring_units)] {
+        let mut results = Vec::new();
+        for group in units.iter() {
+            let means: Vec<f64> =
+                group.iter().filter(|v| !v.is_empty()).map(|v| v.iter().sum::<f64>() / v.len() as f64).collect();
+            if means.len() >= 3 {
+                results.push(means);
+            }
+        }
+        let m = results.len();
+        let mut found = false;
+        for means in &results {
+            let mean = means.iter().sum::<f64>() / means.len() as f64;
+            // Two-sided: the one-sided test of the mean's own sign, doubled.
+            let p_two =
+                2.0 * paired_test(&means.iter().map(|v| v * mean.signum()).collect::<Vec<_>>()).p_value.min(0.5);
+            if bonferroni(p_two, m) < opts.alpha && mean.abs() > 0.25 * rms_px {
+                found = true;
+            }
+        }
+        if found {
+            depends_on.push(label.to_string());
+        }
+    }
+    Ok(CameraUnexplained { structure_found: !depends_on.is_empty(), depends_on })
+}
+
+/// One-sided exact sign test of `median(d) > 0` (zeros dropped).
+fn sign_test(d: &[f64]) -> f64 {
+    let pos = d.iter().filter(|v| **v > 0.0).count();
+    let n = d.iter().filter(|v| **v != 0.0).count();
+    if n == 0 {
+        return 1.0;
+    }
+    // P(X >= pos) for X ~ Binomial(n, 1/2).
+    let mut p = 0.0;
+    let mut c = 1.0f64; // C(n, k) / 2^n computed in log space for stability
+    let ln2n = n as f64 * std::f64::consts::LN_2;
+    for k in 0..=n {
+        if k > 0 {
+            c *= (n - k + 1) as f64 / k as f64;
+        }
+        if k >= pos {
+            p += (c.ln() - ln2n).exp();
+        }
+    }
+    p.min(1.0)
+}
+
+fn rms(sq: &[(f64, usize)]) -> f64 {
+    let (s, n) = sq.iter().fold((0.0, 0usize), |(a, b), (s, n)| (a + s, b + n));
+    (s / n.max(1) as f64).sqrt()
+}
+
+/// Runs the analysis on detected views of a planar target.
+pub fn diagnose_camera(
+    views: &[View],
+    target: &PlanarTarget,
+    opts: &CameraDiagnoseOptions,
+) -> Result<CameraDiagnoseReport> {
+    let n = views.len();
+    if n < 6 {
+        return Ok(CameraDiagnoseReport {
+            nominal: CameraFit::default(),
+            findings: Vec::new(),
+            final_fit: CameraFinalFit::default(),
+            unexplained: CameraUnexplained::default(),
+            declined: Some(format!(
+                "{n} usable views: at least 6 are needed to hold views out and still calibrate; nothing is claimed"
+            )),
+            candidates: Vec::new(),
+            settings: opts.clone(),
+            n_views: n,
+        });
+    }
+    let all: Vec<&View> = views.iter().collect();
+    let mut current = Variant { lens: Lens::Brown5, bent: false };
+    let nominal_fit = fit_variant(&all, target, current, None)?;
+    let mut current_sq = cross_validate(views, target, current, opts.folds)?;
+    let nominal = CameraFit {
+        n_train: n - n.div_ceil(opts.folds.clamp(2, n)),
+        n_heldout: n,
+        train_rms_px: nominal_fit.rms_px,
+        heldout_rms_px: rms(&current_sq),
+    };
+    let mut findings = Vec::new();
+    let mut rounds = Vec::new();
+    let mut current_fit = nominal_fit;
+    loop {
+        let mut cands = Vec::new();
+        if current.lens == Lens::Brown5 {
+            cands.push(("lens_distortion (rational radial k4..k6)", Variant { lens: Lens::Rational8, ..current }));
+            cands.push(("lens_distortion (Kannala-Brandt fisheye)", Variant { lens: Lens::KannalaBrandt, ..current }));
+        }
+        if !current.bent {
+            cands.push(("target_nonflatness (bowl, saddle, twist)", Variant { bent: true, ..current }));
+        }
+        if cands.is_empty() {
+            break;
+        }
+        let m = cands.len();
+        let mut scores = Vec::new();
+        let mut best: Option<(usize, f64, Vec<(f64, usize)>)> = None;
+        for (ci, (name, v)) in cands.iter().enumerate() {
+            let sq = match cross_validate(views, target, *v, opts.folds) {
+                Ok(s) => s,
+                Err(e) => {
+                    scores.push(CameraCandidateScore {
+                        candidate: name.to_string(),
+                        heldout_rms_px: f64::NAN,
+                        p_value: 1.0,
+                        verdict: format!("could not be fitted: {e}"),
+                    });
+                    continue;
+                }
+            };
+            // Per-view differences of mean squared error (before - after).
+            let d: Vec<f64> =
+                current_sq.iter().zip(&sq).map(|((a, na), (b, _))| (a - b) / (*na).max(1) as f64).collect();
+            if d.iter().any(|v| !v.is_finite()) {
+                scores.push(CameraCandidateScore {
+                    candidate: name.to_string(),
+                    heldout_rms_px: f64::INFINITY,
+                    p_value: 1.0,
+                    verdict:
+                        "fails to predict some held-out views (their corners leave the fitted lens model's valid field)"
+                            .into(),
+                });
+                continue;
+            }
+            // Views differ widely in how much a lens or target effect shows (the image border
+            // against the centre), so the heavy-tailed per-view differences are tested with the
+            // sign test, and with the t test; the smaller p-value of the two counts, corrected
+            // for both tests and the candidates.
+            let p_sign = sign_test(&d);
+            let p_t = paired_test(&d).p_value;
+            let p = bonferroni(p_sign.min(p_t), 2 * m);
+            let after = rms(&sq);
+            scores.push(CameraCandidateScore {
+                candidate: name.to_string(),
+                heldout_rms_px: after,
+                p_value: p,
+                verdict: String::new(),
+            });
+            // The smallest p-value wins; equal p-values (the sign test's floor) go to the lower
+            // held-out RMS.
+            let better =
+                best.as_ref().is_none_or(|(_, bp, bsq)| p < *bp * 0.999 || (p <= *bp * 1.001 && after < rms(bsq)));
+            if better {
+                best = Some((ci, p, sq));
+            }
+        }
+        let Some((ci, p, sq)) = best else {
+            rounds.push(scores);
+            break;
+        };
+        let before = rms(&current_sq);
+        let after = rms(&sq);
+        let improvement = 1.0 - after / before;
+        let variant = cands[ci].1;
+        let fit = fit_variant(&all, target, variant, Some(&current_fit))?;
+        let plausible = if variant.bent && !current.bent {
+            fit.bend.iter().all(|b| b.abs() <= opts.max_sag_m)
+        } else {
+            fit.camera.distortion.coefficients().iter().all(|c| c.abs() <= opts.max_rational)
+        };
+        let accepted = p < opts.alpha && improvement >= opts.min_improvement && plausible;
+        for (k, s) in scores.iter_mut().enumerate() {
+            if s.verdict.is_empty() {
+                s.verdict = if k == ci && accepted {
+                    "accepted".into()
+                } else if k == ci && !plausible {
+                    "rejected: implausible size".into()
+                } else if k == ci && p >= opts.alpha {
+                    format!("not significant (p = {p:.2e} >= {})", opts.alpha)
+                } else if k == ci {
+                    format!("improvement {:.1} % below {:.1} %", improvement * 100.0, opts.min_improvement * 100.0)
+                } else {
+                    "not the best candidate".into()
+                };
+            }
+        }
+        rounds.push(scores);
+        if !accepted {
+            break;
+        }
+        let mut parameters = std::collections::BTreeMap::new();
+        let statement;
+        let effect;
+        if variant.bent && !current.bent {
+            effect = "target_nonflatness";
+            for (k, name) in ["bowl_sag_m", "saddle_sag_m", "twist_sag_m"].iter().enumerate() {
+                parameters.insert(name.to_string(), fit.bend[k]);
+            }
+            statement = format!(
+                "the target is not flat: its edge stands {:.2} mm out of plane as a bowl, {:.2} mm as a saddle and {:.2} mm as a twist; modelling it lowers the held-out reprojection RMS from {:.3} to {:.3} px (p = {:.1e} after correcting for {m} candidates)",
+                fit.bend[0] * 1e3, fit.bend[1] * 1e3, fit.bend[2] * 1e3, before, after, p
+            );
+        } else {
+            effect = "lens_distortion";
+            let c = fit.camera.distortion.coefficients();
+            let names = fit.camera.distortion.kind().coefficient_names();
+            for (name, v) in names.iter().zip(&c) {
+                parameters.insert(name.to_string(), *v);
+            }
+            let model = match variant.lens {
+                Lens::KannalaBrandt => "the Kannala-Brandt (fisheye) model".to_string(),
+                _ => format!("the rational radial terms (k4 = {:.3}, k5 = {:.3}, k6 = {:.3})", c[5], c[6], c[7]),
+            };
+            statement = format!(
+                "the 5-coefficient lens model leaves systematic image residuals: {model}: the held-out reprojection RMS drops from {before:.3} to {after:.3} px (p = {p:.1e} after correcting for {m} candidates)"
+            );
+        }
+        let before_ms = before * before;
+        findings.push(CameraFinding {
+            effect: effect.into(),
+            joints: Vec::new(),
+            parameters,
+            heldout_rms_before_px: before,
+            heldout_rms_after_px: after,
+            explained_fraction: ((before_ms - after * after) / before_ms).max(0.0),
+            p_value: p,
+            statement,
+        });
+        current = variant;
+        current_sq = sq;
+        current_fit = fit;
+    }
+    Ok(CameraDiagnoseReport {
+        nominal,
+        findings,
+        final_fit: CameraFinalFit { train_rms_px: current_fit.rms_px, heldout_rms_px: rms(&current_sq) },
+        unexplained: unexplained_structure(views, target, current, opts)?,
+        declined: None,
+        candidates: rounds,
+        settings: opts.clone(),
+        n_views: n,
+    })
+}
