@@ -3,7 +3,9 @@
 //! Entry points:
 //! - [`measurement`]: the measured-pose row every calibration consumes;
 //! - [`lsq`]: dense Levenberg-Marquardt with scaling, robust losses and covariance;
-//! - [`identifiability`]: structural (SVD, pivoted QR) and practical identifiability.
+//! - [`identifiability`]: structural (SVD, pivoted QR) and practical identifiability;
+//! - [`stiffness`]: elastostatic identification with model reduction to practically identifiable
+//!   parameters, experiment design and compliance compensation.
 //!
 //! # Conventions
 //! SI units inside; see `docs/conventions.md` at the workspace root.
@@ -17,8 +19,10 @@ pub mod file;
 pub mod frames;
 pub mod identifiability;
 pub mod kinematic;
+pub mod linear;
 pub mod lsq;
 pub mod measurement;
+pub mod stiffness;
 
 pub use error::{CalibError, Result};
 pub use measurement::{MeasurementSet, PoseMeasurement, Split};

@@ -8,6 +8,10 @@
 //! - [`render`]: the physically modelled camera renderer of the synthetic cell.
 //! - [`sim`]: the synthetic measurement cell (true robot, plan, tracker, cameras) and the
 //!   recorded sessions it writes.
+//! - [`dynsim`]: simulated dynamics data: the force-sensing end-effector on a hexapod and the
+//!   hexapod's actuator forces with friction, noise, sampling and payload steps.
+//! - [`stiffsim`]: the elastostatic cell (a compliant KR 270-like arm with a gravity
+//!   compensator, a laser tracker measuring reflectors under payloads).
 //! - [`error`]: the crate's error type, [`error::DatasetError`].
 //!
 //! # Conventions
@@ -15,8 +19,10 @@
 //! See `docs/conventions.md`.
 #![deny(missing_docs)]
 
+pub mod dynsim;
 pub mod error;
 pub mod import;
 pub mod measure;
 pub mod render;
 pub mod sim;
+pub mod stiffsim;

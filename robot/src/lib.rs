@@ -20,6 +20,7 @@
 #![deny(missing_docs)]
 
 pub mod check;
+pub mod dynamics;
 pub mod error;
 pub mod geometry;
 pub mod kinematics;
@@ -30,6 +31,7 @@ pub mod presets;
 pub mod program;
 pub mod safety;
 pub mod serial;
+pub mod stiffness;
 pub mod workspace;
 
 pub use error::{Result, RobotError};

@@ -46,6 +46,11 @@ pub enum Command {
     Diagnose(crate::commands::diagnose::DiagnoseArgs),
     /// Predict a measurement table with a calibrated model and report the position errors.
     Evaluate(crate::commands::calibrate::EvaluateArgs),
+    /// Force-sensor models and dynamics of parallel machines: identification from quasi-static
+    /// poses and excitation trajectories, experiment design, studies.
+    Dynamics(crate::commands::dynamics::DynamicsArgs),
+    /// Elastostatic (compliance) identification with practical identifiability and compensation.
+    Stiffness(crate::commands::stiffness::StiffnessArgs),
 }
 
 /// `ferrocal demo`.

@@ -7,9 +7,11 @@ mod demo;
 pub mod detect;
 pub mod diagnose;
 mod doctor;
+pub mod dynamics;
 pub mod plan;
 mod robot;
 pub mod simulate;
+pub mod stiffness;
 
 use std::process::ExitCode;
 
@@ -33,6 +35,8 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Calibrate(a) => calibrate::run_calibrate(&a),
         Command::Diagnose(a) => diagnose::run(&a),
         Command::Evaluate(a) => calibrate::run_evaluate(&a),
+        Command::Dynamics(a) => dynamics::run(&a),
+        Command::Stiffness(a) => stiffness::run(&a),
     }
 }
 
