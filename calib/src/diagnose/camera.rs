@@ -506,6 +506,9 @@ fn unexplained_structure(
     Ok(CameraUnexplained { structure_found: !depends_on.is_empty(), depends_on, evidence })
 }
 
+/// Per view: the sum of squared held-out reprojection errors and the number of corners.
+type ViewErrors = Vec<(f64, usize)>;
+
 /// One-sided exact sign test of `median(d) > 0` (zeros dropped).
 fn sign_test(d: &[f64]) -> f64 {
     let pos = d.iter().filter(|v| **v > 0.0).count();
@@ -581,7 +584,7 @@ pub fn diagnose_camera(
         }
         let m = cands.len();
         let mut scores = Vec::new();
-        let mut best: Option<(usize, f64, Vec<(f64, usize)>)> = None;
+        let mut best: Option<(usize, f64, ViewErrors)> = None;
         for (ci, (name, v)) in cands.iter().enumerate() {
             let sq = match cross_validate(views, target, *v, opts.folds) {
                 Ok(s) => s,
