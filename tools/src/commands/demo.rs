@@ -767,7 +767,7 @@ fn sections_real_camera(args: &DemoArgs) -> Result<Vec<Section>> {
 /// The planner on the example plan: workspace, measurable region, pose selection, simulated
 /// calibrations and the robot programs, in its own report linked from here.
 fn section_plan(args: &DemoArgs) -> Result<Section> {
-    let mut s = Section::new("plan", "Planning measurement poses: Gantry-Tau L1 with two cameras");
+    let mut s = Section::new("plan", "Planning measurement poses: Gantry-Tau L1 seen by the cell's left camera");
     let plan_path = args.out.join("plan_gantry_tau_l1.toml");
     std::fs::create_dir_all(&args.out)?;
     crate::report::write_atomic(&plan_path, EXAMPLE_PLAN.as_bytes())?;
