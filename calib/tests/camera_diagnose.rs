@@ -89,7 +89,11 @@ fn structure_no_candidate_explains_is_reported_with_what_it_depends_on() {
         }
     }
     let r = diagnose_camera(&v, &t, &CameraDiagnoseOptions::default()).unwrap();
-    eprintln!("tile offset: {:?} findings {:?}", r.unexplained, r.findings.iter().map(|f| &f.effect).collect::<Vec<_>>());
+    eprintln!(
+        "tile offset: {:?} findings {:?}",
+        r.unexplained,
+        r.findings.iter().map(|f| &f.effect).collect::<Vec<_>>()
+    );
     assert!(r.unexplained.structure_found, "{:?}", r.unexplained);
     assert!(r.unexplained.depends_on.iter().any(|d| d == "image position"), "{:?}", r.unexplained);
 }

@@ -14,6 +14,7 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
+    restore_sigpipe();
     let args = cli::Cli::parse();
     match commands::run(args) {
         Ok(code) => code,
@@ -23,5 +24,16 @@ fn main() -> ExitCode {
             eprintln!("ferrocal: error: {msg}");
             ExitCode::from(1)
         }
+    }
+}
+
+/// Output piped into `head` or `less` ends quietly when the reader closes the pipe, as other
+/// command-line tools do (Rust ignores SIGPIPE by default, which turns it into a panic on print).
+fn restore_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called first thing in main, before any other thread exists; SIG_DFL is a valid
+    // disposition for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }

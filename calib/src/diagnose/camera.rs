@@ -96,6 +96,9 @@ pub struct CameraUnexplained {
     pub structure_found: bool,
     /// What it depends on (`image position`, ...).
     pub depends_on: Vec<String>,
+    /// Where it shows: one plain-words line per significant image cell or ring.
+    #[serde(default)]
+    pub evidence: Vec<String>,
 }
 
 /// One candidate tried in a round.
@@ -384,10 +387,10 @@ fn cross_validate(views: &[View], target: &PlanarTarget, variant: Variant, folds
 
 /// Residual structure of the final model on held-out views: does the mean residual depend on
 /// where a corner lies in the image (a 4 x 4 grid of cells) or on its distance from the image
-/// centre (five rings, radial component)? Views are the independent units (corners of one view
-/// share its detection errors): per cell, the views' mean residuals are tested against zero with
-/// a t test, Bonferroni-corrected over all cells; a dependence counts when significant at `alpha`
-/// and larger than a quarter of the held-out RMS.
+/// centre (five rings, radial component)? Per cell that at least three views reach, the corners'
+/// residuals are tested against zero with a t test, Bonferroni-corrected over all cells; a
+/// dependence counts when significant at `alpha` and larger than a third of the held-out RMS
+/// (per corner, both axes).
 fn unexplained_structure(
     views: &[View],
     target: &PlanarTarget,
@@ -421,7 +424,7 @@ fn unexplained_structure(
     if all.is_empty() {
         return Ok(CameraUnexplained::default());
     }
-    let rms_px = (all.iter().sum::<f64>() / all.len() as f64 / 2.0).sqrt();
+    let rms_px = (all.iter().sum::<f64>() / all.len() as f64).sqrt();
     let size = views[0].image_size;
     let (w, h) = (size.width_px as f64, size.height_px as f64);
     let centre = nalgebra::Point2::new(w / 2.0, h / 2.0);
@@ -434,6 +437,7 @@ fn unexplained_structure(
         gy * GRID + gx
     };
     let mut depends_on = Vec::new();
+    let mut evidence = Vec::new();
     // Grid: x and y components per cell.
     let mut grid_units: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); n]; 2 * GRID * GRID];
     let mut ring_units: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); n]; RINGS];
@@ -451,31 +455,59 @@ fn unexplained_structure(
         }
     }
     for (label, units) in [("image position", &grid_units), ("image radius", &ring_units)] {
-        let mut results = Vec::new();
-        for group in units.iter() {
-            let means: Vec<f64> =
-                group.iter().filter(|v| !v.is_empty()).map(|v| v.iter().sum::<f64>() / v.len() as f64).collect();
-            if means.len() >= 3 {
-                results.push(means);
-            }
-        }
+        // Corners are the units of the test (the held-out view's own pose is refitted, which
+        // removes what a view's corners share); a cell counts only when at least three views
+        // put corners in it, so one odd view cannot make a finding.
+        let results: Vec<(usize, Vec<f64>)> = units
+            .iter()
+            .enumerate()
+            .filter(|(_, group)| group.iter().filter(|v| !v.is_empty()).count() >= 3)
+            .map(|(k, group)| (k, group.iter().flatten().copied().collect()))
+            .collect();
         let m = results.len();
         let mut found = false;
-        for means in &results {
-            let mean = means.iter().sum::<f64>() / means.len() as f64;
+        for (k, values) in &results {
+            let mean = values.iter().sum::<f64>() / values.len() as f64;
             // Two-sided: the one-sided test of the mean's own sign, doubled.
-            let p_two =
-                2.0 * paired_test(&means.iter().map(|v| v * mean.signum()).collect::<Vec<_>>()).p_value.min(0.5);
-            if bonferroni(p_two, m) < opts.alpha && mean.abs() > 0.25 * rms_px {
+            let signed: Vec<f64> = values.iter().map(|v| v * mean.signum()).collect();
+            let p_two = (2.0 * paired_test(&signed).p_value).min(1.0);
+            let p = bonferroni(p_two, m);
+            if p < opts.alpha && mean.abs() > rms_px / 3.0 {
                 found = true;
+                let place = if label == "image position" {
+                    let (cell, axis) = (k / 2, if k % 2 == 0 { "x" } else { "y" });
+                    let (gx, gy) = ((cell % GRID) as f64, (cell / GRID) as f64);
+                    let (cw, ch) = (w / GRID as f64, h / GRID as f64);
+                    format!(
+                        "image cell x {:.0}..{:.0} px, y {:.0}..{:.0} px: mean {axis} residual",
+                        gx * cw,
+                        (gx + 1.0) * cw,
+                        gy * ch,
+                        (gy + 1.0) * ch
+                    )
+                } else {
+                    let rw = r_max / RINGS as f64;
+                    format!(
+                        "radius {:.0}..{:.0} px from the image centre: mean radial residual",
+                        *k as f64 * rw,
+                        (*k as f64 + 1.0) * rw
+                    )
+                };
+                evidence.push(format!(
+                    "{place} {mean:+.3} px over {} corners (p = {p:.1e}; held-out RMS {rms_px:.3} px)",
+                    values.len()
+                ));
             }
         }
         if found {
             depends_on.push(label.to_string());
         }
     }
-    Ok(CameraUnexplained { structure_found: !depends_on.is_empty(), depends_on })
+    Ok(CameraUnexplained { structure_found: !depends_on.is_empty(), depends_on, evidence })
 }
+
+/// Per view: the sum of squared held-out reprojection errors and the number of corners.
+type ViewErrors = Vec<(f64, usize)>;
 
 /// One-sided exact sign test of `median(d) > 0` (zeros dropped).
 fn sign_test(d: &[f64]) -> f64 {
@@ -552,7 +584,7 @@ pub fn diagnose_camera(
         }
         let m = cands.len();
         let mut scores = Vec::new();
-        let mut best: Option<(usize, f64, Vec<(f64, usize)>)> = None;
+        let mut best: Option<(usize, f64, ViewErrors)> = None;
         for (ci, (name, v)) in cands.iter().enumerate() {
             let sq = match cross_validate(views, target, *v, opts.folds) {
                 Ok(s) => s,

@@ -206,8 +206,15 @@ fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
         for f in &rep.findings {
             s.text(format!("{}: {}", f.effect, f.statement));
         }
-        if rep.findings.is_empty() && rep.declined.is_none() {
+        if rep.findings.is_empty() && rep.declined.is_none() && !rep.unexplained.structure_found {
             s.text("No candidate passes: the default model describes these images.");
+        }
+        if rep.unexplained.structure_found {
+            s.text(format!(
+                "Structure no candidate explains remains, depending on {}:",
+                rep.unexplained.depends_on.join(" and ")
+            ));
+            s.pre(rep.unexplained.evidence.join("\n"));
         }
         for (k, round) in rep.candidates.iter().enumerate() {
             s.table(
@@ -234,6 +241,12 @@ fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
     );
     for f in &rep.findings {
         eprintln!("  {}: {}", f.effect, f.statement);
+    }
+    if rep.unexplained.structure_found {
+        eprintln!("  unexplained structure, depending on {}:", rep.unexplained.depends_on.join(" and "));
+        for e in &rep.unexplained.evidence {
+            eprintln!("    {e}");
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
