@@ -4,8 +4,9 @@
 //! self-checks, the UR5 preset against a real laser-tracker recording, the safety zones, the
 //! simulated cell (rendered images measured by the real detector), calibration from the tracker
 //! and from the cameras, the UR5 and UR10 calibrated from real tracker data, the OpenCV sample
-//! cameras calibrated against the published values and diagnosed, the pose planner, and the
-//! UR5's missing physics found by `diagnose`.
+//! cameras calibrated against the published values and diagnosed, the pose planner, the UR5's
+//! missing physics found by `diagnose`, the force-sensor and hexapod dynamics identification,
+//! and the elastostatic identification with compensation.
 
 use std::path::Path;
 use std::process::ExitCode;
@@ -88,6 +89,13 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     all_ok &= s.status.as_ref().is_none_or(|(ok, _)| *ok);
     report.sections.push(s);
     for s in sections_diagnose(args)? {
+        all_ok &= s.status.as_ref().is_none_or(|(ok, _)| *ok);
+        report.sections.push(s);
+    }
+    for s in [
+        crate::commands::dynamics::demo_section(args.seed, args.quick)?,
+        crate::commands::stiffness::demo_section(args.seed, args.quick)?,
+    ] {
         all_ok &= s.status.as_ref().is_none_or(|(ok, _)| *ok);
         report.sections.push(s);
     }
