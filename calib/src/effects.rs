@@ -19,7 +19,7 @@
 //! | `time_drift` | `v` (per hour) | as thermal expansion with `t` in hours instead of `T - T_ref` |
 
 use ferrocal_robot::{JointKind, Kinematics, RobotModel, Unit};
-use nalgebra::Vector3;
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{CalibError, Result};
@@ -58,6 +58,14 @@ pub enum EffectSpec {
     },
     /// Lengths change with time (warm-up without a temperature reading).
     TimeDrift,
+    /// A link bends under the load it carries: link `link` (1-based; the body moved by joint
+    /// `link`, carrying joint `link + 1`) turns, about its midpoint, by `compliance` times the
+    /// gravity moment of everything beyond it taken at its far end, without that moment's
+    /// component along joint `link + 1`'s axis (which the joint carries: joint compliance).
+    LinkCompliance {
+        /// Link (1-based, 1 to joints - 1).
+        link: usize,
+    },
 }
 
 impl EffectSpec {
@@ -70,6 +78,7 @@ impl EffectSpec {
             EffectSpec::PeriodicJointError { .. } => "periodic_joint_error",
             EffectSpec::ThermalExpansion { .. } => "thermal_expansion",
             EffectSpec::TimeDrift => "thermal_expansion",
+            EffectSpec::LinkCompliance { .. } => "link_compliance",
         }
     }
 
@@ -80,7 +89,16 @@ impl EffectSpec {
             | EffectSpec::Backlash { joint }
             | EffectSpec::JointScaleError { joint }
             | EffectSpec::PeriodicJointError { joint, .. } => Some(*joint),
-            EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift => None,
+            EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift | EffectSpec::LinkCompliance { .. } => None,
+        }
+    }
+
+    /// The joints a report names for it: the joint of a joint effect, the two joints a link
+    /// connects for link compliance, none for length changes.
+    pub fn joints_reported(&self) -> Vec<usize> {
+        match self {
+            EffectSpec::LinkCompliance { link } => vec![*link, link + 1],
+            other => other.joint().into_iter().collect(),
         }
     }
 
@@ -106,6 +124,9 @@ impl EffectSpec {
             }
             EffectSpec::ThermalExpansion { .. } => vec![("thermal.alpha_per_k".into(), Unit::Dimensionless)],
             EffectSpec::TimeDrift => vec![("drift.per_hour".into(), Unit::Dimensionless)],
+            EffectSpec::LinkCompliance { link } => {
+                vec![(format!("link{link}.compliance_rad_per_nm"), Unit::Dimensionless)]
+            }
         }
     }
 
@@ -118,6 +139,7 @@ impl EffectSpec {
             EffectSpec::PeriodicJointError { .. } => vec![1e-4, 1e-4],
             EffectSpec::ThermalExpansion { .. } => vec![1e-5],
             EffectSpec::TimeDrift => vec![1e-5],
+            EffectSpec::LinkCompliance { .. } => vec![1e-6],
         }
     }
 
@@ -142,6 +164,19 @@ impl EffectSpec {
                     "effect {}: joint {j} does not exist (the model has {} joints, numbered from 1)",
                     self.name(),
                     model.dof()
+                )));
+            }
+        }
+        if let EffectSpec::LinkCompliance { link } = self {
+            let RobotModel::Serial(_) = model else {
+                return Err(CalibError::Data(
+                    "link_compliance: only serial chains have links that carry their successors".into(),
+                ));
+            };
+            if *link == 0 || *link >= model.dof() {
+                return Err(CalibError::Data(format!(
+                    "link_compliance: link {link} does not carry a further joint (links 1 to {} do)",
+                    model.dof().saturating_sub(1)
                 )));
             }
         }
@@ -177,9 +212,30 @@ impl EffectSpec {
                 let x = std::f64::consts::TAU * row.q[joint - 1] / period_si;
                 dq[joint - 1] += theta[0] * x.sin() + theta[1] * x.cos();
             }
-            EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift => {}
+            EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift | EffectSpec::LinkCompliance { .. } => {}
         }
         Ok(())
+    }
+
+    /// The rigid correction of the predicted pose (in the model's base frame) the effect causes
+    /// at effective joints `q`, for parameters `theta`: the identity except for link compliance.
+    pub fn pose_correction(
+        &self,
+        model: &RobotModel,
+        row: &PoseMeasurement,
+        q: &[f64],
+        theta: &[f64],
+    ) -> Result<Isometry3<f64>> {
+        match self {
+            EffectSpec::LinkCompliance { link } => {
+                let (axis, pivot) = link_bending(model, *link, q, row.payload_kg.unwrap_or(0.0))?;
+                let rot = UnitQuaternion::from_scaled_axis(axis * theta[0]);
+                // Rotation about `pivot`: x -> pivot + R (x - pivot).
+                let t = pivot.coords - rot * pivot.coords;
+                Ok(Isometry3::from_parts(Translation3::from(t), rot))
+            }
+            _ => Ok(Isometry3::identity()),
+        }
     }
 
     /// The factor by which the effect scales lengths for `row` (1 for joint effects).
@@ -192,6 +248,45 @@ impl EffectSpec {
             _ => 1.0,
         }
     }
+}
+
+/// Link bending at `q` per unit compliance: the rotation vector (rad per rad/(N m), i.e. the
+/// load moment in N m) of link `link` (1-based) and the point it turns about, both in the
+/// model's base frame. The moment is gravity's moment, about the link's far end (the axis point
+/// of joint `link + 1`), on every body beyond the link and the payload at the tool, without its
+/// component along joint `link + 1`'s axis; the pivot is the midpoint between the axis points of
+/// joints `link` and `link + 1` (a beam under end load turns about a point inside its span).
+pub fn link_bending(
+    model: &RobotModel,
+    link: usize,
+    q: &[f64],
+    payload_kg: f64,
+) -> Result<(Vector3<f64>, Point3<f64>)> {
+    let RobotModel::Serial(chain) = model else {
+        return Err(CalibError::Data("link_compliance needs a serial chain".into()));
+    };
+    let n = chain.joints.len();
+    if link == 0 || link >= n {
+        return Err(CalibError::Data(format!("link_compliance: link {link} does not carry a further joint")));
+    }
+    let frames = chain.frames(q)?;
+    let g = Vector3::from(chain.gravity_m_s2);
+    let end = frames.axis_points[link];
+    let z = frames.axes[link];
+    let mut moment = Vector3::zeros();
+    for (i, j) in chain.joints.iter().enumerate().skip(link) {
+        if let Some(inr) = &j.inertial {
+            let com = frames.links[i] * Point3::from(inr.com_m);
+            moment += (com - end).cross(&(g * inr.mass_kg));
+        }
+    }
+    if payload_kg != 0.0 {
+        let p = Point3::from(frames.tool.translation.vector);
+        moment += (p - end).cross(&(g * payload_kg));
+    }
+    let bending = moment - z * z.dot(&moment);
+    let pivot = Point3::from((frames.axis_points[link - 1].coords + end.coords) / 2.0);
+    Ok((bending, pivot))
 }
 
 /// Holding torques (forces for prismatic joints) at `q` under gravity with `payload_kg` at the

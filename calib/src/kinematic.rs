@@ -343,6 +343,11 @@ impl CalibratedModel {
     pub fn predict_row(&self, row: &PoseMeasurement) -> Result<Isometry3<f64>> {
         let (q, scale) = self.effective(row)?;
         let mut t = self.model.forward(&q)? * self.tool;
+        for (e, theta) in &self.effects {
+            if matches!(e, EffectSpec::LinkCompliance { .. }) {
+                t = e.pose_correction(&self.model, row, &q, theta)? * t;
+            }
+        }
         if scale != 1.0 {
             t.translation.vector *= scale;
         }

@@ -42,7 +42,8 @@ pub enum Command {
     /// Kinematic calibration from a measurement table (laser tracker, cameras, CMM).
     Calibrate(crate::commands::calibrate::CalibrateArgs),
     /// Find the physics a model leaves out: screen the residuals, test candidate effects
-    /// (compliance, backlash, scale, periodic, thermal) on held-out data, report what passes.
+    /// (joint and link compliance, backlash, scale, periodic, thermal; for cameras lens and target
+    /// shape) on held-out data, report what passes.
     Diagnose(crate::commands::diagnose::DiagnoseArgs),
     /// Predict a measurement table with a calibrated model and report the position errors.
     Evaluate(crate::commands::calibrate::EvaluateArgs),

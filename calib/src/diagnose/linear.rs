@@ -15,7 +15,7 @@
 use ferrocal_robot::Parameterized;
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
 
-use crate::effects::{holding_torques, EffectSpec};
+use crate::effects::{holding_torques, link_bending, EffectSpec};
 use crate::error::{CalibError, Result};
 use crate::frames::exp6;
 use crate::kinematic::{CalibratedModel, KinematicCalibration, StateLayout};
@@ -36,6 +36,13 @@ pub(crate) struct Lin {
     pub ds: DVector<f64>,
     /// Holding torques per row and joint (from the calibrated model, with each row's payload).
     pub tau: Vec<Vec<f64>>,
+    /// Per row and link (serial chains; empty otherwise): the bending load moment and the point
+    /// the link turns about (`effects::link_bending`), in the device frame.
+    pub bend: Vec<Vec<(Vector3<f64>, nalgebra::Point3<f64>)>>,
+    /// Per row: predicted position in the device frame.
+    pub p0: Vec<Vector3<f64>>,
+    /// Per row: position standard deviation.
+    pub sigma: Vec<f64>,
 }
 
 /// The calibrated model with candidate parameter `idx` moved by `h`.
@@ -116,10 +123,20 @@ impl Lin {
             ds.fixed_rows_mut::<3>(3 * i).copy_from(&v);
         }
         let mut tau = Vec::with_capacity(n);
+        let mut bend = Vec::with_capacity(n);
         for row in rows {
             tau.push(holding_torques(&cm.model, &row.q, row.payload_kg.unwrap_or(0.0))?);
+            let mut per_link = Vec::new();
+            if let ferrocal_robot::RobotModel::Serial(_) = &cm.model {
+                let (q, _) = cm.effective(row)?;
+                for link in 1..q.len() {
+                    let (v, pivot) = link_bending(&cm.model, link, &q, row.payload_kg.unwrap_or(0.0))?;
+                    per_link.push((f.rotation * v, f * pivot));
+                }
+            }
+            bend.push(per_link);
         }
-        Ok(Self { n, r, base, dq, ds, tau })
+        Ok(Self { n, r, base, dq, ds, tau, bend, p0, sigma: sigma.to_vec() })
     }
 
     /// The same linearisation with the base columns `drop` removed and the residuals `r` of the
@@ -127,7 +144,17 @@ impl Lin {
     pub fn without(&self, drop: &[usize], r: DVector<f64>) -> Self {
         let keep: Vec<usize> = (0..self.base.ncols()).filter(|c| !drop.contains(c)).collect();
         let base = DMatrix::from_fn(self.base.nrows(), keep.len(), |i, k| self.base[(i, keep[k])]);
-        Self { n: self.n, r, base, dq: self.dq.clone(), ds: self.ds.clone(), tau: self.tau.clone() }
+        Self {
+            n: self.n,
+            r,
+            base,
+            dq: self.dq.clone(),
+            ds: self.ds.clone(),
+            tau: self.tau.clone(),
+            bend: self.bend.clone(),
+            p0: self.p0.clone(),
+            sigma: self.sigma.clone(),
+        }
     }
 
     /// Prediction columns of a candidate effect on every row (whitened): joint effects through
@@ -146,6 +173,15 @@ impl Lin {
                 for (i, row) in rows.iter().enumerate().take(n) {
                     let dt = row.temp_c? - reference_temp_c;
                     c.fixed_view_mut::<3, 1>(3 * i, 0).copy_from(&(self.ds.fixed_rows::<3>(3 * i) * dt));
+                }
+                Some(c)
+            }
+            EffectSpec::LinkCompliance { link } => {
+                let mut c = DMatrix::zeros(3 * n, 1);
+                for i in 0..n {
+                    let (v, pivot) = self.bend.get(i)?.get(link - 1)?;
+                    let d = v.cross(&(self.p0[i] - pivot.coords)) / self.sigma[i];
+                    c.fixed_view_mut::<3, 1>(3 * i, 0).copy_from(&d);
                 }
                 Some(c)
             }

@@ -362,7 +362,7 @@ impl Cand {
     }
     fn joints(&self) -> Vec<usize> {
         match self {
-            Cand::Fixed(s) => s.joint().into_iter().collect(),
+            Cand::Fixed(s) => s.joints_reported(),
             Cand::Periodic { joint } => vec![*joint],
         }
     }
@@ -382,6 +382,9 @@ impl Cand {
                 std::f64::consts::TAU / period_si
             ),
             Cand::Periodic { joint } => format!("periodic_joint_error on joint {joint} (period searched)"),
+            Cand::Fixed(EffectSpec::LinkCompliance { link }) => {
+                format!("link_compliance on link {link} (between joints {link} and {})", link + 1)
+            }
             c => format!("{} on joint {}", c.name(), c.joints().first().copied().unwrap_or(0)),
         }
     }
@@ -395,6 +398,9 @@ impl Cand {
         ) = (self, s)
         {
             return joint == j;
+        }
+        if let (Cand::Fixed(EffectSpec::LinkCompliance { link }), EffectSpec::LinkCompliance { link: l }) = (self, s) {
+            return link == l;
         }
         match self {
             Cand::Fixed(c) => {
@@ -961,7 +967,7 @@ pub fn diagnose(model: &RobotModel, rows: &[PoseMeasurement], opts: &DiagnoseOpt
         }
         let finding = Finding {
             effect: spec.name().into(),
-            joints: spec.joint().into_iter().collect(),
+            joints: spec.joints_reported(),
             parameters: parameter_map(&spec, &theta, &kinds),
             heldout_rms_before_mm: before,
             heldout_rms_after_mm: after,
@@ -1189,6 +1195,38 @@ fn enumerate_candidates(
             cands.push(Cand::Fixed(EffectSpec::TimeDrift));
         }
     }
+    // Link compliance: serial chains with masses, per link that carries a further joint, when
+    // the load moment across the next joint's axis varies over the poses.
+    if let ferrocal_robot::RobotModel::Serial(_) = model {
+        for link in 1..ctx.kinds.len() {
+            let mut moments = Vec::with_capacity(n);
+            for r in &ctx.rows {
+                let (v, _) = crate::effects::link_bending(model, link, &r.q, r.payload_kg.unwrap_or(0.0))?;
+                moments.push(v);
+            }
+            let mean = moments.iter().fold(Vector3::zeros(), |a, v| a + v) / n as f64;
+            let sd = (moments.iter().map(|v| (v - mean).norm_squared()).sum::<f64>() / n as f64).sqrt();
+            if tau_max == 0.0 {
+                un.push(Untestable {
+                    effect: "link_compliance".into(),
+                    joints: vec![link, link + 1],
+                    reason: "the model carries no masses (no link inertials, no payload): load moments are unknown"
+                        .into(),
+                });
+            } else if sd <= 1e-3 * tau_max.max(1.0) {
+                un.push(Untestable {
+                    effect: "link_compliance".into(),
+                    joints: vec![link, link + 1],
+                    reason: format!(
+                        "the load moment link {link} carries across joint {}'s axis does not vary over the poses",
+                        link + 1
+                    ),
+                });
+            } else {
+                cands.push(Cand::Fixed(EffectSpec::LinkCompliance { link }));
+            }
+        }
+    }
     Ok((cands, un))
 }
 
@@ -1233,6 +1271,9 @@ fn parameter_map(spec: &EffectSpec, theta: &[f64], kinds: &[JointKind]) -> BTree
         }
         EffectSpec::TimeDrift => {
             m.insert("drift_per_hour".into(), t0);
+        }
+        EffectSpec::LinkCompliance { .. } => {
+            m.insert("compliance_rad_per_nm".into(), t0);
         }
     }
     m
@@ -1312,6 +1353,20 @@ fn plausible(spec: &EffectSpec, theta: &[f64], ctx: &Ctx, lin: &Lin, opts: &Diag
                 ));
             }
         }
+        EffectSpec::LinkCompliance { link } => {
+            if t <= 0.0 {
+                return Err(format!("negative compliance ({}): link {link} would bend against its load", sig(t, 2)));
+            }
+            let mmax = lin.bend.iter().filter_map(|b| b.get(link - 1)).map(|(v, _)| v.norm()).fold(0.0, f64::max);
+            let defl = t * mmax;
+            if defl > b.max_deflection_rad {
+                return Err(format!(
+                    "a bend of {} mrad at the largest load exceeds the bound of {} mrad",
+                    sig(defl * 1e3, 2),
+                    sig(b.max_deflection_rad * 1e3, 2)
+                ));
+            }
+        }
     }
     Ok(())
 }
@@ -1373,6 +1428,9 @@ fn telling_input(spec: &EffectSpec, names: &[String]) -> String {
         }
         EffectSpec::ThermalExpansion { .. } => "temp_c".into(),
         EffectSpec::TimeDrift => "t_s".into(),
+        EffectSpec::LinkCompliance { link } => {
+            format!("bending moment on link {link} (between {} and {})", jn(*link), jn(link + 1))
+        }
     }
 }
 
@@ -1459,6 +1517,16 @@ fn statement(
                 reference_temp_c
             )
         }
+        EffectSpec::LinkCompliance { link } => {
+            let mmax = lin.bend.iter().filter_map(|b| b.get(link - 1)).map(|(v, _)| v.norm()).fold(0.0, f64::max);
+            format!(
+                "link {link} (between joints {link} and {}) bends {} rad per N m of the load moment it carries across joint {}'s axis {pm}, up to {} mrad over these poses",
+                link + 1,
+                sig(t, 2),
+                link + 1,
+                sig(t * mmax * 1e3, 2)
+            )
+        }
         EffectSpec::TimeDrift => {
             let hours = ctx.rows.iter().filter_map(|r| r.t_s).fold(0.0f64, f64::max) / 3600.0;
             format!(
@@ -1504,7 +1572,21 @@ fn evidence(
     telling: &str,
 ) -> Evidence {
     let ds = nalgebra::DMatrix::from_column_slice(lin.ds.len(), 1, lin.ds.as_slice());
+    let link_col;
     let (x, col, c, factor, y_label): (Vec<f64>, &nalgebra::DMatrix<f64>, usize, f64, String) = match spec {
+        EffectSpec::LinkCompliance { link } => {
+            // The effect's column per unit of bend: the implied bend angle per row.
+            let moments: Vec<f64> = lin.bend.iter().map(|b| b.get(link - 1).map_or(0.0, |(v, _)| v.norm())).collect();
+            let mut m = ctx.effect_columns(lin, spec).unwrap_or_else(|| nalgebra::DMatrix::zeros(3 * lin.n, 1));
+            for (i, mi) in moments.iter().enumerate() {
+                let scale = if *mi > 0.0 { *mi } else { 1.0 };
+                for r in 0..3 {
+                    m[(3 * i + r, 0)] /= scale;
+                }
+            }
+            link_col = m;
+            (moments, &link_col, 0, 1e3, format!("bend of link {link} implied by the held-out residual [mrad]"))
+        }
         EffectSpec::ThermalExpansion { .. } => (
             ctx.rows.iter().map(|r| r.temp_c.unwrap_or(f64::NAN)).collect(),
             &ds,
@@ -1543,6 +1625,7 @@ fn evidence(
         EffectSpec::JointCompliance { .. } => format!("{telling} [N m]"),
         EffectSpec::TimeDrift => "time [h]".into(),
         EffectSpec::ThermalExpansion { .. } => "temperature [C]".into(),
+        EffectSpec::LinkCompliance { .. } => format!("{telling} [N m]"),
         EffectSpec::Backlash { .. } => telling.to_string(),
         EffectSpec::PeriodicJointError { period_si, .. } => {
             format!("{telling} modulo its period of {} deg (phase in the cycle) [deg]", sig(period_si.to_degrees(), 3))

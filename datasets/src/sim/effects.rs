@@ -112,6 +112,16 @@ pub enum Effect {
         /// Temperature at which the parameters hold.
         reference_temp_c: f64,
     },
+    /// A serial link that bends under the load it carries: everything beyond link `link` (the body
+    /// joint `link` moves, 1-based) turns about the midpoint between the axis points of joints
+    /// `link` and `link + 1` by `compliance * M`, with `M` gravity's moment on those bodies and
+    /// the payload about joint `link + 1`'s axis point, less its component along that axis.
+    LinkCompliance {
+        /// Link (1-based, 1 to joints - 1).
+        link: usize,
+        /// Compliance, rad/(N m).
+        compliance_si: f64,
+    },
     /// A parameter that changes with a joint: `p += linear q + quadratic q^2` (a guideway that is
     /// not straight or not parallel to its nominal direction).
     ParameterDrift {
@@ -138,6 +148,7 @@ impl Effect {
             Effect::JointCompliance { .. } => "joint_compliance",
             Effect::ThermalExpansion { .. } => "thermal_expansion",
             Effect::ParameterDrift { .. } => "axis_misalignment",
+            Effect::LinkCompliance { .. } => "link_compliance",
         }
     }
 
@@ -149,7 +160,7 @@ impl Effect {
             | Effect::Backlash { joint, .. }
             | Effect::JointCompliance { joint, .. }
             | Effect::ParameterDrift { joint, .. } => Some(*joint),
-            Effect::ThermalExpansion { .. } => None,
+            Effect::ThermalExpansion { .. } | Effect::LinkCompliance { .. } => None,
         }
     }
 }
@@ -327,7 +338,7 @@ impl TrueRobot {
                     let tau = torques.as_ref().expect("just set")[joint - 1];
                     q[joint - 1] -= compliance_si * tau;
                 }
-                Effect::ThermalExpansion { .. } | Effect::ParameterDrift { .. } => {}
+                Effect::ThermalExpansion { .. } | Effect::ParameterDrift { .. } | Effect::LinkCompliance { .. } => {}
             }
         }
         Ok(q)
@@ -337,7 +348,14 @@ impl TrueRobot {
     pub fn tool_pose(&self, q_cmd: &[f64], c: &Conditions) -> Result<Pose, DatasetError> {
         let model = self.model_at(q_cmd, c)?;
         let q = self.effective_joints(&model, q_cmd, c)?;
-        model.forward(&q).map_err(|e| DatasetError::Config(format!("true forward kinematics failed: {e}")))
+        let mut pose =
+            model.forward(&q).map_err(|e| DatasetError::Config(format!("true forward kinematics failed: {e}")))?;
+        for e in &self.effects {
+            if let Effect::LinkCompliance { link, compliance_si } = e {
+                pose = link_bend(&model, *link, &q, c.payload_kg, *compliance_si)? * pose;
+            }
+        }
+        Ok(pose)
     }
 }
 
@@ -370,4 +388,56 @@ fn potential_energy(
             Ok(-(platform_mass_kg + payload_kg) * g.dot(&p))
         }
     }
+}
+
+/// The rigid motion of everything beyond bent link `link` (1-based): the gravity moment across
+/// joint `link + 1`'s axis is taken as the derivative of the distal bodies' potential energy with
+/// respect to a small turn about each of two directions normal to that axis (central
+/// differences), and the bodies turn by `compliance_si` times it about the link's midpoint.
+fn link_bend(
+    model: &RobotModel,
+    link: usize,
+    q: &[f64],
+    payload_kg: f64,
+    compliance_si: f64,
+) -> Result<Pose, DatasetError> {
+    let RobotModel::Serial(chain) = model else {
+        return Err(DatasetError::Config("link_compliance: the model is not a serial chain".into()));
+    };
+    let n = chain.joints.len();
+    if link == 0 || link >= n {
+        return Err(DatasetError::Config(format!(
+            "link_compliance: link {link} carries no further joint (1 to {})",
+            n - 1
+        )));
+    }
+    let f = chain.frames(q).map_err(|e| DatasetError::Config(format!("kinematics failed: {e}")))?;
+    let g = Vector3::from(chain.gravity_m_s2);
+    let end = f.axis_points[link];
+    let z = f.axes[link].normalize();
+    // Distal masses: the links beyond and the payload at the tool.
+    let mut bodies: Vec<(f64, Point3<f64>)> = chain
+        .joints
+        .iter()
+        .enumerate()
+        .skip(link)
+        .filter_map(|(i, j)| j.inertial.as_ref().map(|inr| (inr.mass_kg, f.links[i] * Point3::from(inr.com_m))))
+        .collect();
+    bodies.push((payload_kg, Point3::from(f.tool.translation.vector)));
+    let energy = |u: &Vector3<f64>, a: f64| -> f64 {
+        let r = nalgebra::UnitQuaternion::from_scaled_axis(u * a);
+        bodies.iter().map(|(m, p)| -m * g.dot(&(end.coords + r * (p - end)))).sum()
+    };
+    let u1 = if z.x.abs() < 0.9 { z.cross(&Vector3::x()) } else { z.cross(&Vector3::y()) }.normalize();
+    let u2 = z.cross(&u1);
+    let h = 1e-6;
+    let mut bend = Vector3::zeros();
+    for u in [u1, u2] {
+        // The moment gravity exerts about `u`: minus the energy's derivative along the turn.
+        let m_u = -(energy(&u, h) - energy(&u, -h)) / (2.0 * h);
+        bend += u * m_u;
+    }
+    let pivot = (f.axis_points[link - 1].coords + end.coords) / 2.0;
+    let rot = nalgebra::UnitQuaternion::from_scaled_axis(bend * compliance_si);
+    Ok(Pose::from_parts(nalgebra::Translation3::from(pivot - rot * pivot), rot))
 }
