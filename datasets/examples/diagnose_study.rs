@@ -30,8 +30,14 @@ use ferrocal_datasets::sim::Effect;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-const KINDS: [&str; 5] =
-    ["joint_compliance", "backlash", "joint_scale_error", "periodic_joint_error", "thermal_expansion"];
+const KINDS: [&str; 6] = [
+    "joint_compliance",
+    "link_compliance",
+    "backlash",
+    "joint_scale_error",
+    "periodic_joint_error",
+    "thermal_expansion",
+];
 const RATIOS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 
 struct Rec {
@@ -55,6 +61,8 @@ struct Rec {
 fn effect(kind: &str, joint: usize, x: f64, period: f64, phase: f64) -> Option<Effect> {
     Some(match kind {
         "joint_compliance" => Effect::JointCompliance { joint, compliance_si: x },
+        // `joint` is the link's number here (link k joins joints k and k + 1).
+        "link_compliance" => Effect::LinkCompliance { link: joint, compliance_si: x },
         "backlash" => Effect::Backlash { joint, width_si: x },
         "joint_scale_error" => Effect::JointScaleError { joint, scale_error: x },
         "periodic_joint_error" => {
@@ -105,7 +113,7 @@ fn main() {
         for (kind, ratio) in jobs {
             let s_seed: u64 = rng.random();
             let joint = match kind.as_str() {
-                "joint_compliance" => rng.random_range(2..=3),
+                "joint_compliance" | "link_compliance" => rng.random_range(2..=3),
                 "thermal_expansion" | "none" => 0,
                 _ => rng.random_range(1..=5),
             };
@@ -123,7 +131,7 @@ fn main() {
             sc.with_sigma = true;
             // Size the effect: a unit-size run gives the displacement per unit.
             let unit = match kind.as_str() {
-                "joint_compliance" => 1e-5,
+                "joint_compliance" | "link_compliance" => 1e-5,
                 "thermal_expansion" => 4.0,
                 "joint_scale_error" => 1e-4,
                 _ => 1e-4,
@@ -153,7 +161,7 @@ fn main() {
                 rho_raw = diagnose_support::rms(&disp) / visible_m.max(1e-15) * ratio;
                 // Physically sensible sizes only (what a real arm could have).
                 let cap = match kind.as_str() {
-                    "joint_compliance" => 1e-4,
+                    "joint_compliance" | "link_compliance" => 1e-4,
                     "thermal_expansion" => 15.0,
                     _ => 5e-3,
                 };
@@ -182,7 +190,11 @@ fn main() {
             if n_poses == 400 {
                 timing_400.push(secs);
             }
-            let want_joints: Vec<usize> = if joint > 0 { vec![joint] } else { vec![] };
+            let want_joints: Vec<usize> = match (kind.as_str(), joint) {
+                (_, 0) => vec![],
+                ("link_compliance", k) => vec![k, k + 1],
+                (_, j) => vec![j],
+            };
             let is_true = |f: &ferrocal_calib::diagnose::Finding| f.effect == kind && f.joints == want_joints;
             let detected = rep.findings.iter().any(is_true);
             let first_correct = rep.findings.first().is_some_and(is_true);
