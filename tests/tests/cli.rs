@@ -202,3 +202,31 @@ fn demo_writes_its_report() {
         }
     }
 }
+
+#[test]
+fn diagnose_finds_the_deformation_of_a_simulated_force_sensing_end_effector() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim");
+    let out = run(ferrocal().args(["dynamics", "simulate", "--rig", "platform", "--seed", "5", "--out"]).arg(&sim));
+    assert!(out.status.success());
+    let report = dir.path().join("force.json");
+    let out = run(ferrocal().args(["diagnose", "--forces"]).arg(sim.join("static.csv")).arg("--json").arg(&report));
+    assert!(out.status.success());
+    let v = json(&report);
+    assert_eq!(v["findings"][0]["effect"], "platform_deformation", "{v:#}");
+    let true_mass = json(&sim.join("truth.json"))["mass_kg"].as_f64().unwrap();
+    let mass = v["mass_kg"][1].as_f64().unwrap();
+    assert!((mass - true_mass).abs() < 0.04 * true_mass, "final mass {mass} vs {true_mass}");
+    assert!(v["final"]["heldout_rms_n"].as_f64().unwrap() < v["nominal"]["heldout_rms_n"].as_f64().unwrap());
+    // A table with a broken row names the file and line.
+    let bad = dir.path().join("bad.csv");
+    let text = std::fs::read_to_string(sim.join("static.csv")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    lines[3] = lines[3].replacen(',', ",x", 1);
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let out = run(ferrocal().args(["diagnose", "--forces"]).arg(&bad).arg("--json").arg(dir.path().join("bad.json")));
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.csv:4"), "{err}");
+    assert!(!dir.path().join("bad.json").exists());
+}

@@ -39,6 +39,7 @@
 //! said so; with too few poses for held-out scoring nothing is claimed.
 
 pub mod camera;
+pub mod force;
 mod linear;
 pub mod stats;
 

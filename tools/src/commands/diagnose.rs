@@ -22,6 +22,10 @@ pub struct DiagnoseArgs {
     /// Measurement table (CSV per shared/spec/measurements.md).
     #[arg(long)]
     pub measurements: Option<PathBuf>,
+    /// Force-sensor variant: a quasi-static table of poses and averaged sensor forces (the
+    /// format of `ferrocal dynamics simulate`'s static.csv, docs/dynamics.md).
+    #[arg(long)]
+    pub forces: Option<PathBuf>,
     /// Camera variant: image files, globs or folders.
     #[arg(long, num_args = 1..)]
     pub images: Vec<String>,
@@ -57,8 +61,11 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
     if !args.images.is_empty() || args.pattern.is_some() {
         return run_camera(args);
     }
+    if let Some(path) = &args.forces {
+        return run_forces(args, path);
+    }
     let (Some(robot), Some(meas)) = (&args.robot, &args.measurements) else {
-        bail!("diagnose needs --robot <model> and --measurements <csv>");
+        bail!("diagnose needs --robot <model> and --measurements <csv> (or --images and --pattern for a camera, --forces for a force-sensing end-effector)");
     };
     if !(args.sigma_mm.is_finite() && args.sigma_mm > 0.0) {
         bail!("--sigma-mm must be positive");
@@ -247,6 +254,72 @@ fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
         for e in &rep.unexplained.evidence {
             eprintln!("    {e}");
         }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The force-sensor variant: identify the rigid body and offsets, test the deformation terms on
+/// held-out poses.
+fn run_forces(args: &DiagnoseArgs, path: &std::path::Path) -> Result<ExitCode> {
+    use ferrocal_calib::diagnose::force::{diagnose_force_sensor, ForceDiagnoseOptions};
+    let (poses, forces) = super::dynamics::read_static_table(path)?;
+    let reg = super::dynamics::rig_sensor_regressor()?;
+    let opts = ForceDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..ForceDiagnoseOptions::default() };
+    let rep = diagnose_force_sensor(&reg, &poses, &forces, &opts)
+        .with_context(|| format!("force-sensor diagnosis of {}", path.display()))?;
+    write_atomic(&args.json, serde_json::to_string_pretty(&rep)?.as_bytes())?;
+    if let Some(h) = &args.report {
+        let prov = Provenance::new(json!({"forces": path.display().to_string(), "options": opts}));
+        let mut r =
+            Report::new(&format!("Missing physics of a force-sensing end-effector ({} poses)", poses.len()), prov);
+        let mut s = Section::new("force-diagnose", "Force sensors: what the rigid-body model leaves out");
+        if let Some(a) = &args.attribution {
+            s.attribution(a);
+        }
+        s.text(format!(
+            "Model 0 (rigid body and sensor offsets): force RMS {:.3} N on all poses, {:.3} N held out (each pose held out once over {} folds); mass {:.2} kg, centre of gravity {:.1} mm above the flange. Final (model {}): {:.3} N held out; mass {:.2} kg, centre of gravity {:.1} mm.",
+            rep.nominal.train_rms_n, rep.nominal.heldout_rms_n, opts.folds, rep.mass_kg[0], rep.cog_z_m[0] * 1e3,
+            rep.final_fit.model, rep.final_fit.heldout_rms_n, rep.mass_kg[1], rep.cog_z_m[1] * 1e3
+        ));
+        if let Some(d) = &rep.declined {
+            s.text(d.clone());
+        }
+        for f in &rep.findings {
+            s.text(format!("{}: {}", f.effect, f.statement));
+        }
+        if rep.unexplained.structure_found {
+            s.text(format!(
+                "Structure no candidate explains remains, depending on {}.",
+                rep.unexplained.depends_on.join(", ")
+            ));
+        }
+        for (k, round) in rep.candidates.iter().enumerate() {
+            s.table(
+                &format!("Candidates, step {}", k + 1),
+                &["candidate", "held-out RMS [N]", "p (corrected)", "verdict"],
+                round
+                    .iter()
+                    .map(|c| vec![c.candidate.clone(), f4(c.heldout_rms_n), p_text(c.p_value), c.verdict.clone()])
+                    .collect(),
+            );
+        }
+        r.sections.push(s);
+        write_atomic(h, r.to_html().as_bytes())?;
+    }
+    if let Some(d) = &rep.declined {
+        eprintln!("diagnose: {d}");
+    }
+    eprintln!(
+        "diagnosed a force-sensing end-effector from {} poses: held-out force RMS {:.3} N -> {:.3} N; {} finding(s); mass {:.2} -> {:.2} kg",
+        poses.len(),
+        rep.nominal.heldout_rms_n,
+        rep.final_fit.heldout_rms_n,
+        rep.findings.len(),
+        rep.mass_kg[0],
+        rep.mass_kg[1]
+    );
+    for f in &rep.findings {
+        eprintln!("  {}: {}", f.effect, f.statement);
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -347,6 +347,22 @@ fn run_identify(a: &IdentifyArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// Reads a quasi-static table (`ferrocal dynamics simulate`'s static.csv: the pose coordinates
+/// and six averaged sensor forces per row): the poses and the forces (poses x 6, N).
+pub(crate) fn read_static_table(path: &Path) -> Result<(Vec<Pose>, DMatrix<f64>)> {
+    let mut cols: Vec<&str> = POSE_COLUMNS.to_vec();
+    cols.extend_from_slice(&FORCE_COLUMNS);
+    let t = read_table(path, &cols)?;
+    let poses: Vec<Pose> =
+        (0..t.values.nrows()).map(|k| pose_from_coordinates(&std::array::from_fn(|i| t.values[(k, i)]))).collect();
+    Ok((poses, t.values.columns(6, 6).into_owned()))
+}
+
+/// The sensor framework of the rig (`PlatformSim::preset`), for the diagnosis.
+pub(crate) fn rig_sensor_regressor() -> Result<SensorRegressor> {
+    sensor_regressor()
+}
+
 fn run_identify_static(a: &IdentifyStaticArgs) -> Result<ExitCode> {
     let m = SensorModel::new(a.model)?;
     if m.is_dynamic() {

@@ -1,0 +1,440 @@
+//! Missing physics of a force-sensing end-effector (methods.md section 5): identify the rigid
+//! body and the sensor offsets (model 0), then test on held-out poses whether the sensor forces
+//! also depend on where the platform is and how it is tilted (its deformation, the `K` terms of
+//! models 1, 2, 4 and 5), instead of accepting the mass and centre of gravity such a deformation
+//! biases.
+//!
+//! Candidates are the quasi-static models whose terms contain the current model's; each is
+//! fitted on the training folds of a K-fold split over poses and scored by the held-out squared
+//! force errors per pose. A candidate is accepted when the improvement is significant in a paired
+//! t test over the held-out poses (Bonferroni over the candidates of the step) and at least
+//! `min_improvement`; the search then repeats from it. Finally the held-out residuals are
+//! screened against the platform coordinates for structure no candidate explains.
+
+use std::collections::BTreeMap;
+
+use ferrocal_robot::dynamics::{gibbs_vector, MotionState};
+use ferrocal_robot::Pose;
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+use super::stats::{binned_anova, bonferroni, paired_test, quantile_groups};
+use crate::error::{CalibError, Result};
+use crate::linear::{fit, FitOptions, SensorModel, SensorRegressor, Weighting};
+
+/// Options of [`diagnose_force_sensor`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ForceDiagnoseOptions {
+    /// Folds over poses.
+    pub folds: usize,
+    /// Family-wise significance level per step.
+    pub alpha: f64,
+    /// Least relative held-out RMS improvement for a finding.
+    pub min_improvement: f64,
+}
+
+impl Default for ForceDiagnoseOptions {
+    fn default() -> Self {
+        Self { folds: 5, alpha: 0.01, min_improvement: 0.02 }
+    }
+}
+
+/// Fit figures (sensor forces, newtons).
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct ForceFit {
+    /// Poses per training fold.
+    pub n_train: usize,
+    /// Poses held out over all folds (each once).
+    pub n_heldout: usize,
+    /// RMS force residual of the fit on all poses, N.
+    pub train_rms_n: f64,
+    /// Held-out RMS force residual, N.
+    pub heldout_rms_n: f64,
+}
+
+/// One accepted effect.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ForceFinding {
+    /// `platform_deformation`.
+    pub effect: String,
+    /// Empty (no joints).
+    pub joints: Vec<usize>,
+    /// The added terms' parameters, and the mass and centre of gravity before and after.
+    pub parameters: BTreeMap<String, f64>,
+    /// Held-out RMS before, N.
+    pub heldout_rms_before_n: f64,
+    /// Held-out RMS after, N.
+    pub heldout_rms_after_n: f64,
+    /// Share of the held-out mean squared error explained.
+    pub explained_fraction: f64,
+    /// Corrected p-value.
+    pub p_value: f64,
+    /// Plain words.
+    pub statement: String,
+}
+
+/// The final model's figures.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct ForceFinalFit {
+    /// The identification model reached (0 to 5).
+    pub model: u8,
+    /// RMS on all poses, N.
+    pub train_rms_n: f64,
+    /// Held-out RMS, N.
+    pub heldout_rms_n: f64,
+}
+
+/// Structure left.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct ForceUnexplained {
+    /// Whether the held-out residuals still depend on a platform coordinate.
+    pub structure_found: bool,
+    /// Those coordinates (`x`, `y`, `z`, `phi_x`, `phi_y`, `phi_z`).
+    pub depends_on: Vec<String>,
+}
+
+/// A candidate's score in a step.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ForceCandidateScore {
+    /// The candidate model and what it adds.
+    pub candidate: String,
+    /// Held-out RMS with it, N.
+    pub heldout_rms_n: f64,
+    /// Corrected p-value.
+    pub p_value: f64,
+    /// Accepted or why not.
+    pub verdict: String,
+}
+
+/// The report (`ferrocal diagnose --forces`): the JSON of `shared/spec/diagnose.md` with `_n`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ForceDiagnoseReport {
+    /// Model 0's fit.
+    pub nominal: ForceFit,
+    /// Accepted effects.
+    pub findings: Vec<ForceFinding>,
+    /// With every accepted effect.
+    #[serde(rename = "final")]
+    pub final_fit: ForceFinalFit,
+    /// Structure left.
+    pub unexplained: ForceUnexplained,
+    /// Why nothing was claimed, when the analysis declined.
+    pub declined: Option<String>,
+    /// The candidates of every step.
+    pub candidates: Vec<Vec<ForceCandidateScore>>,
+    /// Mass (kg) and centre-of-gravity height (m) of model 0 and of the final model.
+    pub mass_kg: [f64; 2],
+    /// Centre-of-gravity height above the flange, model 0 and final, metres.
+    pub cog_z_m: [f64; 2],
+    /// Settings.
+    pub settings: ForceDiagnoseOptions,
+}
+
+/// What a model adds to another, in words.
+fn added_terms(from: SensorModel, to: SensorModel) -> (bool, bool, String) {
+    let (a, b) = (from.terms(), to.terms());
+    let mut parts = Vec::new();
+    let position = (b.k1 && !a.k1) || (b.k2 && !a.k2);
+    let orientation = (b.k4 && !a.k4) || (b.k5 && !a.k5);
+    if b.k1 && !a.k1 {
+        parts.push("K1 (sensor forces linear in the platform position)");
+    }
+    if b.k2 && !a.k2 {
+        parts.push("K2 (a deformation wrench linear in the platform position)");
+    }
+    if b.k4 && !a.k4 {
+        parts.push("K4 (wrench linear in the platform tilt)");
+    }
+    if b.k5 && !a.k5 {
+        parts.push("K5 (a deformation wrench linear in the platform tilt)");
+    }
+    (position, orientation, parts.join(" and "))
+}
+
+fn regressor(reg: &SensorRegressor, model: SensorModel, poses: &[Pose]) -> Result<DMatrix<f64>> {
+    let states: Vec<MotionState> = poses.iter().map(|p| MotionState::at_rest(*p)).collect();
+    reg.regressor(model, &states)
+}
+
+fn rows_of(a: &DMatrix<f64>, idx: &[usize]) -> DMatrix<f64> {
+    let mut out = DMatrix::zeros(6 * idx.len(), a.ncols());
+    for (k, &i) in idx.iter().enumerate() {
+        out.view_mut((6 * k, 0), (6, a.ncols())).copy_from(&a.view((6 * i, 0), (6, a.ncols())));
+    }
+    out
+}
+
+fn vec_of(y: &DVector<f64>, idx: &[usize]) -> DVector<f64> {
+    let mut out = DVector::zeros(6 * idx.len());
+    for (k, &i) in idx.iter().enumerate() {
+        out.fixed_rows_mut::<6>(6 * k).copy_from(&y.fixed_rows::<6>(6 * i));
+    }
+    out
+}
+
+/// Per pose: held-out squared force error (each pose held out once), and the held-out residual
+/// per pose and sensor.
+fn cross_validate(
+    reg: &SensorRegressor,
+    model: SensorModel,
+    poses: &[Pose],
+    y: &DVector<f64>,
+    folds: usize,
+) -> Result<(Vec<f64>, DMatrix<f64>)> {
+    let n = poses.len();
+    let a = regressor(reg, model, poses)?;
+    let k = folds.clamp(2, n);
+    let mut sse = vec![0.0; n];
+    let mut res = DMatrix::zeros(n, 6);
+    for f in 0..k {
+        let train: Vec<usize> = (0..n).filter(|i| i % k != f).collect();
+        let test: Vec<usize> = (0..n).filter(|i| i % k == f).collect();
+        let fitted =
+            fit(&rows_of(&a, &train), &vec_of(y, &train), &model.names(), &Weighting::Unit, &FitOptions::default())?;
+        let pred = fitted.predict(&rows_of(&a, &test))?;
+        let yt = vec_of(y, &test);
+        for (t, &i) in test.iter().enumerate() {
+            for s in 0..6 {
+                let r = yt[6 * t + s] - pred[6 * t + s];
+                sse[i] += r * r;
+                res[(i, s)] = r;
+            }
+        }
+    }
+    Ok((sse, res))
+}
+
+fn rms(sse: &[f64]) -> f64 {
+    (sse.iter().sum::<f64>() / (6 * sse.len()).max(1) as f64).sqrt()
+}
+
+/// Runs the analysis on averaged sensor forces (`forces`: poses x 6, newtons) at `poses`.
+pub fn diagnose_force_sensor(
+    reg: &SensorRegressor,
+    poses: &[Pose],
+    forces: &DMatrix<f64>,
+    opts: &ForceDiagnoseOptions,
+) -> Result<ForceDiagnoseReport> {
+    let n = poses.len();
+    if forces.nrows() != n || forces.ncols() != 6 {
+        return Err(CalibError::Data(format!(
+            "{} poses but a force table of {} x {} (one row of six sensor forces per pose)",
+            n,
+            forces.nrows(),
+            forces.ncols()
+        )));
+    }
+    let model0 = SensorModel::new(0)?;
+    let largest = SensorModel::new(4)?.n_params();
+    let empty = |why: String| ForceDiagnoseReport {
+        nominal: ForceFit::default(),
+        findings: Vec::new(),
+        final_fit: ForceFinalFit::default(),
+        unexplained: ForceUnexplained::default(),
+        declined: Some(why),
+        candidates: Vec::new(),
+        mass_kg: [f64::NAN; 2],
+        cog_z_m: [f64::NAN; 2],
+        settings: opts.clone(),
+    };
+    // Each training fold must over-determine the largest candidate (30 parameters, 6 equations
+    // per pose) several times over.
+    let needed = (3 * largest).div_ceil(6) * opts.folds.max(2) / (opts.folds.max(2) - 1) + 1;
+    if n < needed {
+        return Ok(empty(format!(
+            "{n} poses: at least {needed} are needed to hold poses out and still fit every candidate; nothing is claimed"
+        )));
+    }
+    let y = DVector::from_iterator(6 * n, (0..n).flat_map(|k| (0..6).map(move |c| forces[(k, c)])));
+    let full_fit = |m: SensorModel| -> Result<crate::linear::LinearFit> {
+        fit(&regressor(reg, m, poses)?, &y, &m.names(), &Weighting::Unit, &FitOptions::default())
+    };
+    let mass_cog = |f: &crate::linear::LinearFit| -> (f64, f64) {
+        let m = f.get("m_kg").map_or(f64::NAN, |v| v.0);
+        let mcz = f.get("mcz_kgm").map_or(f64::NAN, |v| v.0);
+        (m, mcz / m)
+    };
+    let nominal_fit = full_fit(model0)?;
+    let (m0, c0) = mass_cog(&nominal_fit);
+    let (mut current_sse, mut current_res) = cross_validate(reg, model0, poses, &y, opts.folds)?;
+    let k = opts.folds.clamp(2, n);
+    let nominal = ForceFit {
+        n_train: n - n.div_ceil(k),
+        n_heldout: n,
+        train_rms_n: nominal_fit.rms_residual,
+        heldout_rms_n: rms(&current_sse),
+    };
+    let mut current = model0;
+    let mut current_fit = nominal_fit;
+    let mut findings = Vec::new();
+    let mut rounds = Vec::new();
+    loop {
+        let cands: Vec<SensorModel> = [1u8, 2, 4, 5]
+            .iter()
+            .filter_map(|id| SensorModel::new(*id).ok())
+            .filter(|c| {
+                let (a, b) = (current.terms(), c.terms());
+                *c != current
+                    && (!a.k1 || b.k1)
+                    && (!a.k2 || b.k2)
+                    && (!a.k4 || b.k4)
+                    && (!a.k5 || b.k5)
+                    && (!a.k3 || b.k3)
+            })
+            .collect();
+        if cands.is_empty() {
+            break;
+        }
+        let m = cands.len();
+        let mut scores = Vec::new();
+        let mut best: Option<(usize, f64, Vec<f64>, DMatrix<f64>)> = None;
+        for (ci, c) in cands.iter().enumerate() {
+            let (_, _, words) = added_terms(current, *c);
+            let label = format!("{c} (adds {words})");
+            let (sse, res) = match cross_validate(reg, *c, poses, &y, opts.folds) {
+                Ok(x) => x,
+                Err(e) => {
+                    scores.push(ForceCandidateScore {
+                        candidate: label,
+                        heldout_rms_n: f64::NAN,
+                        p_value: 1.0,
+                        verdict: format!("cannot be fitted: {e}"),
+                    });
+                    continue;
+                }
+            };
+            let d: Vec<f64> = current_sse.iter().zip(&sse).map(|(a, b)| a - b).collect();
+            let p = bonferroni(paired_test(&d).p_value, m);
+            let after = rms(&sse);
+            scores.push(ForceCandidateScore {
+                candidate: label,
+                heldout_rms_n: after,
+                p_value: p,
+                verdict: String::new(),
+            });
+            let better =
+                best.as_ref().is_none_or(|(_, bp, bsse, _)| p < *bp * 0.999 || (p <= *bp * 1.001 && after < rms(bsse)));
+            if better {
+                best = Some((ci, p, sse, res));
+            }
+        }
+        let Some((ci, p, sse, res)) = best else {
+            rounds.push(scores);
+            break;
+        };
+        let before = rms(&current_sse);
+        let after = rms(&sse);
+        let improvement = 1.0 - after / before;
+        let accepted = p < opts.alpha && improvement >= opts.min_improvement;
+        let best_label = scores.iter().position(|s| s.verdict.is_empty() && s.heldout_rms_n == after);
+        for (idx, s) in scores.iter_mut().enumerate() {
+            if s.verdict.is_empty() {
+                s.verdict = if Some(idx) == best_label && accepted {
+                    "accepted".into()
+                } else if Some(idx) == best_label && p >= opts.alpha {
+                    format!("not significant (p = {p:.2e} >= {})", opts.alpha)
+                } else if Some(idx) == best_label {
+                    format!("improvement {:.1} % below {:.1} %", improvement * 100.0, opts.min_improvement * 100.0)
+                } else {
+                    "not the best candidate".into()
+                };
+            }
+        }
+        rounds.push(scores);
+        if !accepted {
+            break;
+        }
+        let cand = cands[ci];
+        let new_fit = full_fit(cand)?;
+        let (m_before, c_before) = mass_cog(&current_fit);
+        let (m_after, c_after) = mass_cog(&new_fit);
+        let (position, orientation, words) = added_terms(current, cand);
+        let mut parameters = BTreeMap::new();
+        for (name, v) in new_fit.names.iter().zip(&new_fit.values) {
+            if current_fit.index(name).is_none() {
+                parameters.insert(name.clone(), *v);
+            }
+        }
+        parameters.insert("mass_before_kg".into(), m_before);
+        parameters.insert("mass_after_kg".into(), m_after);
+        parameters.insert("cog_z_before_m".into(), c_before);
+        parameters.insert("cog_z_after_m".into(), c_after);
+        let depends = match (position, orientation) {
+            (true, true) => "on the platform's position and tilt",
+            (false, true) => "on the platform's tilt",
+            _ => "on the platform's position",
+        };
+        let statement = format!(
+            "the sensor forces depend {depends} beyond the rigid-body load: the end-effector deforms ({words}); modelling it lowers the held-out force RMS from {before:.3} to {after:.3} N (p = {p:.1e} after correcting for {m} candidates), and moves the identified mass from {m_before:.2} to {m_after:.2} kg and the centre of gravity from {:.1} to {:.1} mm above the flange: without it the rigid-body parameters absorb the deformation",
+            c_before * 1e3,
+            c_after * 1e3
+        );
+        let before_ms = before * before;
+        findings.push(ForceFinding {
+            effect: "platform_deformation".into(),
+            joints: Vec::new(),
+            parameters,
+            heldout_rms_before_n: before,
+            heldout_rms_after_n: after,
+            explained_fraction: ((before_ms - after * after) / before_ms).max(0.0),
+            p_value: p,
+            statement,
+        });
+        current = cand;
+        current_fit = new_fit;
+        current_sse = sse;
+        current_res = res;
+    }
+    let (m1, c1) = mass_cog(&current_fit);
+    let unexplained = screen(poses, &current_res, opts.alpha);
+    Ok(ForceDiagnoseReport {
+        nominal,
+        findings,
+        final_fit: ForceFinalFit {
+            model: current.id(),
+            train_rms_n: current_fit.rms_residual,
+            heldout_rms_n: rms(&current_sse),
+        },
+        unexplained,
+        declined: None,
+        candidates: rounds,
+        mass_kg: [m0, m1],
+        cog_z_m: [c0, c1],
+        settings: opts.clone(),
+    })
+}
+
+/// Held-out residuals of each sensor against each platform coordinate (five quantile bins, a
+/// weighted one-way analysis of variance), Bonferroni over the 36 tests; a dependence counts
+/// when it is significant and explains at least 5 % of the residual variance.
+fn screen(poses: &[Pose], res: &DMatrix<f64>, alpha: f64) -> ForceUnexplained {
+    let names = ["x", "y", "z", "phi_x", "phi_y", "phi_z"];
+    let coords: Vec<[f64; 6]> = poses
+        .iter()
+        .map(|p| {
+            let g = gibbs_vector(&p.rotation).unwrap_or_default();
+            let t = p.translation.vector;
+            [t.x, t.y, t.z, g.x, g.y, g.z]
+        })
+        .collect();
+    let w = vec![1.0; poses.len()];
+    let mut depends_on = Vec::new();
+    for (c, name) in names.iter().enumerate() {
+        let x: Vec<f64> = coords.iter().map(|v| v[c]).collect();
+        let spread =
+            x.iter().fold(f64::NEG_INFINITY, |a, b| a.max(*b)) - x.iter().fold(f64::INFINITY, |a, b| a.min(*b));
+        if spread <= 1e-12 {
+            continue;
+        }
+        let groups = quantile_groups(&x, 5);
+        let found = (0..6).any(|s| {
+            let y: Vec<f64> = (0..poses.len()).map(|i| res[(i, s)]).collect();
+            let t = binned_anova(&x, &y, &w, &groups, 5);
+            bonferroni(t.p_value, 36) < alpha && t.explained > 0.05
+        });
+        if found {
+            depends_on.push(name.to_string());
+        }
+    }
+    ForceUnexplained { structure_found: !depends_on.is_empty(), depends_on }
+}

@@ -1,0 +1,58 @@
+//! `diagnose` for a force-sensing end-effector (methods.md section 5): simulated quasi-static
+//! records of the hexapod platform with and without the deformation the rigid-body model leaves
+//! out.
+
+use ferrocal_calib::diagnose::force::{diagnose_force_sensor, ForceDiagnoseOptions};
+use ferrocal_calib::linear::design::candidate_poses;
+use ferrocal_calib::linear::SensorRegressor;
+use ferrocal_datasets::dynsim::study::{home_coordinates, STATIC_HALF_RANGE};
+use ferrocal_datasets::dynsim::{Deformation, PlatformSim, StaticRecord};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+fn record(sim: &PlatformSim, n: usize, seed: u64) -> StaticRecord {
+    let home = home_coordinates(&sim.hexapod.home);
+    let poses = candidate_poses(&sim.hexapod, n, &home, &STATIC_HALF_RANGE, 0.005).unwrap();
+    sim.static_record(&poses, 20, &mut ChaCha8Rng::seed_from_u64(seed)).unwrap()
+}
+
+#[test]
+fn the_concealed_deformation_is_found_and_the_mass_unbiased() {
+    let sim = PlatformSim::preset();
+    let truth = sim.truth();
+    let reg = SensorRegressor::new(sim.sensors.clone(), sim.deformation.reference_xy_m).unwrap();
+    let rec = record(&sim, 120, 3);
+    let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
+    eprintln!("{}", serde_json::to_string_pretty(&rep).unwrap());
+    assert!(!rep.findings.is_empty(), "{:#?}", rep.candidates);
+    assert!(rep.findings.iter().all(|f| f.effect == "platform_deformation"));
+    let true_mass = truth.body.mass_kg;
+    // Model 0 takes the source's empirical mass (about 10 % low); the final model the true one
+    // within its statistical spread (about 1.5 % for 120 poses with the rig's noise).
+    assert!((rep.mass_kg[0] - true_mass).abs() > 0.07 * true_mass, "model 0 mass {}", rep.mass_kg[0]);
+    assert!((rep.mass_kg[1] - true_mass).abs() < 0.04 * true_mass, "final mass {} vs {true_mass}", rep.mass_kg[1]);
+    assert!(rep.final_fit.heldout_rms_n < 0.5 * rep.nominal.heldout_rms_n);
+    assert!(rep.findings[0].statement.contains("tilt"), "{}", rep.findings[0].statement);
+}
+
+#[test]
+fn a_rigid_end_effector_gives_no_findings() {
+    for seed in [4, 5] {
+        let sim = PlatformSim { deformation: Deformation::none(), ..PlatformSim::preset() };
+        let reg = SensorRegressor::new(sim.sensors.clone(), sim.deformation.reference_xy_m).unwrap();
+        let rec = record(&sim, 120, seed);
+        let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
+        assert!(rep.findings.is_empty(), "seed {seed}: {:#?}", rep.findings);
+        assert!(!rep.unexplained.structure_found, "seed {seed}: {:?}", rep.unexplained);
+        assert!((rep.mass_kg[0] - sim.truth().body.mass_kg).abs() < 0.01 * sim.truth().body.mass_kg);
+    }
+}
+
+#[test]
+fn too_few_poses_decline() {
+    let sim = PlatformSim::preset();
+    let reg = SensorRegressor::new(sim.sensors.clone(), sim.deformation.reference_xy_m).unwrap();
+    let rec = record(&sim, 10, 6);
+    let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
+    assert!(rep.declined.is_some() && rep.findings.is_empty());
+}
