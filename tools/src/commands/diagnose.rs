@@ -224,14 +224,8 @@ fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
             s.pre(rep.unexplained.evidence.join("\n"));
         }
         for (k, round) in rep.candidates.iter().enumerate() {
-            s.table(
-                &format!("Candidates, round {}", k + 1),
-                &["candidate", "held-out RMS [px]", "p (corrected)", "verdict"],
-                round
-                    .iter()
-                    .map(|c| vec![c.candidate.clone(), f4(c.heldout_rms_px), p_text(c.p_value), c.verdict.clone()])
-                    .collect(),
-            );
+            let rows = round.iter().map(|c| (&c.candidate, c.heldout_rms_px, c.p_value, &c.verdict));
+            candidate_table(&mut s, k, "px", rows);
         }
         r.sections.push(s);
         write_atomic(h, r.to_html().as_bytes())?;
@@ -294,14 +288,8 @@ fn run_forces(args: &DiagnoseArgs, path: &std::path::Path) -> Result<ExitCode> {
             ));
         }
         for (k, round) in rep.candidates.iter().enumerate() {
-            s.table(
-                &format!("Candidates, step {}", k + 1),
-                &["candidate", "held-out RMS [N]", "p (corrected)", "verdict"],
-                round
-                    .iter()
-                    .map(|c| vec![c.candidate.clone(), f4(c.heldout_rms_n), p_text(c.p_value), c.verdict.clone()])
-                    .collect(),
-            );
+            let rows = round.iter().map(|c| (&c.candidate, c.heldout_rms_n, c.p_value, &c.verdict));
+            candidate_table(&mut s, k, "N", rows);
         }
         r.sections.push(s);
         write_atomic(h, r.to_html().as_bytes())?;
@@ -322,6 +310,21 @@ fn run_forces(args: &DiagnoseArgs, path: &std::path::Path) -> Result<ExitCode> {
         eprintln!("  {}: {}", f.effect, f.statement);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The candidates of step `k` (0-based) as a table: name, held-out RMS in `unit`, corrected
+/// p-value, verdict.
+fn candidate_table<'a>(
+    s: &mut Section,
+    k: usize,
+    unit: &str,
+    rows: impl Iterator<Item = (&'a String, f64, f64, &'a String)>,
+) {
+    s.table(
+        &format!("Candidates, step {}", k + 1),
+        &["candidate", &format!("held-out RMS [{unit}]"), "p (corrected)", "verdict"],
+        rows.map(|(c, rms, p, v)| vec![c.clone(), f4(rms), p_text(p), v.clone()]).collect(),
+    );
 }
 
 fn f4(v: f64) -> String {
