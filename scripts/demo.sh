@@ -4,4 +4,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/setup.sh
+# Rust installed by the set-up lives in ~/.cargo/bin.
+export PATH="$HOME/.cargo/bin:$PATH"
 cargo run --release --locked -p ferrocal -- demo "$@"

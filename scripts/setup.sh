@@ -28,10 +28,26 @@ if ((${#missing[@]})); then
   fi
 fi
 
+# Rust: rustup's toolchain in ~/.cargo/bin counts even when that folder is not on PATH yet (the
+# calling scripts add it); a machine without any gets it from rustup (curl fetched with apt first
+# when missing), or the exact commands are printed.
+export PATH="$HOME/.cargo/bin:$PATH"
 if ! command -v cargo >/dev/null 2>&1; then
-  echo "ferrocal setup: cargo is missing. Install Rust (https://rustup.rs), then run this again:" >&2
-  echo "  curl --proto '=https' --tlsv1.2 -sSf https://sh.rustup.rs | sh -s -- -y --profile minimal -c clippy,rustfmt" >&2
-  exit 1
+  rustup_cmd="curl --proto '=https' --tlsv1.2 -sSf https://sh.rustup.rs | sh -s -- -y --profile minimal -c clippy,rustfmt"
+  if ! command -v curl >/dev/null 2>&1; then
+    curl_cmd="apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends curl ca-certificates"
+    if [[ $(id -u) -eq 0 ]]; then
+      bash -c "$curl_cmd" || true
+    elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then
+      sudo bash -c "$curl_cmd" || true
+    fi
+  fi
+  echo "ferrocal setup: installing Rust with rustup" >&2
+  if ! bash -o pipefail -c "$rustup_cmd" || ! command -v cargo >/dev/null 2>&1; then
+    echo "ferrocal setup: cannot install Rust. Install it (https://rustup.rs), then run this again:" >&2
+    echo "  $rustup_cmd" >&2
+    exit 1
+  fi
 fi
 for c in rustfmt clippy; do
   if ! cargo "${c/rustfmt/fmt}" --version >/dev/null 2>&1; then

@@ -5,6 +5,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$(date +%s)
 ./scripts/setup.sh
+# Rust installed by the set-up lives in ~/.cargo/bin.
+export PATH="$HOME/.cargo/bin:$PATH"
 echo "== cargo fmt --check" >&2
 cargo fmt --all -- --check
 echo "== cargo clippy" >&2
