@@ -38,6 +38,7 @@ fn recording(n: usize, seed: u64) -> (RobotModel, Vec<PoseMeasurement>) {
         joint_offsets: vec![1e-3, -2e-3, 1e-3, 0.0, 5e-4, 0.0],
         orientation_calibrated: false,
         effects: vec![(EffectSpec::JointCompliance { joint: 2 }, vec![5e-6])],
+        load_model: nominal.clone(),
     };
     let ranges = [[-1.5, 1.5], [-2.6, -0.5], [0.3, 2.5], [-2.5, 0.0], [0.5, 2.5], [-1.0, 1.0]];
     let noise = Normal::new(0.0, 1.0).expect("normal");

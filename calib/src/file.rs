@@ -145,6 +145,7 @@ impl CalibrationFile {
             joint_offsets: self.joint_offsets.clone(),
             orientation_calibrated: self.orientation_calibrated,
             effects: self.effects.iter().map(|e| (e.spec.clone(), e.values.clone())).collect(),
+            load_model: model.clone(),
         })
     }
 

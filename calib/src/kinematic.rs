@@ -317,6 +317,11 @@ pub struct CalibratedModel {
     pub orientation_calibrated: bool,
     /// Physical effects with their identified parameters.
     pub effects: Vec<(EffectSpec, Vec<f64>)>,
+    /// The model whose link frames place the masses for the gravity loads of the effects: the
+    /// nominal geometry. The calibrated model may move link frames along directions the
+    /// kinematics cannot see (kinematically redundant parameters), which would move the masses
+    /// and bias every load-dependent effect.
+    pub load_model: RobotModel,
 }
 
 impl CalibratedModel {
@@ -332,7 +337,7 @@ impl CalibratedModel {
         let mut dq = self.joint_offsets.clone();
         let mut scale = 1.0;
         for (e, theta) in &self.effects {
-            e.add_joint_delta(&self.model, row, theta, &mut dq)?;
+            e.add_joint_delta(&self.load_model, row, theta, &mut dq)?;
             scale *= e.length_scale(row, theta);
         }
         Ok((row.q.iter().zip(&dq).map(|(a, b)| a + b).collect(), scale))
@@ -345,7 +350,7 @@ impl CalibratedModel {
         let mut t = self.model.forward(&q)? * self.tool;
         for (e, theta) in &self.effects {
             if matches!(e, EffectSpec::LinkCompliance { .. }) {
-                t = e.pose_correction(&self.model, row, &q, theta)? * t;
+                t = e.pose_correction(&self.load_model, row, &q, theta)? * t;
             }
         }
         if scale != 1.0 {
@@ -494,6 +499,7 @@ impl KinProblem<'_> {
                 .zip(&self.layout.effects)
                 .map(|(e, r)| (e.clone(), full[r.clone()].to_vec()))
                 .collect(),
+            load_model: self.base_model.clone(),
         })
     }
 

@@ -125,12 +125,12 @@ impl Lin {
         let mut tau = Vec::with_capacity(n);
         let mut bend = Vec::with_capacity(n);
         for row in rows {
-            tau.push(holding_torques(&cm.model, &row.q, row.payload_kg.unwrap_or(0.0))?);
+            tau.push(holding_torques(&cm.load_model, &row.q, row.payload_kg.unwrap_or(0.0))?);
             let mut per_link = Vec::new();
             if let ferrocal_robot::RobotModel::Serial(_) = &cm.model {
                 let (q, _) = cm.effective(row)?;
                 for link in 1..q.len() {
-                    let (v, pivot) = link_bending(&cm.model, link, &q, row.payload_kg.unwrap_or(0.0))?;
+                    let (v, pivot) = link_bending(&cm.load_model, link, &q, row.payload_kg.unwrap_or(0.0))?;
                     per_link.push((f.rotation * v, f * pivot));
                 }
             }

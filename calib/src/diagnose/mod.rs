@@ -1067,7 +1067,8 @@ fn enumerate_candidates(
     let mut cands = Vec::new();
     let mut un = Vec::new();
     let n = ctx.rows.len();
-    let model = &geo.calibrated.model;
+    // Loads from the nominal link frames (see `CalibratedModel::load_model`).
+    let model = &geo.calibrated.load_model;
     let mut tau = Vec::with_capacity(n);
     for r in &ctx.rows {
         tau.push(crate::effects::holding_torques(model, &r.q, r.payload_kg.unwrap_or(0.0))?);
