@@ -328,12 +328,6 @@ fn fit_variant(views: &[&View], target: &PlanarTarget, variant: Variant, start: 
     Ok(Fit { camera, bend, poses, rms_px })
 }
 
-/// Squared reprojection errors of a held-out view under a fitted camera and target shape: the
-/// view's pose alone is fitted.
-fn heldout_sq(view: &View, target: &PlanarTarget, fit: &Fit) -> Result<f64> {
-    Ok(heldout_residuals(view, target, fit)?.map_or(f64::INFINITY, |r| r.norm_squared()))
-}
-
 /// Reprojection residuals (projected - observed, x and y per corner) of a held-out view with its
 /// pose alone fitted; `None` when the model cannot place the view.
 fn heldout_residuals(view: &View, target: &PlanarTarget, fit: &Fit) -> Result<Option<DVector<f64>>> {
@@ -364,12 +358,22 @@ fn heldout_residuals(view: &View, target: &PlanarTarget, fit: &Fit) -> Result<Op
     Ok(solve(&problem, &[0.0; 6], &lm()).ok().map(|res| res.residuals))
 }
 
-/// Per held-out view (each view once over the folds): squared reprojection errors and corner
-/// counts under `variant`.
-fn cross_validate(views: &[View], target: &PlanarTarget, variant: Variant, folds: usize) -> Result<Vec<(f64, usize)>> {
+/// One cross-validation of a variant over views (each view held out once).
+struct CrossValidation {
+    /// Per view: sum of squared held-out reprojection errors (infinite when the fitted model
+    /// cannot place the view) and its number of corners.
+    errors: ViewErrors,
+    /// Per view: the held-out residuals (projected - observed, x and y per corner), when placed.
+    residuals: Vec<Option<DVector<f64>>>,
+}
+
+/// Cross-validates `variant`: per fold the default model and then the variant are fitted on the
+/// other views, and each held-out view's pose alone is fitted to its corners.
+fn cross_validate(views: &[View], target: &PlanarTarget, variant: Variant, folds: usize) -> Result<CrossValidation> {
     let n = views.len();
     let k = folds.clamp(2, n);
-    let mut out = vec![(0.0, 0); n];
+    let mut errors = vec![(0.0, 0); n];
+    let mut residuals = vec![None; n];
     for f in 0..k {
         let train: Vec<&View> = views.iter().enumerate().filter(|(i, _)| i % k != f).map(|(_, v)| v).collect();
         let base = fit_variant(&train, target, Variant { lens: Lens::Brown5, bent: false }, None)?;
@@ -379,10 +383,12 @@ fn cross_validate(views: &[View], target: &PlanarTarget, variant: Variant, folds
             fit_variant(&train, target, variant, Some(&base))?
         };
         for (i, v) in views.iter().enumerate().filter(|(i, _)| i % k == f) {
-            out[i] = (heldout_sq(v, target, &fit)?, v.corners_px.len());
+            let r = heldout_residuals(v, target, &fit)?;
+            errors[i] = (r.as_ref().map_or(f64::INFINITY, |r| r.norm_squared()), v.corners_px.len());
+            residuals[i] = r;
         }
     }
-    Ok(out)
+    Ok(CrossValidation { errors, residuals })
 }
 
 /// Residual structure of the final model on held-out views: does the mean residual depend on
@@ -393,36 +399,27 @@ fn cross_validate(views: &[View], target: &PlanarTarget, variant: Variant, folds
 /// (per corner, both axes).
 fn unexplained_structure(
     views: &[View],
-    target: &PlanarTarget,
-    variant: Variant,
+    residuals: &[Option<DVector<f64>>],
     opts: &CameraDiagnoseOptions,
-) -> Result<CameraUnexplained> {
+) -> CameraUnexplained {
     let n = views.len();
-    let k = opts.folds.clamp(2, n);
     // Per view: (corner position, residual).
-    let mut per_view: Vec<Vec<(nalgebra::Point2<f64>, nalgebra::Vector2<f64>)>> = vec![Vec::new(); n];
-    for f in 0..k {
-        let train: Vec<&View> = views.iter().enumerate().filter(|(i, _)| i % k != f).map(|(_, v)| v).collect();
-        let base = fit_variant(&train, target, Variant { lens: Lens::Brown5, bent: false }, None)?;
-        let fit = if variant == (Variant { lens: Lens::Brown5, bent: false }) {
-            base
-        } else {
-            fit_variant(&train, target, variant, Some(&base))?
-        };
-        for (i, v) in views.iter().enumerate().filter(|(i, _)| i % k == f) {
-            if let Some(r) = heldout_residuals(v, target, &fit)? {
-                per_view[i] = v
-                    .corners_px
-                    .iter()
-                    .enumerate()
-                    .map(|(c, p)| (*p, nalgebra::Vector2::new(r[2 * c], r[2 * c + 1])))
-                    .collect();
-            }
-        }
-    }
+    let per_view: Vec<Vec<(nalgebra::Point2<f64>, nalgebra::Vector2<f64>)>> = views
+        .iter()
+        .zip(residuals)
+        .map(|(v, r)| match r {
+            Some(r) => v
+                .corners_px
+                .iter()
+                .enumerate()
+                .map(|(c, p)| (*p, nalgebra::Vector2::new(r[2 * c], r[2 * c + 1])))
+                .collect(),
+            None => Vec::new(),
+        })
+        .collect();
     let all: Vec<f64> = per_view.iter().flatten().map(|(_, r)| r.norm_squared()).collect();
     if all.is_empty() {
-        return Ok(CameraUnexplained::default());
+        return CameraUnexplained::default();
     }
     let rms_px = (all.iter().sum::<f64>() / all.len() as f64).sqrt();
     let size = views[0].image_size;
@@ -503,7 +500,7 @@ fn unexplained_structure(
             depends_on.push(label.to_string());
         }
     }
-    Ok(CameraUnexplained { structure_found: !depends_on.is_empty(), depends_on, evidence })
+    CameraUnexplained { structure_found: !depends_on.is_empty(), depends_on, evidence }
 }
 
 /// Per view: the sum of squared held-out reprojection errors and the number of corners.
@@ -560,12 +557,12 @@ pub fn diagnose_camera(
     let all: Vec<&View> = views.iter().collect();
     let mut current = Variant { lens: Lens::Brown5, bent: false };
     let nominal_fit = fit_variant(&all, target, current, None)?;
-    let mut current_sq = cross_validate(views, target, current, opts.folds)?;
+    let mut current_cv = cross_validate(views, target, current, opts.folds)?;
     let nominal = CameraFit {
         n_train: n - n.div_ceil(opts.folds.clamp(2, n)),
         n_heldout: n,
         train_rms_px: nominal_fit.rms_px,
-        heldout_rms_px: rms(&current_sq),
+        heldout_rms_px: rms(&current_cv.errors),
     };
     let mut findings = Vec::new();
     let mut rounds = Vec::new();
@@ -584,10 +581,10 @@ pub fn diagnose_camera(
         }
         let m = cands.len();
         let mut scores = Vec::new();
-        let mut best: Option<(usize, f64, ViewErrors)> = None;
+        let mut best: Option<(usize, f64, CrossValidation)> = None;
         for (ci, (name, v)) in cands.iter().enumerate() {
-            let sq = match cross_validate(views, target, *v, opts.folds) {
-                Ok(s) => s,
+            let cv = match cross_validate(views, target, *v, opts.folds) {
+                Ok(cv) => cv,
                 Err(e) => {
                     scores.push(CameraCandidateScore {
                         candidate: name.to_string(),
@@ -599,8 +596,12 @@ pub fn diagnose_camera(
                 }
             };
             // Per-view differences of mean squared error (before - after).
-            let d: Vec<f64> =
-                current_sq.iter().zip(&sq).map(|((a, na), (b, _))| (a - b) / (*na).max(1) as f64).collect();
+            let d: Vec<f64> = current_cv
+                .errors
+                .iter()
+                .zip(&cv.errors)
+                .map(|((a, na), (b, _))| (a - b) / (*na).max(1) as f64)
+                .collect();
             if d.iter().any(|v| !v.is_finite()) {
                 scores.push(CameraCandidateScore {
                     candidate: name.to_string(),
@@ -619,7 +620,7 @@ pub fn diagnose_camera(
             let p_sign = sign_test(&d);
             let p_t = paired_test(&d).p_value;
             let p = bonferroni(p_sign.min(p_t), 2 * m);
-            let after = rms(&sq);
+            let after = rms(&cv.errors);
             scores.push(CameraCandidateScore {
                 candidate: name.to_string(),
                 heldout_rms_px: after,
@@ -628,18 +629,19 @@ pub fn diagnose_camera(
             });
             // The smallest p-value wins; equal p-values (the sign test's floor) go to the lower
             // held-out RMS.
-            let better =
-                best.as_ref().is_none_or(|(_, bp, bsq)| p < *bp * 0.999 || (p <= *bp * 1.001 && after < rms(bsq)));
+            let better = best
+                .as_ref()
+                .is_none_or(|(_, bp, bcv)| p < *bp * 0.999 || (p <= *bp * 1.001 && after < rms(&bcv.errors)));
             if better {
-                best = Some((ci, p, sq));
+                best = Some((ci, p, cv));
             }
         }
-        let Some((ci, p, sq)) = best else {
+        let Some((ci, p, cv)) = best else {
             rounds.push(scores);
             break;
         };
-        let before = rms(&current_sq);
-        let after = rms(&sq);
+        let before = rms(&current_cv.errors);
+        let after = rms(&cv.errors);
         let improvement = 1.0 - after / before;
         let variant = cands[ci].1;
         let fit = fit_variant(&all, target, variant, Some(&current_fit))?;
@@ -707,14 +709,14 @@ pub fn diagnose_camera(
             statement,
         });
         current = variant;
-        current_sq = sq;
+        current_cv = cv;
         current_fit = fit;
     }
     Ok(CameraDiagnoseReport {
         nominal,
         findings,
-        final_fit: CameraFinalFit { train_rms_px: current_fit.rms_px, heldout_rms_px: rms(&current_sq) },
-        unexplained: unexplained_structure(views, target, current, opts)?,
+        final_fit: CameraFinalFit { train_rms_px: current_fit.rms_px, heldout_rms_px: rms(&current_cv.errors) },
+        unexplained: unexplained_structure(views, &current_cv.residuals, opts),
         declined: None,
         candidates: rounds,
         settings: opts.clone(),
