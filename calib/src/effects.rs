@@ -262,31 +262,44 @@ pub fn link_bending(
     q: &[f64],
     payload_kg: f64,
 ) -> Result<(Vector3<f64>, Point3<f64>)> {
-    let RobotModel::Serial(chain) = model else {
-        return Err(CalibError::Data("link_compliance needs a serial chain".into()));
-    };
-    let n = chain.joints.len();
+    let n = model.dof();
     if link == 0 || link >= n {
         return Err(CalibError::Data(format!("link_compliance: link {link} does not carry a further joint")));
     }
+    Ok(link_bendings(model, q, payload_kg)?[link - 1])
+}
+
+/// [`link_bending`] for every link that carries a further joint (links 1 to joints - 1, in
+/// order), from one forward-kinematics pass.
+pub fn link_bendings(model: &RobotModel, q: &[f64], payload_kg: f64) -> Result<Vec<(Vector3<f64>, Point3<f64>)>> {
+    let RobotModel::Serial(chain) = model else {
+        return Err(CalibError::Data("link_compliance needs a serial chain".into()));
+    };
     let frames = chain.frames(q)?;
     let g = Vector3::from(chain.gravity_m_s2);
-    let end = frames.axis_points[link];
-    let z = frames.axes[link];
-    let mut moment = Vector3::zeros();
-    for (i, j) in chain.joints.iter().enumerate().skip(link) {
-        if let Some(inr) = &j.inertial {
-            let com = frames.links[i] * Point3::from(inr.com_m);
-            moment += (com - end).cross(&(g * inr.mass_kg));
-        }
-    }
+    // The loads beyond each link: (mass, position), bodies in chain order, the payload last.
+    let mut loads: Vec<(usize, f64, Point3<f64>)> = chain
+        .joints
+        .iter()
+        .enumerate()
+        .filter_map(|(i, j)| j.inertial.as_ref().map(|inr| (i, inr.mass_kg, frames.links[i] * Point3::from(inr.com_m))))
+        .collect();
     if payload_kg != 0.0 {
-        let p = Point3::from(frames.tool.translation.vector);
-        moment += (p - end).cross(&(g * payload_kg));
+        loads.push((chain.joints.len(), payload_kg, Point3::from(frames.tool.translation.vector)));
     }
-    let bending = moment - z * z.dot(&moment);
-    let pivot = Point3::from((frames.axis_points[link - 1].coords + end.coords) / 2.0);
-    Ok((bending, pivot))
+    Ok((1..chain.joints.len())
+        .map(|link| {
+            let end = frames.axis_points[link];
+            let z = frames.axes[link];
+            let moment = loads
+                .iter()
+                .filter(|(i, _, _)| *i >= link)
+                .fold(Vector3::zeros(), |m, (_, mass, p)| m + (p - end).cross(&(g * *mass)));
+            let bending = moment - z * z.dot(&moment);
+            let pivot = Point3::from((frames.axis_points[link - 1].coords + end.coords) / 2.0);
+            (bending, pivot)
+        })
+        .collect())
 }
 
 /// Holding torques (forces for prismatic joints) at `q` under gravity with `payload_kg` at the

@@ -15,7 +15,7 @@
 use ferrocal_robot::Parameterized;
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
 
-use crate::effects::{holding_torques, link_bending, EffectSpec};
+use crate::effects::{holding_torques, link_bendings, EffectSpec};
 use crate::error::{CalibError, Result};
 use crate::frames::exp6;
 use crate::kinematic::{CalibratedModel, KinematicCalibration, StateLayout};
@@ -127,12 +127,12 @@ impl Lin {
         for row in rows {
             tau.push(holding_torques(&cm.load_model, &row.q, row.payload_kg.unwrap_or(0.0))?);
             let mut per_link = Vec::new();
-            if let ferrocal_robot::RobotModel::Serial(_) = &cm.model {
+            if let ferrocal_robot::RobotModel::Serial(_) = &cm.load_model {
                 let (q, _) = cm.effective(row)?;
-                for link in 1..q.len() {
-                    let (v, pivot) = link_bending(&cm.load_model, link, &q, row.payload_kg.unwrap_or(0.0))?;
-                    per_link.push((f.rotation * v, f * pivot));
-                }
+                per_link = link_bendings(&cm.load_model, &q, row.payload_kg.unwrap_or(0.0))?
+                    .into_iter()
+                    .map(|(v, pivot)| (f.rotation * v, f * pivot))
+                    .collect();
             }
             bend.push(per_link);
         }

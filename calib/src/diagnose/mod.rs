@@ -1200,12 +1200,12 @@ fn enumerate_candidates(
     // Link compliance: serial chains with masses, per link that carries a further joint, when
     // the load moment across the next joint's axis varies over the poses.
     if let ferrocal_robot::RobotModel::Serial(_) = model {
+        let mut per_row = Vec::with_capacity(n);
+        for r in &ctx.rows {
+            per_row.push(crate::effects::link_bendings(model, &r.q, r.payload_kg.unwrap_or(0.0))?);
+        }
         for link in 1..ctx.kinds.len() {
-            let mut moments = Vec::with_capacity(n);
-            for r in &ctx.rows {
-                let (v, _) = crate::effects::link_bending(model, link, &r.q, r.payload_kg.unwrap_or(0.0))?;
-                moments.push(v);
-            }
+            let moments: Vec<Vector3<f64>> = per_row.iter().map(|b| b[link - 1].0).collect();
             let mean = moments.iter().fold(Vector3::zeros(), |a, v| a + v) / n as f64;
             let sd = (moments.iter().map(|v| (v - mean).norm_squared()).sum::<f64>() / n as f64).sqrt();
             if tau_max == 0.0 {
