@@ -5,24 +5,11 @@
 //! chart never comes near its singularity whatever the rotation of `T0` (the source's free
 //! quaternions drifted to norms 0.974-1.003: this cannot happen here).
 
-use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::error::{CalibError, Result};
 
-/// `Exp` of a 6-vector `(t, r)`: translation `t`, rotation vector `r`.
-pub fn exp6(d: &[f64]) -> Isometry3<f64> {
-    Isometry3::from_parts(
-        Translation3::new(d[0], d[1], d[2]),
-        UnitQuaternion::from_scaled_axis(Vector3::new(d[3], d[4], d[5])),
-    )
-}
-
-/// The 6-vector `(t, rotation vector)` of a pose.
-pub fn log6(t: &Isometry3<f64>) -> Vector6<f64> {
-    let r = t.rotation.scaled_axis();
-    let p = t.translation.vector;
-    Vector6::new(p.x, p.y, p.z, r.x, r.y, r.z)
-}
+pub use ferrocal_robot::geometry::{exp6, log6};
 
 /// Least-squares rigid transform `T` with `to_i ~ T from_i` (Horn/Kabsch via SVD).
 pub fn fit_rigid(from: &[Point3<f64>], to: &[Point3<f64>]) -> Result<Isometry3<f64>> {

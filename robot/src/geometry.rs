@@ -35,6 +35,21 @@ pub fn pose_from_vectors(t_m: &Vector3<f64>, rotvec_rad: &Vector3<f64>) -> Pose 
     Isometry3::from_parts(Translation3::from(*t_m), UnitQuaternion::from_scaled_axis(*rotvec_rad))
 }
 
+/// `Exp` of a pose 6-vector `[tx, ty, tz, rx, ry, rz]` (metres, rotation vector in radians; the
+/// project's one 6-vector order, `docs/conventions.md`): the pose with that translation and
+/// rotation. Reads the first six values of `d`.
+pub fn exp6(d: &[f64]) -> Pose {
+    Isometry3::from_parts(
+        Translation3::new(d[0], d[1], d[2]),
+        UnitQuaternion::from_scaled_axis(Vector3::new(d[3], d[4], d[5])),
+    )
+}
+
+/// The 6-vector `[t, rotation vector]` of a pose, the inverse of [`exp6`].
+pub fn log6(pose: &Pose) -> Vector6<f64> {
+    pose_to_vector(pose)
+}
+
 /// The 6-vector `(t, rotation vector)` of a pose.
 pub fn pose_to_vector(pose: &Pose) -> Vector6<f64> {
     let t = pose.translation.vector;

@@ -8,9 +8,10 @@
 //! what the true (compliant) robot does at the command, minus the target.
 
 use ferrocal_robot::geometry::pose_error;
+use ferrocal_robot::serial::IkOptions;
 use ferrocal_robot::stiffness::{Loading, VjmModel};
 use ferrocal_robot::{Kinematics, Pose};
-use nalgebra::{DMatrix, DVector, Isometry3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{DVector, Isometry3, Translation3, UnitQuaternion, Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
 use crate::stiffness::design::LoadCase;
@@ -63,25 +64,15 @@ fn apply_small_motion(t: &Pose, d: &Vector6<f64>) -> Pose {
     Isometry3::from_parts(Translation3::from(t.translation.vector + dp), dr * t.rotation)
 }
 
-/// Joint values whose rigid tool pose is `target` (Newton with the pseudo-inverse of the
-/// Jacobian, from `seed`; for the small corrections of compensation).
+/// Joint values whose rigid tool pose is `target`, from `seed`: the robot crate's damped
+/// least-squares inverse kinematics (to 1e-12 m / 1e-12 rad), without joint-limit enforcement
+/// (compensation moves a reachable command by fractions of a millimetre).
 pub fn rigid_ik(model: &VjmModel, target: &Pose, seed: &[f64]) -> Result<Vec<f64>> {
-    let mut q = seed.to_vec();
-    for _ in 0..20 {
-        let e = pose_error(target, &model.chain.forward(&q)?);
-        if e.norm() < 1e-13 {
-            break;
-        }
-        let j: DMatrix<f64> = model.chain.jacobian(&q)?;
-        let dq = j
-            .svd(true, true)
-            .solve(&DVector::from_column_slice(e.as_slice()), 1e-12)
-            .map_err(|e| StiffnessIdError::Options(format!("inverse kinematics failed: {e}")))?;
-        for (a, b) in q.iter_mut().zip(dq.iter()) {
-            *a += b;
-        }
-    }
-    Ok(q)
+    let opts = IkOptions { enforce_limits: false, ..IkOptions::default() };
+    model
+        .chain
+        .inverse_with(target, seed, &opts)
+        .map_err(|e| StiffnessIdError::Options(format!("inverse kinematics failed: {e}")))
 }
 
 /// The mirror command for target joint values `q_target` under `load`, with `passes >= 1`

@@ -128,13 +128,6 @@ pub struct VjmModel {
 /// A point load: the first link that carries it, force, point of application, extra moment.
 type PointLoad = (usize, Vector3<f64>, Point3<f64>, Vector3<f64>);
 
-fn exp6(d: &Vector6<f64>) -> Pose {
-    Isometry3::from_parts(
-        Translation3::new(d[0], d[1], d[2]),
-        UnitQuaternion::from_scaled_axis(Vector3::new(d[3], d[4], d[5])),
-    )
-}
-
 /// A rotation whose z axis is `z` and whose x axis is the part of `x_hint` perpendicular to it
 /// (or of `fallback` when `x_hint` is along `z`).
 fn frame_from_z(z: &Vector3<f64>, x_hint: &Vector3<f64>, fallback: &Vector3<f64>) -> Rotation3<f64> {
@@ -434,7 +427,7 @@ impl VjmModel {
         let fr = self.chain.frames(&qd)?;
         let spring_of = |link: usize, t: &mut Pose| {
             for (s, ds) in self.springs.iter().zip(&d.springs).filter(|(s, _)| s.link == link) {
-                *t = *t * s.t_link_spring * exp6(ds) * s.t_link_spring.inverse();
+                *t = *t * s.t_link_spring * crate::geometry::exp6(ds.as_slice()) * s.t_link_spring.inverse();
             }
         };
         let mut t = self.chain.base;

@@ -1,5 +1,6 @@
 //! The bundle adjustment behind every calibration: camera parameter blocks, rig extrinsics and
-//! target poses solved by Ceres with analytic Jacobians, then the covariance of the camera and
+//! target poses solved by Ceres (through the least-squares layer, `ferrocal-lsq`) with analytic
+//! Jacobians, then the covariance of the camera and
 //! rig parameters with the target poses marginalised (Schur complement of the normal matrix).
 //!
 //! # State layout
@@ -14,9 +15,7 @@
 //! global covariance. Measurements: one residual block per corner and camera, `projected -
 //! observed` in pixels (two rows), with the robust loss applied to its squared length.
 
-use ceres_solver::solver::LinearSolverType;
-use ceres_solver::{CostFunctionType, LossFunction, NllsProblem, ParameterBlockOrIndex, SolverOptions};
-use nalgebra::{DMatrix, Matrix2xX, Matrix6, Point2, Point3, Vector2};
+use nalgebra::{DMatrix, Matrix2xX, Matrix6, Point2, Point3, Rotation3, Vector2};
 
 use super::RobustLoss;
 use crate::camera::{CameraModel, Distortion, DistortionKind, ImageSize, Intrinsics};
@@ -98,6 +97,67 @@ impl CameraLayout {
             }
         }
         j
+    }
+}
+
+/// The bundle's residual block: one corner seen by one camera, `projected - observed` in pixels,
+/// over the blocks `[camera free parameters, [w, t] of T_cam_cam0 (cameras 1..), [w, t] of
+/// T_cam0_target]`, the pose blocks being charts around their reference rotations. Its Jacobians
+/// are those of [`observe`], checked by the least-squares layer's gradient checker in the tests.
+pub(crate) struct CornerResidual {
+    pub layout: CameraLayout,
+    pub ext_ref: Option<Rotation3<f64>>,
+    pub view_ref: Rotation3<f64>,
+    pub point: Point3<f64>,
+    pub pixel: Point2<f64>,
+}
+
+impl ferrocal_lsq::Residual for CornerResidual {
+    fn n_residuals(&self) -> usize {
+        2
+    }
+
+    fn evaluate(
+        &self,
+        p: &[&[f64]],
+        out: &mut [f64],
+        jacobians: Option<&mut [Option<DMatrix<f64>>]>,
+    ) -> ferrocal_lsq::Result<()> {
+        let chart = |r_ref: Rotation3<f64>, b: &[f64]| {
+            LocalPose { r_ref, w: Default::default(), t: Default::default() }.with_block(b)
+        };
+        let camera = self.layout.model(p[0]).map_err(ferrocal_lsq::LsqError::model)?;
+        let ext = self.ext_ref.map(|r| chart(r, p[1]));
+        let view = chart(self.view_ref, p[if ext.is_some() { 2 } else { 1 }]);
+        let ob =
+            observe(&camera, ext.as_ref(), &view, &self.point, &self.pixel).map_err(ferrocal_lsq::LsqError::model)?;
+        if !(ob.residual.x.is_finite() && ob.residual.y.is_finite()) {
+            return Err(ferrocal_lsq::LsqError::Numeric("a corner projected to a non-finite pixel".into()));
+        }
+        out[0] = ob.residual.x;
+        out[1] = ob.residual.y;
+        if let Some(jac) = jacobians {
+            let mut slot = 0;
+            if let Some(d) = &mut jac[slot] {
+                let jf = self.layout.free_jacobian(&ob.d_model);
+                d.copy_from(&DMatrix::from_fn(2, jf.ncols(), |r, c| jf[(r, c)]));
+            }
+            slot += 1;
+            if ext.is_some() {
+                if let Some(d) = &mut jac[slot] {
+                    d.copy_from(&DMatrix::from_fn(2, 6, |r, c| ob.d_ext[(r, c)]));
+                }
+                slot += 1;
+            }
+            if let Some(d) = &mut jac[slot] {
+                d.copy_from(&DMatrix::from_fn(2, 6, |r, c| ob.d_view[(r, c)]));
+            }
+        }
+        Ok(())
+    }
+
+    fn row_names(&self) -> Vec<String> {
+        vec!["x_px".into(), "y_px".into()]
     }
 }
 
@@ -192,137 +252,73 @@ impl Bundle {
         Ok((report, iterations))
     }
 
+    /// One solve through the least-squares layer's Ceres back end: the camera blocks and the
+    /// `[w, t]` charts of the extrinsics and views around their reference rotations are
+    /// Euclidean blocks, one [`CornerResidual`] per observation.
     fn solve_once(&mut self, max_iterations: usize) -> Result<(String, usize, f64)> {
         let nc = self.cameras.len();
         let ne = self.extrinsics.len();
-        let n_blocks = nc + ne + self.views.len();
-        let mut ceres_index: Vec<Option<usize>> = vec![None; n_blocks];
-        let mut next = 0usize;
-        let mut problem = NllsProblem::new();
+        let lsq_failed = |e: ferrocal_lsq::LsqError| match e.into_model::<VisionError>() {
+            Ok(own) => own,
+            Err(other) => solver_failed(other.to_string()),
+        };
+        let mut problem = ferrocal_lsq::Problem::new();
+        let mut ids = Vec::with_capacity(nc + ne + self.views.len());
+        for (k, c) in self.cameras.iter().enumerate() {
+            ids.push(problem.add_euclidean(&format!("camera{k}"), c.clone()).map_err(lsq_failed)?);
+        }
+        for (k, e) in self.extrinsics.iter().enumerate() {
+            ids.push(problem.add_euclidean(&format!("t_cam{}_cam0", k + 1), e.block().to_vec()).map_err(lsq_failed)?);
+        }
+        for (k, v) in self.views.iter().enumerate() {
+            ids.push(problem.add_euclidean(&format!("t_cam0_view{k}"), v.block().to_vec()).map_err(lsq_failed)?);
+        }
+        let loss = match self.loss {
+            RobustLoss::None => ferrocal_lsq::Loss::Squared,
+            RobustLoss::Huber { scale_px } => ferrocal_lsq::Loss::Huber { delta: scale_px },
+            RobustLoss::Cauchy { scale_px } => ferrocal_lsq::Loss::Cauchy { delta: scale_px },
+        };
         for o in &self.obs {
-            let layout = self.layouts[o.cam];
-            let ext_ref = (o.cam > 0).then(|| self.extrinsics[o.cam - 1].r_ref);
-            let view_ref = self.views[o.view].r_ref;
-            let (point, pixel) = (o.point, o.pixel);
-            let cost: CostFunctionType =
-                Box::new(move |p: &[&[f64]], res: &mut [f64], jac: Option<&mut [Option<&mut [&mut [f64]]>]>| {
-                    let Ok(camera) = layout.model(p[0]) else { return false };
-                    let (ext, view_block) = match ext_ref {
-                        Some(r) => (
-                            Some(LocalPose { r_ref: r, w: Default::default(), t: Default::default() }.with_block(p[1])),
-                            p[2],
-                        ),
-                        None => (None, p[1]),
-                    };
-                    let view = LocalPose { r_ref: view_ref, w: Default::default(), t: Default::default() }
-                        .with_block(view_block);
-                    let Ok(ob) = observe(&camera, ext.as_ref(), &view, &point, &pixel) else { return false };
-                    if !(ob.residual.x.is_finite() && ob.residual.y.is_finite()) {
-                        return false;
-                    }
-                    res[0] = ob.residual.x;
-                    res[1] = ob.residual.y;
-                    if let Some(jac) = jac {
-                        if let Some(d) = &mut jac[0] {
-                            let jf = layout.free_jacobian(&ob.d_model);
-                            for r in 0..2 {
-                                for c in 0..jf.ncols() {
-                                    d[r][c] = jf[(r, c)];
-                                }
-                            }
-                        }
-                        let view_slot = if ext.is_some() {
-                            if let Some(d) = &mut jac[1] {
-                                for r in 0..2 {
-                                    for c in 0..6 {
-                                        d[r][c] = ob.d_ext[(r, c)];
-                                    }
-                                }
-                            }
-                            2
-                        } else {
-                            1
-                        };
-                        if let Some(d) = &mut jac[view_slot] {
-                            for r in 0..2 {
-                                for c in 0..6 {
-                                    d[r][c] = ob.d_view[(r, c)];
-                                }
-                            }
-                        }
-                    }
-                    true
-                });
-            let mut ids = vec![o.cam];
+            let mut blocks = vec![ids[o.cam]];
             if o.cam > 0 {
-                ids.push(nc + o.cam - 1);
+                blocks.push(ids[nc + o.cam - 1]);
             }
-            ids.push(nc + ne + o.view);
-            let mut params: Vec<ParameterBlockOrIndex> = Vec::with_capacity(ids.len());
-            for &id in &ids {
-                match ceres_index[id] {
-                    Some(i) => params.push(i.into()),
-                    None => {
-                        ceres_index[id] = Some(next);
-                        next += 1;
-                        params.push(self.block_values(id).into());
-                    }
-                }
-            }
-            let mut builder = problem.residual_block_builder().set_cost(cost, 2).set_parameters(params);
-            builder = match self.loss {
-                RobustLoss::None => builder,
-                RobustLoss::Huber { scale_px } => builder.set_loss(LossFunction::huber(scale_px)),
-                RobustLoss::Cauchy { scale_px } => builder.set_loss(LossFunction::cauchy(scale_px)),
+            blocks.push(ids[nc + ne + o.view]);
+            let residual = CornerResidual {
+                layout: self.layouts[o.cam],
+                ext_ref: (o.cam > 0).then(|| self.extrinsics[o.cam - 1].r_ref),
+                view_ref: self.views[o.view].r_ref,
+                point: o.point,
+                pixel: o.pixel,
             };
-            problem = builder.build_into_problem().map_err(|e| solver_failed(e.to_string()))?.0;
+            let name = format!("view{}.point{}.cam{}", o.view, o.point_id, o.cam);
+            problem.add_residual(&name, Box::new(residual), &blocks, loss).map_err(lsq_failed)?;
         }
-        let options = SolverOptions::builder()
-            .max_num_iterations(max_iterations as i32)
-            .function_tolerance(1e-14)
-            .gradient_tolerance(1e-16)
-            .parameter_tolerance(1e-14)
-            .linear_solver_type(LinearSolverType::DENSE_QR)
-            .build()
-            .map_err(|e| solver_failed(e.to_string()))?;
-        let solution = problem.solve(&options).map_err(|e| solver_failed(e.to_string()))?;
-        let summary = &solution.summary;
-        if !summary.is_solution_usable() {
-            return Err(solver_failed(summary.brief_report()));
-        }
-        let iterations = (summary.num_successful_steps() + summary.num_unsuccessful_steps()).max(0) as usize;
-        let report = summary.brief_report();
+        let options = ferrocal_lsq::SolverOptions {
+            backend: ferrocal_lsq::Backend::Ceres,
+            max_iterations,
+            cost_tolerance: 1e-14,
+            step_tolerance: 1e-14,
+            max_rounds: 1,
+            ceres_linear_solver: ferrocal_lsq::CeresLinearSolver::DenseQr,
+            ..Default::default()
+        };
+        let solution = problem.solve(&options).map_err(lsq_failed)?;
         let mut max_w: f64 = 0.0;
-        for (id, idx) in ceres_index.iter().enumerate() {
-            let Some(i) = idx else { continue };
-            let values = &solution.parameters[*i];
-            if id < nc {
-                self.cameras[id].copy_from_slice(values);
-            } else if id < nc + ne {
-                let e = &mut self.extrinsics[id - nc];
-                *e = e.with_block(values);
-                max_w = max_w.max(e.w.norm());
-                e.rebase();
-            } else {
-                let v = &mut self.views[id - nc - ne];
-                *v = v.with_block(values);
-                max_w = max_w.max(v.w.norm());
-                v.rebase();
-            }
+        for (k, c) in self.cameras.iter_mut().enumerate() {
+            c.copy_from_slice(&problem.block(ids[k]).values);
         }
-        Ok((report, iterations, max_w))
-    }
-
-    fn block_values(&self, id: usize) -> Vec<f64> {
-        let nc = self.cameras.len();
-        let ne = self.extrinsics.len();
-        if id < nc {
-            self.cameras[id].clone()
-        } else if id < nc + ne {
-            self.extrinsics[id - nc].block().to_vec()
-        } else {
-            self.views[id - nc - ne].block().to_vec()
+        for (k, e) in self.extrinsics.iter_mut().enumerate() {
+            *e = e.with_block(&problem.block(ids[nc + k]).values);
+            max_w = max_w.max(e.w.norm());
+            e.rebase();
         }
+        for (k, v) in self.views.iter_mut().enumerate() {
+            *v = v.with_block(&problem.block(ids[nc + ne + k]).values);
+            max_w = max_w.max(v.w.norm());
+            v.rebase();
+        }
+        Ok((solution.summary.termination, solution.summary.iterations, max_w))
     }
 
     /// Residuals (`projected - observed`, pixels) of every observation; `None` where the

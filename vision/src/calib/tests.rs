@@ -2,10 +2,10 @@
 //! (the gradient checker every residual passes), Zhang's closed form on exact data, pattern
 //! strings.
 
-use super::bundle::CameraLayout;
+use super::bundle::{CameraLayout, CornerResidual};
 use super::*;
 use crate::camera::{Distortion, DistortionKind, ImageSize, Intrinsics};
-use crate::pose::{observe, LocalPose};
+use crate::pose::LocalPose;
 use nalgebra::{Matrix3, Point2, Point3, Vector3};
 
 fn camera(distortion: Distortion) -> CameraModel {
@@ -25,72 +25,54 @@ fn distortions() -> Vec<Distortion> {
     ]
 }
 
-/// Gradient checker: every column of the residual's analytic Jacobians (camera free parameters,
-/// rig extrinsics, target pose; increments away from zero) against central differences.
+/// Gradient checker (the least-squares layer's, shared by every residual of the project): every
+/// column of the bundle residual's analytic Jacobians (camera free parameters, rig extrinsics,
+/// target pose; increments away from zero) against central differences, for every lens model,
+/// with and without a fixed aspect ratio, for camera 0 and for a second camera.
 #[test]
 fn residual_jacobians_match_finite_differences() {
+    use ferrocal_lsq::check::check_residual;
+    use ferrocal_lsq::{Euclidean, Manifold};
+    use std::sync::Arc;
     let x = Point3::new(0.07, -0.04, 0.0);
     let pixel = Point2::new(300.0, 200.0);
     let ext = LocalPose::from_isometry(&nalgebra::Isometry3::new(
         Vector3::new(-0.3, 0.02, 0.01),
         Vector3::new(0.01, -0.2, 0.05),
-    ))
-    .with_block(&[0.01, -0.02, 0.03, -0.3, 0.02, 0.01]);
+    ));
+    let ext_block = [0.01, -0.02, 0.03, -0.3, 0.02, 0.01];
     let view =
-        LocalPose::from_isometry(&nalgebra::Isometry3::new(Vector3::new(0.1, 0.0, 0.6), Vector3::new(2.9, 0.2, -0.1)))
-            .with_block(&[0.2, -0.1, 0.05, 0.1, 0.0, 0.6]);
+        LocalPose::from_isometry(&nalgebra::Isometry3::new(Vector3::new(0.1, 0.0, 0.6), Vector3::new(2.9, 0.2, -0.1)));
+    let view_block = [0.2, -0.1, 0.05, 0.1, 0.0, 0.6];
     for d in distortions() {
         for fix_aspect in [false, true] {
-            let cam = camera(d);
-            let layout = CameraLayout { kind: d.kind(), fix_aspect, aspect: 1.0, image_size: cam.image_size };
-            let free = layout.free_from_model(&cam);
-            let res = |free: &[f64], e: &LocalPose, v: &LocalPose| {
-                observe(&layout.model(free).unwrap(), Some(e), v, &x, &pixel).unwrap().residual
-            };
-            let ob = observe(&layout.model(&free).unwrap(), Some(&ext), &view, &x, &pixel).unwrap();
-            let jf = layout.free_jacobian(&ob.d_model);
-            for c in 0..free.len() {
-                let h = 1e-6 * free[c].abs().max(1.0);
-                let (mut a, mut b) = (free.clone(), free.clone());
-                a[c] += h;
-                b[c] -= h;
-                let num = (res(&a, &ext, &view) - res(&b, &ext, &view)) / (2.0 * h);
-                for r in 0..2 {
-                    let tol = 1e-5 * (1.0 + jf[(r, c)].abs());
-                    assert!(
-                        (num[r] - jf[(r, c)]).abs() < tol,
-                        "{d:?} fix {fix_aspect} param {c}: {} vs {}",
-                        num[r],
-                        jf[(r, c)]
-                    );
+            for second_camera in [false, true] {
+                let cam = camera(d);
+                let layout = CameraLayout { kind: d.kind(), fix_aspect, aspect: 1.0, image_size: cam.image_size };
+                let free = layout.free_from_model(&cam);
+                let residual = CornerResidual {
+                    layout,
+                    ext_ref: second_camera.then_some(ext.r_ref),
+                    view_ref: view.r_ref,
+                    point: x,
+                    pixel,
+                };
+                let mut params: Vec<&[f64]> = vec![&free];
+                let mut manifolds: Vec<Arc<dyn Manifold>> = vec![Arc::new(Euclidean { n: free.len() })];
+                let mut scales = vec![free.iter().map(|v| v.abs().max(1.0)).collect::<Vec<f64>>()];
+                if second_camera {
+                    params.push(&ext_block);
+                    manifolds.push(Arc::new(Euclidean { n: 6 }));
+                    scales.push(vec![0.1; 6]);
                 }
-            }
-            for (which, analytic) in [(0, ob.d_ext), (1, ob.d_view)] {
-                for c in 0..6 {
-                    let h = 1e-7;
-                    let bump = |s: f64| {
-                        let (e, v) = (ext, view);
-                        let pick = if which == 0 { e } else { v };
-                        let mut blk = pick.block();
-                        blk[c] += s * h;
-                        let moved = pick.with_block(&blk);
-                        if which == 0 {
-                            res(&free, &moved, &v)
-                        } else {
-                            res(&free, &e, &moved)
-                        }
-                    };
-                    let num = (bump(1.0) - bump(-1.0)) / (2.0 * h);
-                    for r in 0..2 {
-                        let tol = 1e-4 * (1.0 + analytic[(r, c)].abs());
-                        assert!(
-                            (num[r] - analytic[(r, c)]).abs() < tol,
-                            "{d:?} block {which} col {c}: {} vs {}",
-                            num[r],
-                            analytic[(r, c)]
-                        );
-                    }
-                }
+                params.push(&view_block);
+                manifolds.push(Arc::new(Euclidean { n: 6 }));
+                scales.push(vec![0.1; 6]);
+                let report = check_residual(&residual, &params, &manifolds, &scales, 1e-6).unwrap();
+                report
+                    .assert_below(2e-5, &format!("{d:?}, fixed aspect {fix_aspect}, second camera {second_camera}"))
+                    .unwrap();
+                assert!(report.entries > 20);
             }
         }
     }

@@ -1,0 +1,187 @@
+//! The Ceres back end for large sparse problems (bundle adjustments: hundreds of pose blocks).
+//!
+//! The Rust binding of Ceres takes Euclidean parameter blocks only, so each free block is handed
+//! to Ceres as its tangent step `δ` around the current point `x0` (the cost sees `x0 ⊞ δ`), and
+//! the solve runs in rounds: after each, `x0 ← x0 ⊞ δ` and the steps restart from zero, until the
+//! manifold blocks stop moving. Within a round the Jacobian given for `δ ≠ 0` is the tangent
+//! Jacobian at `x0 ⊞ δ`, exact at `δ = 0`, so the final round, which barely moves, is exact.
+
+use ceres_solver::solver::LinearSolverType;
+use ceres_solver::{CostFunctionType, NllsProblem, ParameterBlockOrIndex, SolverOptions as CeresOptions};
+use nalgebra::DMatrix;
+
+use crate::dense::{Summary, Termination};
+use crate::problem::{CeresLinearSolver, SolverOptions, StateIndex};
+use crate::{LsqError, Problem, Result};
+
+fn failed(detail: impl std::fmt::Display) -> LsqError {
+    LsqError::Diverged(format!("Ceres: {detail}"))
+}
+
+/// One Ceres round; returns (initial cost, final cost, iterations, report, largest manifold step).
+fn round(
+    problem: &Problem,
+    index: &StateIndex,
+    opts: &SolverOptions,
+) -> Result<(f64, f64, usize, String, f64, Vec<Vec<f64>>)> {
+    let blocks = problem.blocks();
+    let x0: Vec<Vec<f64>> = blocks.iter().map(|b| b.values.clone()).collect();
+    let free: Vec<Option<usize>> = (0..blocks.len()).map(|k| index.offset(crate::BlockId(k))).collect();
+    let mut ceres_index: Vec<Option<usize>> = vec![None; blocks.len()];
+    let mut next = 0usize;
+    let mut nlls = NllsProblem::new();
+    let mut n_added = 0usize;
+    for (_name, residual, ids, loss) in problem.residual_entries() {
+        let free_ids: Vec<usize> = ids.iter().map(|b| b.0).filter(|&k| free[k].is_some()).collect();
+        if free_ids.is_empty() {
+            continue;
+        }
+        let n_res = residual.n_residuals();
+        let ids_all: Vec<usize> = ids.iter().map(|b| b.0).collect();
+        let x0_ref = &x0;
+        let free_ref = &free;
+        let cost: CostFunctionType =
+            Box::new(move |p: &[&[f64]], res: &mut [f64], jac: Option<&mut [Option<&mut [&mut [f64]]>]>| {
+                // Ambient values of every block of this residual: x0 ⊞ δ for the free ones.
+                let mut values: Vec<Vec<f64>> = Vec::with_capacity(ids_all.len());
+                let mut slot = 0;
+                for &k in &ids_all {
+                    let b = &blocks[k];
+                    if free_ref[k].is_some() {
+                        let mut v = vec![0.0; b.manifold.ambient_size()];
+                        b.manifold.plus(&x0_ref[k], p[slot], &mut v);
+                        slot += 1;
+                        values.push(v);
+                    } else {
+                        values.push(x0_ref[k].clone());
+                    }
+                }
+                let views: Vec<&[f64]> = values.iter().map(|v| v.as_slice()).collect();
+                let want = jac.is_some();
+                let mut jacs: Vec<Option<DMatrix<f64>>> = ids_all
+                    .iter()
+                    .map(|&k| {
+                        (want && free_ref[k].is_some())
+                            .then(|| DMatrix::zeros(n_res, blocks[k].manifold.tangent_size()))
+                    })
+                    .collect();
+                let ok = residual.evaluate(&views, res, want.then_some(jacs.as_mut_slice())).is_ok();
+                if !ok || res.iter().any(|v| !v.is_finite()) {
+                    return false;
+                }
+                if let Some(jac) = jac {
+                    let mut slot = 0;
+                    for (k, jk) in ids_all.iter().zip(&jacs) {
+                        if free_ref[*k].is_none() {
+                            continue;
+                        }
+                        if let (Some(d), Some(jk)) = (&mut jac[slot], jk) {
+                            for r in 0..n_res {
+                                for c in 0..jk.ncols() {
+                                    d[r][c] = jk[(r, c)];
+                                }
+                            }
+                        }
+                        slot += 1;
+                    }
+                }
+                true
+            });
+        let mut params: Vec<ParameterBlockOrIndex> = Vec::with_capacity(free_ids.len());
+        for &k in &free_ids {
+            match ceres_index[k] {
+                Some(i) => params.push(i.into()),
+                None => {
+                    ceres_index[k] = Some(next);
+                    next += 1;
+                    params.push(vec![0.0; blocks[k].manifold.tangent_size()].into());
+                }
+            }
+        }
+        let mut builder = nlls.residual_block_builder().set_cost(cost, n_res).set_parameters(params);
+        if let Some(l) = loss.to_ceres() {
+            builder = builder.set_loss(l);
+        }
+        nlls = builder.build_into_problem().map_err(failed)?.0;
+        n_added += 1;
+    }
+    if n_added == 0 {
+        return Err(LsqError::Setup("no residual block touches a free parameter block".into()));
+    }
+    let options = CeresOptions::builder()
+        .max_num_iterations(opts.max_iterations as i32)
+        .function_tolerance(opts.cost_tolerance)
+        .gradient_tolerance(1e-16)
+        .parameter_tolerance(opts.step_tolerance)
+        .linear_solver_type(match opts.ceres_linear_solver {
+            CeresLinearSolver::DenseQr => LinearSolverType::DENSE_QR,
+            CeresLinearSolver::DenseSchur => LinearSolverType::DENSE_SCHUR,
+        })
+        .num_threads(opts.threads as i32)
+        .build()
+        .map_err(failed)?;
+    let solution = nlls.solve(&options).map_err(failed)?;
+    let summary = &solution.summary;
+    if !summary.is_solution_usable() {
+        return Err(failed(summary.brief_report()));
+    }
+    let iterations = (summary.num_successful_steps() + summary.num_unsuccessful_steps()).max(0) as usize;
+    let mut values = x0.clone();
+    let mut max_step: f64 = 0.0;
+    for (k, idx) in ceres_index.iter().enumerate() {
+        let Some(i) = idx else { continue };
+        let delta = &solution.parameters[*i];
+        let b = &blocks[k];
+        b.manifold.plus(&x0[k], delta, &mut values[k]);
+        if b.manifold.name() != "euclidean" {
+            max_step = max_step.max(delta.iter().fold(0.0f64, |a, v| a.max(v.abs())));
+        }
+    }
+    Ok((summary.initial_cost(), summary.final_cost(), iterations, summary.brief_report(), max_step, values))
+}
+
+/// Solves `problem` in place with Ceres.
+pub(crate) fn solve(problem: &mut Problem, index: &StateIndex, opts: &SolverOptions) -> Result<Summary> {
+    let mut initial_cost = None;
+    let (mut final_cost, mut iterations, mut report) = (0.0, 0, String::new());
+    let mut settled = false;
+    for _ in 0..opts.max_rounds {
+        let (c0, c1, it, rep, max_step, values) = round(problem, index, opts)?;
+        initial_cost.get_or_insert(c0);
+        final_cost = c1;
+        iterations += it;
+        report = rep;
+        problem.set_all_values(values);
+        if max_step < 1e-10 || it == 0 {
+            settled = true;
+            break;
+        }
+    }
+    let ceres_term = report.split("Termination:").nth(1).map(|s| s.trim().to_string()).unwrap_or_default();
+    let stop = if !settled {
+        Termination::IterationLimit
+    } else if ceres_term.starts_with("CONVERGENCE") {
+        Termination::CostTolerance
+    } else if ceres_term.starts_with("NO_CONVERGENCE") {
+        Termination::IterationLimit
+    } else {
+        Termination::Failed
+    };
+    let (r, j) = problem.linearize()?;
+    let m = problem.measurement_index();
+    let downweighted_blocks = problem
+        .residual_entries()
+        .zip(&m.entries)
+        .filter(|((_, _, _, loss), me)| loss.rho(r.rows(me.offset, me.size).norm_squared()).1 < 0.5)
+        .count();
+    Ok(Summary {
+        iterations,
+        initial_cost: initial_cost.unwrap_or(final_cost),
+        final_cost,
+        termination: report,
+        stop,
+        converged: stop.converged(),
+        downweighted_blocks,
+        condition_number: crate::dense::condition_number(&j),
+    })
+}
