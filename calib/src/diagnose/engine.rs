@@ -488,7 +488,7 @@ fn alternatives<F: Family>(policy: &Policy, entries: &[Entry<F>], idx: usize) ->
 fn ranked<F: Family>(
     family: &mut F,
     policy: &Policy,
-    entries: &mut Vec<Entry<F>>,
+    entries: &mut [Entry<F>],
     accepted: &[F::Effect],
     max_checked: usize,
     multiplier: &dyn Fn(&Describe) -> usize,
