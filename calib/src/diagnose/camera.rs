@@ -9,18 +9,23 @@
 //!   the target's half-size, so `b`, `s`, `t` are the sags (metres) at the target's edge of a bowl,
 //!   a saddle and a twist, the same for every view (one physical target).
 //!
-//! Held-out figures come from whole views held out (K-fold over views): the model is fitted on
-//! the other views, then only the held-out view's pose is fitted to its corners (intrinsics,
-//! distortion and target shape fixed) and its reprojection RMS is the score. A candidate is
-//! accepted when the held-out improvement is significant in a paired test over the held-out
-//! views, corrected for the number of candidates (Bonferroni), at least `min_improvement`, and
-//! physically plausible; then the search repeats from the enlarged model.
+//! A family of the diagnose engine ([`super::engine`]). Held-out figures come from whole views
+//! held out (K-fold over views): the model is fitted on the other views, then only the held-out
+//! view's pose is fitted to its corners (intrinsics, distortion and target shape fixed) and its
+//! reprojection RMS is the score. The engine examines the candidate with the smallest corrected
+//! p-value (the smaller of a sign test and a t test over the held-out views, Bonferroni over both
+//! tests and the candidates) and accepts it when significant, at least `min_improvement` of the
+//! held-out RMS, and physically plausible; then the search repeats from the enlarged model.
 
 use ferrocal_vision::calib::{calibrate_camera, CalibrationOptions, PlanarTarget, View};
 use ferrocal_vision::camera::{CameraModel, Distortion, DistortionKind};
 use nalgebra::{DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+use super::engine::{
+    select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection, StepStart, Test,
+};
+use super::report::{best_verdict, explained, Decision, Finding, Unit};
 use super::stats::{bonferroni, paired_test};
 use crate::error::{CalibError, Result};
 use crate::lsq::{solve, LmOptions, Problem};
@@ -506,31 +511,172 @@ fn unexplained_structure(
 /// Per view: the sum of squared held-out reprojection errors and the number of corners.
 type ViewErrors = Vec<(f64, usize)>;
 
-/// One-sided exact sign test of `median(d) > 0` (zeros dropped).
-fn sign_test(d: &[f64]) -> f64 {
-    let pos = d.iter().filter(|v| **v > 0.0).count();
-    let n = d.iter().filter(|v| **v != 0.0).count();
-    if n == 0 {
-        return 1.0;
-    }
-    // P(X >= pos) for X ~ Binomial(n, 1/2).
-    let mut p = 0.0;
-    let mut c = 1.0f64; // C(n, k) / 2^n computed in log space for stability
-    let ln2n = n as f64 * std::f64::consts::LN_2;
-    for k in 0..=n {
-        if k > 0 {
-            c *= (n - k + 1) as f64 / k as f64;
-        }
-        if k >= pos {
-            p += (c.ln() - ln2n).exp();
-        }
-    }
-    p.min(1.0)
-}
-
 fn rms(sq: &[(f64, usize)]) -> f64 {
     let (s, n) = sq.iter().fold((0.0, 0usize), |(a, b), (s, n)| (a + s, b + n));
     (s / n.max(1) as f64).sqrt()
+}
+
+/// A candidate: its label and the model variant it leads to.
+type CameraCandidate = (&'static str, Variant);
+
+/// The camera's model variants as a candidate family of the diagnose engine.
+struct CameraFamily<'a> {
+    views: &'a [View],
+    all: Vec<&'a View>,
+    target: &'a PlanarTarget,
+    opts: &'a CameraDiagnoseOptions,
+    current: Variant,
+    current_cv: CrossValidation,
+    current_fit: Fit,
+}
+
+impl Family for CameraFamily<'_> {
+    type Candidate = CameraCandidate;
+    type Effect = Variant;
+    type Screen = CrossValidation;
+    type Fit = Fit;
+
+    fn unit(&self) -> Unit {
+        Unit::Pixel
+    }
+
+    fn begin_step(&mut self, _accepted: &[Variant]) -> Result<StepStart> {
+        let (s, n) = self.current_cv.errors.iter().fold((0.0, 0usize), |(a, b), (s, n)| (a + s, b + n));
+        Ok(StepStart::Baseline(Baseline { heldout: rms(&self.current_cv.errors), mse: s / n.max(1) as f64 }))
+    }
+
+    fn candidates(&self, _accepted: &[Variant], _retired: &[Variant]) -> Vec<CameraCandidate> {
+        let current = self.current;
+        let mut cands = Vec::new();
+        if current.lens == Lens::Brown5 {
+            cands.push(("lens_distortion (rational radial k4..k6)", Variant { lens: Lens::Rational8, ..current }));
+            cands.push(("lens_distortion (Kannala-Brandt fisheye)", Variant { lens: Lens::KannalaBrandt, ..current }));
+        }
+        if !current.bent {
+            cands.push(("target_nonflatness (bowl, saddle, twist)", Variant { bent: true, ..current }));
+        }
+        cands
+    }
+
+    fn describe(&self, (label, variant): &CameraCandidate) -> Describe {
+        let bends = variant.bent && !self.current.bent;
+        Describe {
+            label: label.to_string(),
+            effect: if bends { "target_nonflatness" } else { "lens_distortion" }.into(),
+            joints: Vec::new(),
+            n_params: match (bends, variant.lens) {
+                (false, Lens::KannalaBrandt) => 4,
+                _ => 3,
+            },
+        }
+    }
+
+    fn screen(&mut self, (_, variant): &CameraCandidate) -> Result<Screened<CrossValidation>> {
+        let cv = match cross_validate(self.views, self.target, *variant, self.opts.folds) {
+            Ok(cv) => cv,
+            Err(e) => return Ok(Screened::Unscored { heldout: f64::NAN, why: format!("could not be fitted: {e}") }),
+        };
+        // Per-view differences of mean squared error (before - after).
+        let d: Vec<f64> = self
+            .current_cv
+            .errors
+            .iter()
+            .zip(&cv.errors)
+            .map(|((a, na), (b, _))| (a - b) / (*na).max(1) as f64)
+            .collect();
+        if d.iter().any(|v| !v.is_finite()) {
+            return Ok(Screened::Unscored {
+                heldout: f64::INFINITY,
+                why: "fails to predict some held-out views (their corners leave the fitted lens model's valid field)"
+                    .into(),
+            });
+        }
+        // Views differ widely in how much a lens or target effect shows (the image border against
+        // the centre), so the heavy-tailed per-view differences are tested with the sign test and
+        // with the t test (the engine's `Test::SignOrT`).
+        Ok(Screened::Scored { d, heldout: rms(&cv.errors), data: cv })
+    }
+
+    fn fit_all(
+        &mut self,
+        (_, variant): &CameraCandidate,
+        _cv: &CrossValidation,
+    ) -> Result<Option<AllFit<Variant, Fit>>> {
+        let fit = fit_variant(&self.all, self.target, *variant, Some(&self.current_fit))?;
+        let mut parameters = std::collections::BTreeMap::new();
+        if variant.bent && !self.current.bent {
+            for (k, name) in ["bowl_sag_m", "saddle_sag_m", "twist_sag_m"].iter().enumerate() {
+                parameters.insert(name.to_string(), fit.bend[k]);
+            }
+        } else {
+            let c = fit.camera.distortion.coefficients();
+            let names = fit.camera.distortion.kind().coefficient_names();
+            for (name, v) in names.iter().zip(&c) {
+                parameters.insert(name.to_string(), *v);
+            }
+        }
+        Ok(Some(AllFit { effect: *variant, parameters, overlap_sine: None, data: fit }))
+    }
+
+    fn plausible(&self, fit: &AllFit<Variant, Fit>) -> std::result::Result<(), String> {
+        let ok = if fit.effect.bent && !self.current.bent {
+            fit.data.bend.iter().all(|b| b.abs() <= self.opts.max_sag_m)
+        } else {
+            fit.data.camera.distortion.coefficients().iter().all(|c| c.abs() <= self.opts.max_rational)
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err("implausible size".into())
+        }
+    }
+
+    fn accept(
+        &mut self,
+        fit: AllFit<Variant, Fit>,
+        cv: &CrossValidation,
+        decision: &Decision,
+    ) -> Result<Finding<Variant>> {
+        let (variant, parameters, fit) = (fit.effect, fit.parameters, fit.data);
+        let (before, after, p, m) =
+            (decision.heldout_before, decision.heldout_after, decision.p_corrected, decision.candidates_tried);
+        let statement;
+        let effect;
+        if variant.bent && !self.current.bent {
+            effect = "target_nonflatness";
+            statement = format!(
+                "the target is not flat: its edge stands {:.2} mm out of plane as a bowl, {:.2} mm as a saddle and {:.2} mm as a twist; modelling it lowers the held-out reprojection RMS from {:.3} to {:.3} px (p = {:.1e} after correcting for {m} candidates)",
+                fit.bend[0] * 1e3, fit.bend[1] * 1e3, fit.bend[2] * 1e3, before, after, p
+            );
+        } else {
+            effect = "lens_distortion";
+            let c = fit.camera.distortion.coefficients();
+            let model = match variant.lens {
+                Lens::KannalaBrandt => "the Kannala-Brandt (fisheye) model".to_string(),
+                _ => format!("the rational radial terms (k4 = {:.3}, k5 = {:.3}, k6 = {:.3})", c[5], c[6], c[7]),
+            };
+            statement = format!(
+                "the 5-coefficient lens model leaves systematic image residuals: {model}: the held-out reprojection RMS drops from {before:.3} to {after:.3} px (p = {p:.1e} after correcting for {m} candidates)"
+            );
+        }
+        self.current = variant;
+        self.current_cv = CrossValidation { errors: cv.errors.clone(), residuals: cv.residuals.clone() };
+        self.current_fit = fit;
+        Ok(Finding {
+            accepted: variant,
+            effect: effect.into(),
+            joints: Vec::new(),
+            parameters,
+            heldout_before: before,
+            heldout_after: after,
+            explained_fraction: explained(before, after),
+            statement,
+            std_from_covariance: None,
+            telling_input: String::new(),
+            evidence: None,
+            decision: decision.clone(),
+        })
+    }
 }
 
 /// Runs the analysis on detected views of a planar target.
@@ -555,170 +701,64 @@ pub fn diagnose_camera(
         });
     }
     let all: Vec<&View> = views.iter().collect();
-    let mut current = Variant { lens: Lens::Brown5, bent: false };
+    let current = Variant { lens: Lens::Brown5, bent: false };
     let nominal_fit = fit_variant(&all, target, current, None)?;
-    let mut current_cv = cross_validate(views, target, current, opts.folds)?;
+    let current_cv = cross_validate(views, target, current, opts.folds)?;
     let nominal = CameraFit {
         n_train: n - n.div_ceil(opts.folds.clamp(2, n)),
         n_heldout: n,
         train_rms_px: nominal_fit.rms_px,
         heldout_rms_px: rms(&current_cv.errors),
     };
-    let mut findings = Vec::new();
-    let mut rounds = Vec::new();
-    let mut current_fit = nominal_fit;
-    loop {
-        let mut cands = Vec::new();
-        if current.lens == Lens::Brown5 {
-            cands.push(("lens_distortion (rational radial k4..k6)", Variant { lens: Lens::Rational8, ..current }));
-            cands.push(("lens_distortion (Kannala-Brandt fisheye)", Variant { lens: Lens::KannalaBrandt, ..current }));
-        }
-        if !current.bent {
-            cands.push(("target_nonflatness (bowl, saddle, twist)", Variant { bent: true, ..current }));
-        }
-        if cands.is_empty() {
-            break;
-        }
-        let m = cands.len();
-        let mut scores = Vec::new();
-        let mut best: Option<(usize, f64, CrossValidation)> = None;
-        for (ci, (name, v)) in cands.iter().enumerate() {
-            let cv = match cross_validate(views, target, *v, opts.folds) {
-                Ok(cv) => cv,
-                Err(e) => {
-                    scores.push(CameraCandidateScore {
-                        candidate: name.to_string(),
-                        heldout_rms_px: f64::NAN,
-                        p_value: 1.0,
-                        verdict: format!("could not be fitted: {e}"),
-                    });
-                    continue;
-                }
-            };
-            // Per-view differences of mean squared error (before - after).
-            let d: Vec<f64> = current_cv
-                .errors
-                .iter()
-                .zip(&cv.errors)
-                .map(|((a, na), (b, _))| (a - b) / (*na).max(1) as f64)
-                .collect();
-            if d.iter().any(|v| !v.is_finite()) {
-                scores.push(CameraCandidateScore {
-                    candidate: name.to_string(),
-                    heldout_rms_px: f64::INFINITY,
-                    p_value: 1.0,
-                    verdict:
-                        "fails to predict some held-out views (their corners leave the fitted lens model's valid field)"
-                            .into(),
-                });
-                continue;
-            }
-            // Views differ widely in how much a lens or target effect shows (the image border
-            // against the centre), so the heavy-tailed per-view differences are tested with the
-            // sign test, and with the t test; the smaller p-value of the two counts, corrected
-            // for both tests and the candidates.
-            let p_sign = sign_test(&d);
-            let p_t = paired_test(&d).p_value;
-            let p = bonferroni(p_sign.min(p_t), 2 * m);
-            let after = rms(&cv.errors);
-            scores.push(CameraCandidateScore {
-                candidate: name.to_string(),
-                heldout_rms_px: after,
-                p_value: p,
-                verdict: String::new(),
-            });
-            // The smallest p-value wins; equal p-values (the sign test's floor) go to the lower
-            // held-out RMS.
-            let better = best
-                .as_ref()
-                .is_none_or(|(_, bp, bcv)| p < *bp * 0.999 || (p <= *bp * 1.001 && after < rms(&bcv.errors)));
-            if better {
-                best = Some((ci, p, cv));
-            }
-        }
-        let Some((ci, p, cv)) = best else {
-            rounds.push(scores);
-            break;
-        };
-        let before = rms(&current_cv.errors);
-        let after = rms(&cv.errors);
-        let improvement = 1.0 - after / before;
-        let variant = cands[ci].1;
-        let fit = fit_variant(&all, target, variant, Some(&current_fit))?;
-        let plausible = if variant.bent && !current.bent {
-            fit.bend.iter().all(|b| b.abs() <= opts.max_sag_m)
-        } else {
-            fit.camera.distortion.coefficients().iter().all(|c| c.abs() <= opts.max_rational)
-        };
-        let accepted = p < opts.alpha && improvement >= opts.min_improvement && plausible;
-        for (k, s) in scores.iter_mut().enumerate() {
-            if s.verdict.is_empty() {
-                s.verdict = if k == ci && accepted {
-                    "accepted".into()
-                } else if k == ci && !plausible {
-                    "rejected: implausible size".into()
-                } else if k == ci && p >= opts.alpha {
-                    format!("not significant (p = {p:.2e} >= {})", opts.alpha)
-                } else if k == ci {
-                    format!("improvement {:.1} % below {:.1} %", improvement * 100.0, opts.min_improvement * 100.0)
-                } else {
-                    "not the best candidate".into()
-                };
-            }
-        }
-        rounds.push(scores);
-        if !accepted {
-            break;
-        }
-        let mut parameters = std::collections::BTreeMap::new();
-        let statement;
-        let effect;
-        if variant.bent && !current.bent {
-            effect = "target_nonflatness";
-            for (k, name) in ["bowl_sag_m", "saddle_sag_m", "twist_sag_m"].iter().enumerate() {
-                parameters.insert(name.to_string(), fit.bend[k]);
-            }
-            statement = format!(
-                "the target is not flat: its edge stands {:.2} mm out of plane as a bowl, {:.2} mm as a saddle and {:.2} mm as a twist; modelling it lowers the held-out reprojection RMS from {:.3} to {:.3} px (p = {:.1e} after correcting for {m} candidates)",
-                fit.bend[0] * 1e3, fit.bend[1] * 1e3, fit.bend[2] * 1e3, before, after, p
-            );
-        } else {
-            effect = "lens_distortion";
-            let c = fit.camera.distortion.coefficients();
-            let names = fit.camera.distortion.kind().coefficient_names();
-            for (name, v) in names.iter().zip(&c) {
-                parameters.insert(name.to_string(), *v);
-            }
-            let model = match variant.lens {
-                Lens::KannalaBrandt => "the Kannala-Brandt (fisheye) model".to_string(),
-                _ => format!("the rational radial terms (k4 = {:.3}, k5 = {:.3}, k6 = {:.3})", c[5], c[6], c[7]),
-            };
-            statement = format!(
-                "the 5-coefficient lens model leaves systematic image residuals: {model}: the held-out reprojection RMS drops from {before:.3} to {after:.3} px (p = {p:.1e} after correcting for {m} candidates)"
-            );
-        }
-        let before_ms = before * before;
-        findings.push(CameraFinding {
-            effect: effect.into(),
-            joints: Vec::new(),
-            parameters,
-            heldout_rms_before_px: before,
-            heldout_rms_after_px: after,
-            explained_fraction: ((before_ms - after * after) / before_ms).max(0.0),
-            p_value: p,
-            statement,
-        });
-        current = variant;
-        current_cv = cv;
-        current_fit = fit;
-    }
+    let mut family = CameraFamily { views, all, target, opts, current, current_cv, current_fit: nominal_fit };
+    let policy = Policy {
+        alpha: opts.alpha,
+        min_improvement: opts.min_improvement,
+        max_effects: usize::MAX,
+        min_sin_angle: 0.0,
+        test: Test::SignOrT,
+        correction: Correction::PerCandidate,
+        improvement: Improvement::RmsFraction,
+        selection: Selection::SmallestP,
+    };
+    let diagnosis = select(&mut family, &policy)?;
     Ok(CameraDiagnoseReport {
         nominal,
-        findings,
-        final_fit: CameraFinalFit { train_rms_px: current_fit.rms_px, heldout_rms_px: rms(&current_cv.errors) },
-        unexplained: unexplained_structure(views, &current_cv.residuals, opts),
+        findings: diagnosis
+            .findings
+            .iter()
+            .map(|f| CameraFinding {
+                effect: f.effect.clone(),
+                joints: f.joints.clone(),
+                parameters: f.parameters.clone(),
+                heldout_rms_before_px: f.heldout_before,
+                heldout_rms_after_px: f.heldout_after,
+                explained_fraction: f.explained_fraction,
+                p_value: f.decision.p_corrected,
+                statement: f.statement.clone(),
+            })
+            .collect(),
+        final_fit: CameraFinalFit {
+            train_rms_px: family.current_fit.rms_px,
+            heldout_rms_px: rms(&family.current_cv.errors),
+        },
+        unexplained: unexplained_structure(views, &family.current_cv.residuals, opts),
         declined: None,
-        candidates: rounds,
+        candidates: diagnosis
+            .steps
+            .iter()
+            .map(|s| {
+                s.rows
+                    .iter()
+                    .map(|r| CameraCandidateScore {
+                        candidate: r.label.clone(),
+                        heldout_rms_px: r.heldout_after,
+                        p_value: r.p_corrected,
+                        verdict: best_verdict(r, opts.alpha, opts.min_improvement, "rejected: implausible size"),
+                    })
+                    .collect()
+            })
+            .collect(),
         settings: opts.clone(),
         n_views: n,
     })

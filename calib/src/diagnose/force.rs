@@ -4,11 +4,12 @@
 //! models 1, 2, 4 and 5), instead of accepting the mass and centre of gravity such a deformation
 //! biases.
 //!
-//! Candidates are the quasi-static models whose terms contain the current model's; each is
-//! fitted on the training folds of a K-fold split over poses and scored by the held-out squared
-//! force errors per pose. A candidate is accepted when the improvement is significant in a paired
-//! t test over the held-out poses (Bonferroni over the candidates of the step) and at least
-//! `min_improvement`; the search then repeats from it. Finally the held-out residuals are
+//! A family of the diagnose engine ([`super::engine`]): the candidates are the quasi-static
+//! models whose terms contain the current model's; each is fitted on the training folds of a
+//! K-fold split over poses and scored by the held-out squared force errors per pose. The engine
+//! accepts the candidate with the smallest corrected p-value when the improvement is significant
+//! in a paired t test over the held-out poses (Bonferroni over the candidates of the step) and at
+//! least `min_improvement` of the held-out RMS; the search then repeats from it. Finally the held-out residuals are
 //! screened against the platform coordinates for structure no candidate explains.
 
 use std::collections::BTreeMap;
@@ -18,9 +19,13 @@ use ferrocal_robot::Pose;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use super::stats::{binned_anova, bonferroni, paired_test, quantile_groups};
+use super::engine::{
+    select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection, StepStart, Test,
+};
+use super::report::{best_verdict, explained, Decision, Finding, Unit};
+use super::stats::{binned_anova, bonferroni, quantile_groups};
 use crate::error::{CalibError, Result};
-use crate::linear::{fit, FitOptions, SensorModel, SensorRegressor, Weighting};
+use crate::linear::{fit, FitOptions, LinearFit, SensorModel, SensorRegressor, Weighting};
 
 /// Options of [`diagnose_force_sensor`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -208,6 +213,147 @@ fn rms(sse: &[f64]) -> f64 {
     (sse.iter().sum::<f64>() / (6 * sse.len()).max(1) as f64).sqrt()
 }
 
+/// The quasi-static sensor models as a candidate family: each candidate is a model whose terms
+/// contain the current one's.
+struct ForceFamily<'a> {
+    reg: &'a SensorRegressor,
+    poses: &'a [Pose],
+    y: DVector<f64>,
+    folds: usize,
+    current: SensorModel,
+    current_fit: LinearFit,
+    current_sse: Vec<f64>,
+    current_res: DMatrix<f64>,
+}
+
+impl ForceFamily<'_> {
+    fn full_fit(&self, m: SensorModel) -> Result<LinearFit> {
+        fit(&regressor(self.reg, m, self.poses)?, &self.y, &m.names(), &Weighting::Unit, &FitOptions::default())
+    }
+}
+
+fn mass_cog(f: &LinearFit) -> (f64, f64) {
+    let m = f.get("m_kg").map_or(f64::NAN, |v| v.0);
+    let mcz = f.get("mcz_kgm").map_or(f64::NAN, |v| v.0);
+    (m, mcz / m)
+}
+
+impl Family for ForceFamily<'_> {
+    type Candidate = SensorModel;
+    type Effect = SensorModel;
+    type Screen = (Vec<f64>, DMatrix<f64>);
+    type Fit = LinearFit;
+
+    fn unit(&self) -> Unit {
+        Unit::Newton
+    }
+
+    fn begin_step(&mut self, _accepted: &[SensorModel]) -> Result<StepStart> {
+        let mse = self.current_sse.iter().sum::<f64>() / self.current_sse.len().max(1) as f64;
+        Ok(StepStart::Baseline(Baseline { heldout: rms(&self.current_sse), mse }))
+    }
+
+    fn candidates(&self, _accepted: &[SensorModel], _retired: &[SensorModel]) -> Vec<SensorModel> {
+        let current = self.current;
+        [1u8, 2, 4, 5]
+            .iter()
+            .filter_map(|id| SensorModel::new(*id).ok())
+            .filter(|c| {
+                let (a, b) = (current.terms(), c.terms());
+                *c != current
+                    && (!a.k1 || b.k1)
+                    && (!a.k2 || b.k2)
+                    && (!a.k4 || b.k4)
+                    && (!a.k5 || b.k5)
+                    && (!a.k3 || b.k3)
+            })
+            .collect()
+    }
+
+    fn describe(&self, c: &SensorModel) -> Describe {
+        let (_, _, words) = added_terms(self.current, *c);
+        Describe {
+            label: format!("{c} (adds {words})"),
+            effect: "platform_deformation".into(),
+            joints: Vec::new(),
+            n_params: c.n_params(),
+        }
+    }
+
+    fn screen(&mut self, c: &SensorModel) -> Result<Screened<Self::Screen>> {
+        Ok(match cross_validate(self.reg, *c, self.poses, &self.y, self.folds) {
+            Ok((sse, res)) => {
+                let d = self.current_sse.iter().zip(&sse).map(|(a, b)| a - b).collect();
+                Screened::Scored { d, heldout: rms(&sse), data: (sse, res) }
+            }
+            Err(e) => Screened::Unscored { heldout: f64::NAN, why: format!("cannot be fitted: {e}") },
+        })
+    }
+
+    fn fit_all(&mut self, c: &SensorModel, _screen: &Self::Screen) -> Result<Option<AllFit<SensorModel, LinearFit>>> {
+        let new_fit = self.full_fit(*c)?;
+        let mut parameters = BTreeMap::new();
+        for (name, v) in new_fit.names.iter().zip(&new_fit.values) {
+            if self.current_fit.index(name).is_none() {
+                parameters.insert(name.clone(), *v);
+            }
+        }
+        Ok(Some(AllFit { effect: *c, parameters, overlap_sine: None, data: new_fit }))
+    }
+
+    fn plausible(&self, _fit: &AllFit<SensorModel, LinearFit>) -> std::result::Result<(), String> {
+        Ok(())
+    }
+
+    fn accept(
+        &mut self,
+        fit: AllFit<SensorModel, LinearFit>,
+        screen: &Self::Screen,
+        decision: &Decision,
+    ) -> Result<Finding<SensorModel>> {
+        let cand = fit.effect;
+        let new_fit = fit.data;
+        let (before, after, p, m) =
+            (decision.heldout_before, decision.heldout_after, decision.p_corrected, decision.candidates_tried);
+        let (m_before, c_before) = mass_cog(&self.current_fit);
+        let (m_after, c_after) = mass_cog(&new_fit);
+        let (position, orientation, words) = added_terms(self.current, cand);
+        let mut parameters = fit.parameters;
+        parameters.insert("mass_before_kg".into(), m_before);
+        parameters.insert("mass_after_kg".into(), m_after);
+        parameters.insert("cog_z_before_m".into(), c_before);
+        parameters.insert("cog_z_after_m".into(), c_after);
+        let depends = match (position, orientation) {
+            (true, true) => "on the platform's position and tilt",
+            (false, true) => "on the platform's tilt",
+            _ => "on the platform's position",
+        };
+        let statement = format!(
+            "the sensor forces depend {depends} beyond the rigid-body load: the end-effector deforms ({words}); modelling it lowers the held-out force RMS from {before:.3} to {after:.3} N (p = {p:.1e} after correcting for {m} candidates), and moves the identified mass from {m_before:.2} to {m_after:.2} kg and the centre of gravity from {:.1} to {:.1} mm above the flange: without it the rigid-body parameters absorb the deformation",
+            c_before * 1e3,
+            c_after * 1e3
+        );
+        self.current = cand;
+        self.current_fit = new_fit;
+        self.current_sse = screen.0.clone();
+        self.current_res = screen.1.clone();
+        Ok(Finding {
+            accepted: cand,
+            effect: "platform_deformation".into(),
+            joints: Vec::new(),
+            parameters,
+            heldout_before: before,
+            heldout_after: after,
+            explained_fraction: explained(before, after),
+            statement,
+            std_from_covariance: None,
+            telling_input: String::new(),
+            evidence: None,
+            decision: decision.clone(),
+        })
+    }
+}
+
 /// Runs the analysis on averaged sensor forces (`forces`: poses x 6, newtons) at `poses`.
 pub fn diagnose_force_sensor(
     reg: &SensorRegressor,
@@ -246,17 +392,10 @@ pub fn diagnose_force_sensor(
         )));
     }
     let y = DVector::from_iterator(6 * n, (0..n).flat_map(|k| (0..6).map(move |c| forces[(k, c)])));
-    let full_fit = |m: SensorModel| -> Result<crate::linear::LinearFit> {
-        fit(&regressor(reg, m, poses)?, &y, &m.names(), &Weighting::Unit, &FitOptions::default())
-    };
-    let mass_cog = |f: &crate::linear::LinearFit| -> (f64, f64) {
-        let m = f.get("m_kg").map_or(f64::NAN, |v| v.0);
-        let mcz = f.get("mcz_kgm").map_or(f64::NAN, |v| v.0);
-        (m, mcz / m)
-    };
-    let nominal_fit = full_fit(model0)?;
+    let nominal_fit =
+        fit(&regressor(reg, model0, poses)?, &y, &model0.names(), &Weighting::Unit, &FitOptions::default())?;
     let (m0, c0) = mass_cog(&nominal_fit);
-    let (mut current_sse, mut current_res) = cross_validate(reg, model0, poses, &y, opts.folds)?;
+    let (current_sse, current_res) = cross_validate(reg, model0, poses, &y, opts.folds)?;
     let k = opts.folds.clamp(2, n);
     let nominal = ForceFit {
         n_train: n - n.div_ceil(k),
@@ -264,140 +403,67 @@ pub fn diagnose_force_sensor(
         train_rms_n: nominal_fit.rms_residual,
         heldout_rms_n: rms(&current_sse),
     };
-    let mut current = model0;
-    let mut current_fit = nominal_fit;
-    let mut findings = Vec::new();
-    let mut rounds = Vec::new();
-    loop {
-        let cands: Vec<SensorModel> = [1u8, 2, 4, 5]
-            .iter()
-            .filter_map(|id| SensorModel::new(*id).ok())
-            .filter(|c| {
-                let (a, b) = (current.terms(), c.terms());
-                *c != current
-                    && (!a.k1 || b.k1)
-                    && (!a.k2 || b.k2)
-                    && (!a.k4 || b.k4)
-                    && (!a.k5 || b.k5)
-                    && (!a.k3 || b.k3)
-            })
-            .collect();
-        if cands.is_empty() {
-            break;
-        }
-        let m = cands.len();
-        let mut scores = Vec::new();
-        let mut best: Option<(usize, f64, Vec<f64>, DMatrix<f64>)> = None;
-        for (ci, c) in cands.iter().enumerate() {
-            let (_, _, words) = added_terms(current, *c);
-            let label = format!("{c} (adds {words})");
-            let (sse, res) = match cross_validate(reg, *c, poses, &y, opts.folds) {
-                Ok(x) => x,
-                Err(e) => {
-                    scores.push(ForceCandidateScore {
-                        candidate: label,
-                        heldout_rms_n: f64::NAN,
-                        p_value: 1.0,
-                        verdict: format!("cannot be fitted: {e}"),
-                    });
-                    continue;
-                }
-            };
-            let d: Vec<f64> = current_sse.iter().zip(&sse).map(|(a, b)| a - b).collect();
-            let p = bonferroni(paired_test(&d).p_value, m);
-            let after = rms(&sse);
-            scores.push(ForceCandidateScore {
-                candidate: label,
-                heldout_rms_n: after,
-                p_value: p,
-                verdict: String::new(),
-            });
-            let better =
-                best.as_ref().is_none_or(|(_, bp, bsse, _)| p < *bp * 0.999 || (p <= *bp * 1.001 && after < rms(bsse)));
-            if better {
-                best = Some((ci, p, sse, res));
-            }
-        }
-        let Some((ci, p, sse, res)) = best else {
-            rounds.push(scores);
-            break;
-        };
-        let before = rms(&current_sse);
-        let after = rms(&sse);
-        let improvement = 1.0 - after / before;
-        let accepted = p < opts.alpha && improvement >= opts.min_improvement;
-        let best_label = scores.iter().position(|s| s.verdict.is_empty() && s.heldout_rms_n == after);
-        for (idx, s) in scores.iter_mut().enumerate() {
-            if s.verdict.is_empty() {
-                s.verdict = if Some(idx) == best_label && accepted {
-                    "accepted".into()
-                } else if Some(idx) == best_label && p >= opts.alpha {
-                    format!("not significant (p = {p:.2e} >= {})", opts.alpha)
-                } else if Some(idx) == best_label {
-                    format!("improvement {:.1} % below {:.1} %", improvement * 100.0, opts.min_improvement * 100.0)
-                } else {
-                    "not the best candidate".into()
-                };
-            }
-        }
-        rounds.push(scores);
-        if !accepted {
-            break;
-        }
-        let cand = cands[ci];
-        let new_fit = full_fit(cand)?;
-        let (m_before, c_before) = mass_cog(&current_fit);
-        let (m_after, c_after) = mass_cog(&new_fit);
-        let (position, orientation, words) = added_terms(current, cand);
-        let mut parameters = BTreeMap::new();
-        for (name, v) in new_fit.names.iter().zip(&new_fit.values) {
-            if current_fit.index(name).is_none() {
-                parameters.insert(name.clone(), *v);
-            }
-        }
-        parameters.insert("mass_before_kg".into(), m_before);
-        parameters.insert("mass_after_kg".into(), m_after);
-        parameters.insert("cog_z_before_m".into(), c_before);
-        parameters.insert("cog_z_after_m".into(), c_after);
-        let depends = match (position, orientation) {
-            (true, true) => "on the platform's position and tilt",
-            (false, true) => "on the platform's tilt",
-            _ => "on the platform's position",
-        };
-        let statement = format!(
-            "the sensor forces depend {depends} beyond the rigid-body load: the end-effector deforms ({words}); modelling it lowers the held-out force RMS from {before:.3} to {after:.3} N (p = {p:.1e} after correcting for {m} candidates), and moves the identified mass from {m_before:.2} to {m_after:.2} kg and the centre of gravity from {:.1} to {:.1} mm above the flange: without it the rigid-body parameters absorb the deformation",
-            c_before * 1e3,
-            c_after * 1e3
-        );
-        let before_ms = before * before;
-        findings.push(ForceFinding {
-            effect: "platform_deformation".into(),
-            joints: Vec::new(),
-            parameters,
-            heldout_rms_before_n: before,
-            heldout_rms_after_n: after,
-            explained_fraction: ((before_ms - after * after) / before_ms).max(0.0),
-            p_value: p,
-            statement,
-        });
-        current = cand;
-        current_fit = new_fit;
-        current_sse = sse;
-        current_res = res;
-    }
-    let (m1, c1) = mass_cog(&current_fit);
-    let unexplained = screen(poses, &current_res, opts.alpha);
+    let mut family = ForceFamily {
+        reg,
+        poses,
+        y,
+        folds: opts.folds,
+        current: model0,
+        current_fit: nominal_fit,
+        current_sse,
+        current_res,
+    };
+    let policy = Policy {
+        alpha: opts.alpha,
+        min_improvement: opts.min_improvement,
+        max_effects: usize::MAX,
+        min_sin_angle: 0.0,
+        test: Test::PairedT,
+        correction: Correction::PerCandidate,
+        improvement: Improvement::RmsFraction,
+        selection: Selection::SmallestP,
+    };
+    let diagnosis = select(&mut family, &policy)?;
+    let (m1, c1) = mass_cog(&family.current_fit);
+    let unexplained = screen(poses, &family.current_res, opts.alpha);
     Ok(ForceDiagnoseReport {
         nominal,
-        findings,
+        findings: diagnosis
+            .findings
+            .iter()
+            .map(|f| ForceFinding {
+                effect: f.effect.clone(),
+                joints: f.joints.clone(),
+                parameters: f.parameters.clone(),
+                heldout_rms_before_n: f.heldout_before,
+                heldout_rms_after_n: f.heldout_after,
+                explained_fraction: f.explained_fraction,
+                p_value: f.decision.p_corrected,
+                statement: f.statement.clone(),
+            })
+            .collect(),
         final_fit: ForceFinalFit {
-            model: current.id(),
-            train_rms_n: current_fit.rms_residual,
-            heldout_rms_n: rms(&current_sse),
+            model: family.current.id(),
+            train_rms_n: family.current_fit.rms_residual,
+            heldout_rms_n: rms(&family.current_sse),
         },
         unexplained,
         declined: None,
-        candidates: rounds,
+        candidates: diagnosis
+            .steps
+            .iter()
+            .map(|s| {
+                s.rows
+                    .iter()
+                    .map(|r| ForceCandidateScore {
+                        candidate: r.label.clone(),
+                        heldout_rms_n: r.heldout_after,
+                        p_value: r.p_corrected,
+                        verdict: best_verdict(r, opts.alpha, opts.min_improvement, ""),
+                    })
+                    .collect()
+            })
+            .collect(),
         mass_kg: [m0, m1],
         cog_z_m: [c0, c1],
         settings: opts.clone(),

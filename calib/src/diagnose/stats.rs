@@ -154,6 +154,28 @@ pub fn paired_test(d: &[f64]) -> PairedTest {
     PairedTest { n, mean, std_error: se, t, p_value: p }
 }
 
+/// One-sided exact sign test of `median(d) > 0` (zeros dropped).
+pub fn sign_test(d: &[f64]) -> f64 {
+    let pos = d.iter().filter(|v| **v > 0.0).count();
+    let n = d.iter().filter(|v| **v != 0.0).count();
+    if n == 0 {
+        return 1.0;
+    }
+    // P(X >= pos) for X ~ Binomial(n, 1/2).
+    let mut p = 0.0;
+    let mut c = 1.0f64; // C(n, k) / 2^n computed in log space for stability
+    let ln2n = n as f64 * std::f64::consts::LN_2;
+    for k in 0..=n {
+        if k > 0 {
+            c *= (n - k + 1) as f64 / k as f64;
+        }
+        if k >= pos {
+            p += (c.ln() - ln2n).exp();
+        }
+    }
+    p.min(1.0)
+}
+
 /// Bonferroni-corrected p-value for `m` tests (the Holm step-down gives the same value for the
 /// smallest p-value, which is the one the diagnosis acts on).
 pub fn bonferroni(p: f64, m: usize) -> f64 {

@@ -1,0 +1,495 @@
+//! The kinematic candidate family: each kind of [`EffectSpec`] on each joint or link where the
+//! recording can show it (a periodic error with its period searched in each training fold),
+//! screened by a linearised joint refit with the geometry (`linear.rs`) and confirmed by full
+//! non-linear refits on the folds.
+
+use ferrocal_robot::{JointKind, RobotModel};
+use nalgebra::{DVector, Vector3};
+
+use super::checks::{parameter_map, plausible, stability};
+use super::linear::{heldout_with, joint_fit, sin_angle, Basis, Fold, Lin, PeriodScan};
+use super::screen::screen;
+use super::words::{evidence, statement, telling_input};
+use super::{DiagnoseOptions, InputStructure};
+use crate::diagnose::engine::{AllFit, Baseline, Confirmation, Describe, Family, Screened, StepStart};
+use crate::diagnose::report::{Decision, Finding, Unit};
+use crate::diagnose::stats::paired_test;
+use crate::effects::EffectSpec;
+use crate::error::Result;
+use crate::kinematic::{calibrate, KinematicCalibration, KinematicOptions};
+use crate::lsq::LmOptions;
+use crate::measurement::PoseMeasurement;
+
+/// A candidate effect: a fixed one, or a periodic joint error whose period is searched.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) enum Cand {
+    Fixed(EffectSpec),
+    Periodic { joint: usize },
+}
+
+impl Cand {
+    pub(super) fn name(&self) -> &'static str {
+        match self {
+            Cand::Fixed(s) => s.name(),
+            Cand::Periodic { .. } => "periodic_joint_error",
+        }
+    }
+    pub(super) fn joints(&self) -> Vec<usize> {
+        match self {
+            Cand::Fixed(s) => s.joints_reported(),
+            Cand::Periodic { joint } => vec![*joint],
+        }
+    }
+    /// Free parameters (a periodic error's period counts: it is searched).
+    pub(super) fn n_params(&self) -> usize {
+        match self {
+            Cand::Fixed(s) => s.scales().len(),
+            Cand::Periodic { .. } => 3,
+        }
+    }
+    pub(super) fn label(&self) -> String {
+        match self {
+            Cand::Fixed(EffectSpec::TimeDrift) => "thermal_expansion (lengths drift with time)".into(),
+            Cand::Fixed(EffectSpec::ThermalExpansion { .. }) => "thermal_expansion (lengths follow temp_c)".into(),
+            Cand::Fixed(EffectSpec::PeriodicJointError { joint, period_si }) => format!(
+                "periodic_joint_error on joint {joint} ({:.0} per revolution)",
+                std::f64::consts::TAU / period_si
+            ),
+            Cand::Periodic { joint } => format!("periodic_joint_error on joint {joint} (period searched)"),
+            Cand::Fixed(EffectSpec::LinkCompliance { link }) => {
+                format!("link_compliance on link {link} (between joints {link} and {})", link + 1)
+            }
+            c => format!("{} on joint {}", c.name(), c.joints().first().copied().unwrap_or(0)),
+        }
+    }
+    /// Whether an accepted effect rules this candidate out (same kind and joint, or the other
+    /// form of the length change).
+    pub(super) fn covered_by(&self, s: &EffectSpec) -> bool {
+        let length = |e: &EffectSpec| matches!(e, EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift);
+        if let (
+            Cand::Fixed(EffectSpec::PeriodicJointError { joint, .. }),
+            EffectSpec::PeriodicJointError { joint: j, .. },
+        ) = (self, s)
+        {
+            return joint == j;
+        }
+        if let (Cand::Fixed(EffectSpec::LinkCompliance { link }), EffectSpec::LinkCompliance { link: l }) = (self, s) {
+            return link == l;
+        }
+        match self {
+            Cand::Fixed(c) => {
+                (length(c) && length(s))
+                    || (std::mem::discriminant(c) == std::mem::discriminant(s) && c.joint() == s.joint())
+            }
+            Cand::Periodic { joint } => {
+                matches!(s, EffectSpec::PeriodicJointError { joint: j, .. } if j == joint)
+            }
+        }
+    }
+}
+
+/// Linear cross-validation of one candidate.
+pub(super) struct LinScore {
+    /// Per analysis row: whitened held-out squared error before minus after.
+    pub(super) d: Vec<f64>,
+    /// Per analysis row: whitened held-out residual after.
+    pub(super) e1: Vec<Vector3<f64>>,
+    /// Per fold: the candidate's parameters.
+    pub(super) theta_folds: Vec<DVector<f64>>,
+    /// Per fold: the chosen frequency (periodic candidates).
+    pub(super) freq_folds: Vec<f64>,
+}
+
+/// Everything a step needs about the analysis rows.
+pub(super) struct Ctx<'a> {
+    pub(super) model: &'a RobotModel,
+    pub(super) rows: Vec<&'a PoseMeasurement>,
+    pub(super) sigma: Vec<f64>,
+    pub(super) folds_idx: Vec<Vec<usize>>,
+    pub(super) kinds: Vec<JointKind>,
+    pub(super) names: Vec<String>,
+    pub(super) opts: &'a DiagnoseOptions,
+    pub(super) ref_temp_c: f64,
+    pub(super) grids: Vec<Vec<f64>>,
+}
+
+impl Ctx<'_> {
+    pub(super) fn kin_opts(&self, effects: Vec<EffectSpec>) -> KinematicOptions {
+        KinematicOptions {
+            model_params: self.opts.model_params.clone(),
+            use_orientation: false,
+            sigma_position_m: self.opts.sigma_position_m,
+            effects,
+            lm: LmOptions { max_iterations: 100, ..LmOptions::default() },
+            ..KinematicOptions::default()
+        }
+    }
+
+    pub(super) fn q(&self, j: usize) -> Vec<f64> {
+        self.rows.iter().map(|r| r.q[j]).collect()
+    }
+
+    pub(super) fn mm(&self, e_whitened: &[Vector3<f64>]) -> f64 {
+        let n = e_whitened.len().max(1);
+        (e_whitened.iter().zip(&self.sigma).map(|(e, s)| (e * *s).norm_squared()).sum::<f64>() / n as f64).sqrt() * 1e3
+    }
+
+    /// Held-out errors (metres) of every analysis row from non-linear fits on the other folds.
+    pub(super) fn nonlinear_cv(
+        &self,
+        effects_for_fold: &dyn Fn(usize) -> Vec<EffectSpec>,
+    ) -> Result<Vec<Vector3<f64>>> {
+        let mut out = vec![Vector3::zeros(); self.rows.len()];
+        for (k, test) in self.folds_idx.iter().enumerate() {
+            let train: Vec<&PoseMeasurement> =
+                (0..self.rows.len()).filter(|i| !test.contains(i)).map(|i| self.rows[i]).collect();
+            let cal = calibrate(self.model, &train, &self.kin_opts(effects_for_fold(k)))?;
+            let te: Vec<&PoseMeasurement> = test.iter().map(|&i| self.rows[i]).collect();
+            let (pos, _) = cal.calibrated.errors(&te)?;
+            for (e, &i) in pos.into_iter().zip(test) {
+                out[i] = e;
+            }
+        }
+        Ok(out)
+    }
+
+    pub(super) fn effect_columns(&self, lin: &Lin, spec: &EffectSpec) -> Option<nalgebra::DMatrix<f64>> {
+        lin.effect_columns(spec, self.kinds.len(), &self.rows)
+    }
+
+    pub(super) fn periodic_spec(joint: usize, f: f64) -> EffectSpec {
+        EffectSpec::PeriodicJointError { joint, period_si: 1.0 / f }
+    }
+
+    /// Linear cross-validation of a candidate.
+    pub(super) fn linear_cv(&self, lin: &Lin, folds: &[Fold], cand: &Cand) -> Option<LinScore> {
+        let n = self.rows.len();
+        let mut d = vec![0.0; n];
+        let mut e1v = vec![Vector3::zeros(); n];
+        let mut theta_folds = Vec::new();
+        let mut freq_folds = Vec::new();
+        let fixed_cols = match cand {
+            Cand::Fixed(s) => Some(self.effect_columns(lin, s)?),
+            Cand::Periodic { .. } => None,
+        };
+        for fold in folds {
+            let cols = match cand {
+                Cand::Fixed(_) => fixed_cols.clone()?,
+                Cand::Periodic { joint } => {
+                    let scan = PeriodScan::new(lin, &fold.basis, joint - 1, &self.q(joint - 1));
+                    let (f, _) = scan.best(&self.grids[joint - 1]);
+                    freq_folds.push(f);
+                    self.effect_columns(lin, &Self::periodic_spec(*joint, f))?
+                }
+            };
+            let (e1, theta) = heldout_with(fold, &cols);
+            for (k, &i) in fold.test.iter().enumerate() {
+                let a = fold.e0.fixed_rows::<3>(3 * k).clone_owned();
+                let b = e1.fixed_rows::<3>(3 * k).clone_owned();
+                d[i] = a.norm_squared() - b.norm_squared();
+                e1v[i] = b;
+            }
+            theta_folds.push(theta);
+        }
+        Some(LinScore { d, e1: e1v, theta_folds, freq_folds })
+    }
+}
+
+/// The state of one step: the linearisation at the current model and its folds.
+struct StepData {
+    lin: Lin,
+    folds: Vec<Fold>,
+    basis_all: Basis,
+    /// Per analysis row: whitened held-out residual of the current model (linear refits).
+    e0: Vec<Vector3<f64>>,
+    /// Held-out errors of the current model from full refits (computed once a step, when needed).
+    base_nl: Option<Vec<Vector3<f64>>>,
+}
+
+/// The kinematic family: the analysis rows, the candidates and the current calibration.
+pub(super) struct KinematicFamily<'a> {
+    pub(super) ctx: Ctx<'a>,
+    pub(super) validation: Vec<&'a PoseMeasurement>,
+    pub(super) cands: Vec<Cand>,
+    /// The current calibration (geometry plus the accepted effects).
+    pub(super) cal: KinematicCalibration,
+    step: Option<StepData>,
+    accepted: Vec<EffectSpec>,
+    first: bool,
+    /// Cross-validated RMS (mm) and screening of the geometric model.
+    pub(super) nominal_cv_mm: f64,
+    pub(super) screening_nominal: Vec<InputStructure>,
+    /// The same at the current model.
+    pub(super) final_cv_mm: f64,
+    pub(super) screening_final: Vec<InputStructure>,
+    /// Training and validation RMS (mm) of the current model.
+    pub(super) final_train_mm: f64,
+    pub(super) final_heldout_mm: f64,
+}
+
+impl<'a> KinematicFamily<'a> {
+    pub(super) fn new(
+        ctx: Ctx<'a>,
+        validation: Vec<&'a PoseMeasurement>,
+        cands: Vec<Cand>,
+        geo: KinematicCalibration,
+        heldout_mm: f64,
+    ) -> Self {
+        let train = geo.train_after.rms_mm;
+        Self {
+            ctx,
+            validation,
+            cands,
+            cal: geo,
+            step: None,
+            accepted: Vec::new(),
+            first: true,
+            nominal_cv_mm: f64::NAN,
+            screening_nominal: Vec::new(),
+            final_cv_mm: f64::NAN,
+            screening_final: Vec::new(),
+            final_train_mm: train,
+            final_heldout_mm: heldout_mm,
+        }
+    }
+
+    fn step(&self) -> &StepData {
+        self.step.as_ref().expect("a step has begun")
+    }
+
+    /// Backward check: an earlier effect that the later ones have made unnecessary (its index,
+    /// the p-value of leaving it out and the change of the held-out error).
+    fn backward(&self, accepted: &[EffectSpec], st: &StepData) -> Result<Option<(usize, f64, f64)>> {
+        let (ctx, cal) = (&self.ctx, &self.cal);
+        if accepted.len() < 2 {
+            return Ok(None);
+        }
+        for e in 0..accepted.len() - 1 {
+            let cols: Vec<usize> =
+                (0..cal.free.len()).filter(|&k| cal.layout.effects[e].contains(&cal.free[k])).collect();
+            // Leaving it out: its parameters at zero, the rest refitted without them.
+            let mut cm0 = cal.calibrated.clone();
+            cm0.effects[e].1.iter_mut().for_each(|v| *v = 0.0);
+            let (err0, _) = cm0.errors(&ctx.rows)?;
+            let mut r0 = DVector::zeros(3 * ctx.rows.len());
+            for (i, v) in err0.iter().enumerate() {
+                r0.fixed_rows_mut::<3>(3 * i).copy_from(&(v / ctx.sigma[i]));
+            }
+            let red = st.lin.without(&cols, r0);
+            let mut d = vec![0.0; ctx.rows.len()];
+            for (fold, t) in st.folds.iter().zip(&ctx.folds_idx) {
+                let f_red = Fold::new(&red, t)?;
+                for (k, &i) in t.iter().enumerate() {
+                    d[i] =
+                        f_red.e0.fixed_rows::<3>(3 * k).norm_squared() - fold.e0.fixed_rows::<3>(3 * k).norm_squared();
+                }
+            }
+            let t = paired_test(&d);
+            let sse: f64 = st.e0.iter().map(|v| v.norm_squared()).sum::<f64>() / st.e0.len() as f64;
+            if t.p_value >= ctx.opts.alpha || t.mean / sse < ctx.opts.min_improvement {
+                return Ok(Some((e, t.p_value, t.mean / sse)));
+            }
+        }
+        Ok(None)
+    }
+
+    fn validation_rms_mm(&self, cal: &KinematicCalibration) -> Result<f64> {
+        Ok(cal.calibrated.evaluate(&self.validation)?.rms_mm)
+    }
+}
+
+impl Family for KinematicFamily<'_> {
+    type Candidate = Cand;
+    type Effect = EffectSpec;
+    type Screen = LinScore;
+    /// The effect's parameters of the linearised all-rows fit.
+    type Fit = Vec<f64>;
+
+    fn unit(&self) -> Unit {
+        Unit::Millimetre
+    }
+
+    fn begin_step(&mut self, accepted: &[EffectSpec]) -> Result<StepStart> {
+        let ctx = &self.ctx;
+        let lin = Lin::build(&self.cal, &ctx.rows, &ctx.sigma)?;
+        let folds: Vec<Fold> = ctx.folds_idx.iter().map(|t| Fold::new(&lin, t)).collect::<Result<_>>()?;
+        let all: Vec<usize> = (0..ctx.rows.len()).collect();
+        let basis_all = Basis::new(&lin, &all)?;
+        let mut e0 = vec![Vector3::zeros(); ctx.rows.len()];
+        for fold in &folds {
+            for (k, &i) in fold.test.iter().enumerate() {
+                e0[i] = fold.e0.fixed_rows::<3>(3 * k).clone_owned();
+            }
+        }
+        let st = StepData { lin, folds, basis_all, e0, base_nl: None };
+        if let Some((index, p_value, change)) = self.backward(accepted, &st)? {
+            let mut effects = accepted.to_vec();
+            effects.remove(index);
+            self.cal = calibrate(self.ctx.model, &self.ctx.rows, &self.ctx.kin_opts(effects))?;
+            self.final_train_mm = self.cal.train_after.rms_mm;
+            if !self.validation.is_empty() {
+                self.final_heldout_mm = self.validation_rms_mm(&self.cal)?;
+            }
+            self.step = None;
+            return Ok(StepStart::Pruned { index, p_value, change });
+        }
+        let cv_before_mm = self.ctx.mm(&st.e0);
+        let screening = screen(&self.ctx, &st.lin, &st.e0);
+        if self.first {
+            self.nominal_cv_mm = cv_before_mm;
+            self.screening_nominal = screening.clone();
+            self.first = false;
+        }
+        self.final_cv_mm = cv_before_mm;
+        self.screening_final = screening;
+        let mse = st.e0.iter().map(|e| e.norm_squared()).sum::<f64>() / st.e0.len() as f64;
+        self.step = Some(st);
+        self.accepted = accepted.to_vec();
+        Ok(StepStart::Baseline(Baseline { heldout: cv_before_mm, mse }))
+    }
+
+    fn candidates(&self, accepted: &[EffectSpec], retired: &[EffectSpec]) -> Vec<Cand> {
+        self.cands.iter().filter(|c| !accepted.iter().chain(retired).any(|s| c.covered_by(s))).cloned().collect()
+    }
+
+    fn describe(&self, c: &Cand) -> Describe {
+        Describe { label: c.label(), effect: c.name().into(), joints: c.joints(), n_params: c.n_params() }
+    }
+
+    fn screen(&mut self, c: &Cand) -> Result<Screened<LinScore>> {
+        let st = self.step();
+        Ok(match self.ctx.linear_cv(&st.lin, &st.folds, c) {
+            None => Screened::Skip,
+            Some(ls) => Screened::Scored { d: ls.d.clone(), heldout: self.ctx.mm(&ls.e1), data: ls },
+        })
+    }
+
+    fn fit_all(&mut self, c: &Cand, _ls: &LinScore) -> Result<Option<AllFit<EffectSpec, Vec<f64>>>> {
+        let (ctx, st) = (&self.ctx, self.step());
+        let spec = match c {
+            Cand::Fixed(s) => s.clone(),
+            Cand::Periodic { joint } => {
+                let scan = PeriodScan::new(&st.lin, &st.basis_all, joint - 1, &ctx.q(joint - 1));
+                Ctx::periodic_spec(*joint, scan.best(&ctx.grids[joint - 1]).0)
+            }
+        };
+        let Some(cols) = ctx.effect_columns(&st.lin, &spec) else { return Ok(None) };
+        let fit = joint_fit(&st.basis_all, &cols);
+        let sa = sin_angle(&st.basis_all, &cols);
+        let theta: Vec<f64> = fit.theta.iter().copied().collect();
+        let parameters = parameter_map(&spec, &theta, &ctx.kinds);
+        Ok(Some(AllFit { effect: spec, parameters, overlap_sine: Some(sa), data: theta }))
+    }
+
+    fn plausible(&self, fit: &AllFit<EffectSpec, Vec<f64>>) -> std::result::Result<(), String> {
+        plausible(&fit.effect, &fit.data, &self.ctx, &self.step().lin, self.ctx.opts)
+    }
+
+    fn stability(&self, fit: &AllFit<EffectSpec, Vec<f64>>, ls: &LinScore) -> std::result::Result<f64, String> {
+        stability(&fit.effect, &fit.data, ls, &self.ctx)
+    }
+
+    fn confirm(
+        &mut self,
+        cand: &Cand,
+        accepted: &[EffectSpec],
+        ls: &LinScore,
+    ) -> Result<Option<std::result::Result<Confirmation, String>>> {
+        if self.step().base_nl.is_none() {
+            let base = self.ctx.nonlinear_cv(&|_| accepted.to_vec())?;
+            if let Some(st) = self.step.as_mut() {
+                st.base_nl = Some(base);
+            }
+        }
+        let ctx = &self.ctx;
+        let base_nl = self.step().base_nl.as_deref().unwrap_or_default();
+        let with_spec = |fold: usize| -> Vec<EffectSpec> {
+            let mut v = accepted.to_vec();
+            v.push(match cand {
+                Cand::Periodic { joint } => Ctx::periodic_spec(*joint, ls.freq_folds[fold]),
+                Cand::Fixed(s) => s.clone(),
+            });
+            v
+        };
+        let cand_nl = match ctx.nonlinear_cv(&with_spec) {
+            Ok(v) => v,
+            Err(e) => return Ok(Some(Err(e.to_string()))),
+        };
+        let n = ctx.rows.len();
+        let d: Vec<f64> =
+            (0..n).map(|i| (base_nl[i].norm_squared() - cand_nl[i].norm_squared()) / ctx.sigma[i].powi(2)).collect();
+        let mse = (0..n).map(|i| base_nl[i].norm_squared() / ctx.sigma[i].powi(2)).sum::<f64>() / n as f64;
+        let rms = |v: &[Vector3<f64>]| (v.iter().map(|e| e.norm_squared()).sum::<f64>() / v.len() as f64).sqrt() * 1e3;
+        Ok(Some(Ok(Confirmation { d, mse, heldout_before: rms(base_nl), heldout_after: rms(&cand_nl) })))
+    }
+
+    fn accept(
+        &mut self,
+        fit: AllFit<EffectSpec, Vec<f64>>,
+        ls: &LinScore,
+        decision: &Decision,
+    ) -> Result<Finding<EffectSpec>> {
+        let spec = fit.effect;
+        let mut effects = self.accepted.clone();
+        effects.push(spec.clone());
+        let ctx = &self.ctx;
+        let new_cal = calibrate(ctx.model, &ctx.rows, &ctx.kin_opts(effects))?;
+        let (cv_b, cv_a) = (decision.heldout_before, decision.heldout_after);
+        let (before, after) = if self.validation.is_empty() {
+            (cv_b, cv_a)
+        } else {
+            (self.validation_rms_mm(&self.cal)?, self.validation_rms_mm(&new_cal)?)
+        };
+        let range = new_cal.layout.effects.last().cloned().unwrap_or(0..0);
+        let theta: Vec<f64> = range.clone().map(|i| new_cal.params[i].value).collect();
+        let std_cov = new_cal.params.get(range.start).and_then(|p| p.std);
+        let explained =
+            if before > 0.0 { ((before * before - after * after) / (before * before)).max(0.0) } else { 0.0 };
+        let telling = telling_input(&spec, &ctx.names);
+        let st = self.step();
+        let (p_corr, m) = (decision.p_corrected, decision.candidates_tried);
+        let mut statement = statement(&spec, &theta, decision.relative_std, before, after, p_corr, m, ctx, &st.lin);
+        if !decision.alternatives.is_empty() {
+            statement.push_str(&format!(
+                "; the held-out data fit {} about as well, so that reading cannot be excluded",
+                decision.alternatives.join(" or ")
+            ));
+        }
+        let ev = evidence(0, &spec, ctx, &st.lin, &st.e0, &ls.e1, &telling);
+        let finding = Finding {
+            effect: spec.name().into(),
+            joints: spec.joints_reported(),
+            parameters: parameter_map(&spec, &theta, &ctx.kinds),
+            heldout_before: before,
+            heldout_after: after,
+            explained_fraction: explained,
+            statement,
+            std_from_covariance: std_cov,
+            telling_input: telling,
+            evidence: Some(ev),
+            decision: decision.clone(),
+            accepted: spec,
+        };
+        self.final_train_mm = new_cal.train_after.rms_mm;
+        self.final_heldout_mm = if self.validation.is_empty() { cv_a } else { after };
+        self.cal = new_cal;
+        Ok(finding)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    pub(super) fn candidates_cover_one_another_only_within_their_kind() {
+        let c = Cand::Fixed(EffectSpec::TimeDrift);
+        assert!(c.covered_by(&EffectSpec::ThermalExpansion { reference_temp_c: 20.0 }));
+        let b = Cand::Fixed(EffectSpec::Backlash { joint: 2 });
+        assert!(b.covered_by(&EffectSpec::Backlash { joint: 2 }));
+        assert!(!b.covered_by(&EffectSpec::Backlash { joint: 3 }));
+        assert!(!b.covered_by(&EffectSpec::JointCompliance { joint: 2 }));
+        let p = Cand::Periodic { joint: 1 };
+        assert!(p.covered_by(&EffectSpec::PeriodicJointError { joint: 1, period_si: 0.1 }));
+    }
+}

@@ -1,0 +1,217 @@
+//! The kinematic family's words and plots: the input an effect shows against, the statement of
+//! a finding, the evidence (residuals against that input before and after).
+
+use ferrocal_robot::JointKind;
+use nalgebra::Vector3;
+
+use super::family::Ctx;
+use super::linear::Lin;
+use super::screen::implied;
+use crate::diagnose::report::{fmt_p, sig, Evidence};
+use crate::effects::EffectSpec;
+
+pub(super) fn telling_input(spec: &EffectSpec, names: &[String]) -> String {
+    let jn = |j: usize| names.get(j - 1).cloned().unwrap_or_default();
+    match spec {
+        EffectSpec::JointCompliance { joint } => format!("gravity_torque{joint} (load torque on {})", jn(*joint)),
+        EffectSpec::Backlash { joint } => format!("dir{joint} (approach direction of {})", jn(*joint)),
+        EffectSpec::JointScaleError { joint } | EffectSpec::PeriodicJointError { joint, .. } => {
+            format!("q{joint} ({})", jn(*joint))
+        }
+        EffectSpec::ThermalExpansion { .. } => "temp_c".into(),
+        EffectSpec::TimeDrift => "t_s".into(),
+        EffectSpec::LinkCompliance { link } => {
+            format!("bending moment on link {link} (between {} and {})", jn(*link), jn(link + 1))
+        }
+    }
+}
+
+/// Plain-words statement of an accepted effect.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn statement(
+    spec: &EffectSpec,
+    theta: &[f64],
+    rel_std: f64,
+    before: f64,
+    after: f64,
+    p: f64,
+    m: usize,
+    ctx: &Ctx,
+    lin: &Lin,
+) -> String {
+    let t = theta.first().copied().unwrap_or(0.0);
+    let pm = format!("(+-{:.0} %)", (rel_std * 100.0).max(1.0));
+    let prismatic = spec.joint().is_some_and(|j| ctx.kinds.get(j - 1) == Some(&JointKind::Prismatic));
+    let what = match spec {
+        EffectSpec::JointCompliance { joint } => {
+            let tmax = lin.tau.iter().map(|v| v[joint - 1].abs()).fold(0.0, f64::max);
+            if prismatic {
+                format!(
+                    "joint {joint} gives way by {} m per N of load force {pm}, up to {} mm over these poses",
+                    sig(t, 2),
+                    sig(t * tmax * 1e3, 2)
+                )
+            } else {
+                format!(
+                    "joint {joint} deflects {} rad per N m of gravity torque {pm}, up to {} mrad over these poses",
+                    sig(t, 2),
+                    sig(t * tmax * 1e3, 2)
+                )
+            }
+        }
+        EffectSpec::Backlash { joint } => {
+            if prismatic {
+                format!(
+                    "joint {joint} has {} mm of backlash {pm}: where it stops depends on the direction it was approached from",
+                    sig(t * 1e3, 2)
+                )
+            } else {
+                format!(
+                    "joint {joint} has {} mrad ({} deg) of backlash {pm}: where it stops depends on the direction it was approached from",
+                    sig(t * 1e3, 2),
+                    sig(t.to_degrees(), 2)
+                )
+            }
+        }
+        EffectSpec::JointScaleError { joint } => format!(
+            "joint {joint}'s reading is off by a factor of {} (a scale error of {} ppm {pm})",
+            format_args!("{:.6}", 1.0 + t),
+            sig(t * 1e6, 3)
+        ),
+        EffectSpec::PeriodicJointError { joint, period_si } => {
+            let a = t.hypot(theta.get(1).copied().unwrap_or(0.0));
+            if prismatic {
+                format!(
+                    "joint {joint} has a periodic error of {} mm amplitude {pm} repeating every {} mm of travel",
+                    sig(a * 1e3, 2),
+                    sig(period_si * 1e3, 3)
+                )
+            } else {
+                format!(
+                    "joint {joint} has a periodic error of {} mrad amplitude {pm} repeating every {} deg of its angle ({} times per revolution)",
+                    sig(a * 1e3, 2),
+                    sig(period_si.to_degrees(), 3),
+                    sig(std::f64::consts::TAU / period_si, 3)
+                )
+            }
+        }
+        EffectSpec::ThermalExpansion { reference_temp_c } => {
+            let (lo, hi) = ctx
+                .rows
+                .iter()
+                .filter_map(|r| r.temp_c)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+            format!(
+                "lengths grow by {} ppm per K of temperature {pm} (the temperature ran from {:.1} to {:.1} C; reference {:.1} C)",
+                sig(t * 1e6, 3),
+                lo,
+                hi,
+                reference_temp_c
+            )
+        }
+        EffectSpec::LinkCompliance { link } => {
+            let mmax = lin.bend.iter().filter_map(|b| b.get(link - 1)).map(|(v, _)| v.norm()).fold(0.0, f64::max);
+            format!(
+                "link {link} (between joints {link} and {}) bends {} rad per N m of the load moment it carries across joint {}'s axis {pm}, up to {} mrad over these poses",
+                link + 1,
+                sig(t, 2),
+                link + 1,
+                sig(t * mmax * 1e3, 2)
+            )
+        }
+        EffectSpec::TimeDrift => {
+            let hours = ctx.rows.iter().filter_map(|r| r.t_s).fold(0.0f64, f64::max) / 3600.0;
+            format!(
+                "lengths drift by {} ppm per hour {pm} over the {:.1} h recording, as a machine warming up does",
+                sig(t * 1e6, 3),
+                hours
+            )
+        }
+    };
+    format!(
+        "{what}; modelling it lowers the held-out RMS from {} to {} mm ({} after correcting for {m} candidates)",
+        sig(before, 3),
+        sig(after, 3),
+        fmt_p(p)
+    )
+}
+
+pub(super) fn evidence(
+    finding: usize,
+    spec: &EffectSpec,
+    ctx: &Ctx,
+    lin: &Lin,
+    e0: &[Vector3<f64>],
+    e1: &[Vector3<f64>],
+    telling: &str,
+) -> Evidence {
+    let ds = nalgebra::DMatrix::from_column_slice(lin.ds.len(), 1, lin.ds.as_slice());
+    let link_col;
+    let (x, col, c, factor, y_label): (Vec<f64>, &nalgebra::DMatrix<f64>, usize, f64, String) = match spec {
+        EffectSpec::LinkCompliance { link } => {
+            // The effect's column per unit of bend: the implied bend angle per row.
+            let moments: Vec<f64> = lin.bend.iter().map(|b| b.get(link - 1).map_or(0.0, |(v, _)| v.norm())).collect();
+            let mut m = ctx.effect_columns(lin, spec).unwrap_or_else(|| nalgebra::DMatrix::zeros(3 * lin.n, 1));
+            for (i, mi) in moments.iter().enumerate() {
+                let scale = if *mi > 0.0 { *mi } else { 1.0 };
+                for r in 0..3 {
+                    m[(3 * i + r, 0)] /= scale;
+                }
+            }
+            link_col = m;
+            (moments, &link_col, 0, 1e3, format!("bend of link {link} implied by the held-out residual [mrad]"))
+        }
+        EffectSpec::ThermalExpansion { .. } => (
+            ctx.rows.iter().map(|r| r.temp_c.unwrap_or(f64::NAN)).collect(),
+            &ds,
+            0,
+            1e6,
+            "implied relative length change [ppm]".into(),
+        ),
+        EffectSpec::TimeDrift => (
+            ctx.rows.iter().map(|r| r.t_s.unwrap_or(f64::NAN) / 3600.0).collect(),
+            &ds,
+            0,
+            1e6,
+            "implied relative length change [ppm]".into(),
+        ),
+        _ => {
+            let j = spec.joint().unwrap_or(1) - 1;
+            let x = match spec {
+                EffectSpec::JointCompliance { .. } => lin.tau.iter().map(|t| t[j]).collect(),
+                EffectSpec::Backlash { .. } => ctx
+                    .rows
+                    .iter()
+                    .map(|r| r.dir.as_ref().and_then(|d| d.get(j)).copied().unwrap_or(0) as f64)
+                    .collect(),
+                EffectSpec::PeriodicJointError { period_si, .. } => {
+                    ctx.rows.iter().map(|r| (r.q[j] / period_si).rem_euclid(1.0) * 360.0).collect()
+                }
+                _ => ctx.rows.iter().map(|r| r.q[j].to_degrees()).collect(),
+            };
+            let unit = if ctx.kinds[j] == JointKind::Prismatic { "mm" } else { "mrad" };
+            (x, &lin.dq, j, 1e3, format!("joint {} error implied by the held-out residual [{unit}]", j + 1))
+        }
+    };
+    let (b, _) = implied(col, c, e0);
+    let (a, _) = implied(col, c, e1);
+    let x_label = match spec {
+        EffectSpec::JointCompliance { .. } => format!("{telling} [N m]"),
+        EffectSpec::TimeDrift => "time [h]".into(),
+        EffectSpec::ThermalExpansion { .. } => "temperature [C]".into(),
+        EffectSpec::LinkCompliance { .. } => format!("{telling} [N m]"),
+        EffectSpec::Backlash { .. } => telling.to_string(),
+        EffectSpec::PeriodicJointError { period_si, .. } => {
+            format!("{telling} modulo its period of {} deg (phase in the cycle) [deg]", sig(period_si.to_degrees(), 3))
+        }
+        _ => format!("{telling} [deg]"),
+    };
+    Evidence {
+        finding,
+        x_label,
+        y_label,
+        x,
+        before: b.iter().map(|v| v * factor).collect(),
+        after: a.iter().map(|v| v * factor).collect(),
+    }
+}
