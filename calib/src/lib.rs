@@ -2,6 +2,7 @@
 //!
 //! Entry points:
 //! - [`measurement`]: the measured-pose row every calibration consumes;
+//! - [`check`]: named checks that pass, fail, are skipped or only reported;
 //! - [`lsq`]: dense Levenberg-Marquardt with scaling, robust losses and covariance;
 //! - [`identifiability`]: structural (SVD, pivoted QR) and practical identifiability;
 //! - [`stiffness`]: elastostatic identification with model reduction to practically identifiable
@@ -11,6 +12,7 @@
 //! SI units inside; see `docs/conventions.md` at the workspace root.
 #![deny(missing_docs)]
 
+pub mod check;
 pub mod design;
 pub mod diagnose;
 pub mod effects;

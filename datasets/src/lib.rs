@@ -12,6 +12,9 @@
 //!   hexapod's actuator forces with friction, noise, sampling and payload steps.
 //! - [`stiffsim`]: the elastostatic cell (a compliant KR 270-like arm with a gravity
 //!   compensator, a laser tracker measuring reflectors under payloads).
+//! - [`checks`]: the pass/fail criteria of `ferrocal demo` and the UR5 target reproduction.
+//! - [`formats`]: the tools' own file formats (plan file, dynamics stream and pose tables,
+//!   deflection tables), readers and writers.
 //! - [`error`]: the crate's error type, [`error::DatasetError`].
 //!
 //! # Conventions
@@ -19,8 +22,10 @@
 //! See `docs/conventions.md`.
 #![deny(missing_docs)]
 
+pub mod checks;
 pub mod dynsim;
 pub mod error;
+pub mod formats;
 pub mod import;
 pub mod measure;
 pub mod render;

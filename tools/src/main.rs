@@ -5,9 +5,10 @@
 
 mod cli;
 mod commands;
-mod plot;
 mod progress;
-mod report;
+
+// The report modules under their old paths (`crate::report`, `crate::plot`).
+use ferrocal_report::{plot, report};
 
 use std::process::ExitCode;
 

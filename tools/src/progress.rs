@@ -13,3 +13,29 @@ pub fn bar(len: u64, msg: &str) -> ProgressBar {
     pb.set_message(msg.to_string());
     pb
 }
+
+/// Progress bars by label: a new label finishes the previous bar; a bar finishes at its length.
+#[derive(Default)]
+pub struct Bars(std::cell::RefCell<Option<(String, ProgressBar)>>);
+
+impl Bars {
+    /// Shows `pos` of `len` under `label`.
+    pub fn tick(&self, label: &str, pos: u64, len: u64) {
+        let mut cur = self.0.borrow_mut();
+        if cur.as_ref().is_none_or(|(l, _)| l != label) {
+            if let Some((_, b)) = cur.take() {
+                b.finish_and_clear();
+            }
+            *cur = Some((label.to_string(), bar(len, label)));
+        }
+        if let Some((_, b)) = cur.as_ref() {
+            b.set_length(len);
+            b.set_position(pos);
+        }
+        if pos >= len {
+            if let Some((_, b)) = cur.take() {
+                b.finish_and_clear();
+            }
+        }
+    }
+}

@@ -29,9 +29,11 @@
 //! `ferrocal_robot::dynamics::motion`). Sensor forces positive in compression. Forces are
 //! sampled at the instants of the leg positions unless [`Sampling`] says otherwise.
 
+pub mod checks;
 mod hexapod;
 mod platform;
 pub mod study;
+pub mod tables;
 
 pub use hexapod::{HexapodFriction, HexapodSim};
 pub use platform::{Deformation, PlatformSim, StaticRecord};

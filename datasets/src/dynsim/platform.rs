@@ -18,7 +18,7 @@
 //! (forces N, moments N m). `J_P^T` is applied by solving `J_P^-T f = w` with the wrench matrix
 //! of the strut geometry, built here.
 
-use ferrocal_calib::linear::models::SensorTruth;
+use ferrocal_calib::linear::models::{SensorRegressor, SensorTruth};
 use ferrocal_calib::linear::signals::SampledSignal;
 use ferrocal_robot::dynamics::{MotionState, RigidBody, SensorFrame, GRAVITY_M_S2};
 use ferrocal_robot::parallel::{presets, Hexapod};
@@ -153,6 +153,12 @@ impl PlatformSim {
     /// The same rig carrying an extra rigidly mounted payload (flange frame).
     pub fn with_payload(&self, payload: &RigidBody) -> Self {
         Self { body: self.body.combined(payload), ..self.clone() }
+    }
+
+    /// The regressor of the rig's sensor framework (its sensors and the deformation's reference
+    /// point).
+    pub fn sensor_regressor(&self) -> ferrocal_calib::Result<SensorRegressor> {
+        SensorRegressor::new(self.sensors.clone(), self.deformation.reference_xy_m)
     }
 
     /// The true values for comparison with an identification.

@@ -375,3 +375,75 @@ pub fn write_joints_table(path: impl AsRef<Path>, folder: &ImageFolder, joint_un
     }
     std::fs::write(path, out).map_err(|source| DatasetError::Write { path: path.to_path_buf(), source })
 }
+
+/// Expands files, directories and globs into image paths (natural order, duplicates removed),
+/// for the camera calibration; a path that matches nothing is reported as skipped. Unreadable
+/// files are kept: the detector reports them with a uniform reason.
+pub fn expand_image_specs(
+    specs: &[PathBuf],
+    skipped: &mut Vec<ferrocal_vision::calib::corners::SkippedImage>,
+) -> Vec<PathBuf> {
+    let mut out: Vec<PathBuf> = Vec::new();
+    for spec in specs {
+        match list_images(spec, &ImageFolderOptions { joints_table: None, decode: false }) {
+            Ok(folder) => {
+                // Unreadable files are kept: the detector reports them with a uniform reason.
+                let mut found: Vec<PathBuf> = folder.images.into_iter().map(|e| e.path).collect();
+                found.extend(folder.skipped.into_iter().map(|s| s.path));
+                found.sort_by(|a, b| natural_cmp(&a.to_string_lossy(), &b.to_string_lossy()));
+                if found.is_empty() {
+                    skipped.push(ferrocal_vision::calib::corners::SkippedImage {
+                        image: spec.clone(),
+                        reason: "no image files match".into(),
+                    });
+                }
+                for p in found {
+                    if !out.contains(&p) {
+                        out.push(p);
+                    }
+                }
+            }
+            Err(e) => skipped
+                .push(ferrocal_vision::calib::corners::SkippedImage { image: spec.clone(), reason: e.to_string() }),
+        }
+    }
+    out
+}
+
+/// Expands image specifications (files, folders, globs) into a sorted list for the detector:
+/// `Ok(path)` for images to process, `Err((name, reason))` for entries that cannot be read (an
+/// empty file says so) or a specification that matches nothing.
+pub fn image_entries(specs: &[String]) -> Vec<std::result::Result<PathBuf, (String, String)>> {
+    let mut out = Vec::new();
+    for spec in specs {
+        let opts = ImageFolderOptions { joints_table: None, decode: false };
+        match list_images(spec, &opts) {
+            Ok(folder) => {
+                let mut entries: Vec<std::result::Result<PathBuf, (String, String)>> =
+                    folder.images.into_iter().map(|e| Ok(e.path)).collect();
+                entries.extend(folder.skipped.into_iter().map(|s| {
+                    let empty = std::fs::metadata(&s.path).is_ok_and(|m| m.is_file() && m.len() == 0);
+                    let reason = if empty {
+                        "the file is empty (0 bytes)".to_string()
+                    } else {
+                        s.reason.trim().replace('\n', " ")
+                    };
+                    Err((s.path.display().to_string(), reason))
+                }));
+                entries.sort_by(|a, b| {
+                    let name = |e: &std::result::Result<PathBuf, (String, String)>| match e {
+                        Ok(p) => p.display().to_string(),
+                        Err((n, _)) => n.clone(),
+                    };
+                    natural_cmp(&name(a), &name(b))
+                });
+                if entries.is_empty() {
+                    out.push(Err((spec.clone(), "no image files match".to_string())));
+                }
+                out.extend(entries);
+            }
+            Err(e) => out.push(Err((spec.clone(), e.to_string()))),
+        }
+    }
+    out
+}

@@ -35,6 +35,7 @@
 //! for a seed (ChaCha8).
 
 pub mod apriltag;
+pub mod corner_study;
 mod optics;
 mod raster;
 mod sensor;

@@ -10,6 +10,7 @@
 
 pub mod effects;
 pub mod plan;
+pub mod planning;
 pub mod temperature;
 pub mod tracker;
 
@@ -26,6 +27,7 @@ use serde::{Deserialize, Serialize};
 
 pub use effects::{Conditions, Effect, GeometricErrors, TrueRobot};
 pub use plan::{make_plan, Plan, PlanConfig};
+pub use planning::{random_subsets, DatasetsSimulator};
 pub use temperature::Environment;
 pub use tracker::{TrackerConfig, TrackerReading};
 

@@ -13,7 +13,9 @@
 //!
 //! Everything random comes from one `ChaCha8Rng` seeded by [`StiffSimConfig::seed`].
 
+pub mod checks;
 pub mod study;
+pub mod tables;
 
 use ferrocal_calib::measurement::PoseMeasurement;
 use ferrocal_calib::stiffness::compensate::compliant_pose;

@@ -10,7 +10,8 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use ferrocal_datasets::import::images::{list_images, ImageFolderOptions};
+use ferrocal_datasets::import::images::expand_image_specs;
+use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
 use ferrocal_vision::calib::corners::{detect_view_slots, SkippedImage, SubpixWindow};
 use ferrocal_vision::calib::{
     calibrate_camera, calibrate_stereo, CalibrationOptions, CameraCalibration, Pattern, RobustLoss, MIN_VIEWS,
@@ -170,42 +171,10 @@ pub fn run(cmd: CameraCommand) -> Result<ExitCode> {
     }
 }
 
-/// Expands files, directories and globs into image paths (natural order, duplicates removed);
-/// a missing path is reported as skipped.
-fn expand(specs: &[PathBuf], skipped: &mut Vec<SkippedImage>) -> Vec<PathBuf> {
-    let mut out: Vec<PathBuf> = Vec::new();
-    for spec in specs {
-        match list_images(spec, &ImageFolderOptions { joints_table: None, decode: false }) {
-            Ok(folder) => {
-                // Unreadable files are kept: the detector reports them with a uniform reason.
-                let mut found: Vec<PathBuf> = folder.images.into_iter().map(|e| e.path).collect();
-                found.extend(folder.skipped.into_iter().map(|s| s.path));
-                found.sort_by(|a, b| {
-                    ferrocal_datasets::import::images::natural_cmp(&a.to_string_lossy(), &b.to_string_lossy())
-                });
-                if found.is_empty() {
-                    skipped.push(SkippedImage { image: spec.clone(), reason: "no image files match".into() });
-                }
-                for p in found {
-                    if !out.contains(&p) {
-                        out.push(p);
-                    }
-                }
-            }
-            Err(e) => skipped.push(SkippedImage { image: spec.clone(), reason: e.to_string() }),
-        }
-    }
-    out
-}
-
 fn report_skipped(skipped: &[SkippedImage]) {
     for s in skipped {
         eprintln!("ferrocal: skipped {s}");
     }
-}
-
-fn skipped_json(skipped: &[SkippedImage]) -> Value {
-    Value::Array(skipped.iter().map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason})).collect())
 }
 
 fn too_few(what: &str, usable: usize, total: usize, skipped: &[SkippedImage]) -> anyhow::Error {
@@ -214,60 +183,6 @@ fn too_few(what: &str, usable: usize, total: usize, skipped: &[SkippedImage]) ->
         "{what}: {usable} usable view(s) of {total} image(s), at least {MIN_VIEWS} needed{}",
         if reasons.is_empty() { String::new() } else { format!("; skipped: {}", reasons.join("; ")) }
     )
-}
-
-fn model_name(kind: DistortionKind) -> &'static str {
-    match kind {
-        DistortionKind::None => "pinhole",
-        DistortionKind::Brown5 => "brown5",
-        DistortionKind::Rational8 => "rational8",
-        DistortionKind::KannalaBrandt => "kannala_brandt",
-    }
-}
-
-/// The camera part of the JSON report (`shared/spec/cli.md`) plus extras.
-fn camera_json(cal: &CameraCalibration) -> Value {
-    let c = &cal.camera;
-    let k = c.intrinsics;
-    let per_view: Vec<Value> = cal
-        .views
-        .iter()
-        .map(|v| {
-            json!({
-                "image": v.name, "rms_px": v.rms_px, "n_corners": v.n_corners, "outlier": v.outlier,
-                "used": v.used, "n_outlier_corners": v.n_outlier_corners,
-            })
-        })
-        .collect();
-    let outliers: Vec<Value> = cal
-        .outlier_corners
-        .iter()
-        .map(|o| json!({"image": o.view, "corner": o.point_id, "residual_px": o.residual_px, "removed": o.removed}))
-        .collect();
-    json!({
-        "image_size": [c.image_size.width_px, c.image_size.height_px],
-        "model": model_name(c.distortion.kind()),
-        "fx": k.fx_px, "fy": k.fy_px, "cx": k.cx_px, "cy": k.cy_px,
-        "distortion": c.distortion.coefficients(),
-        "rms_px": cal.rms_px,
-        "per_view": per_view,
-        "std": {
-            "fx": cal.std[0], "fy": cal.std[1], "cx": cal.std[2], "cy": cal.std[3],
-            "distortion": cal.std[4..].to_vec(),
-        },
-        "outlier_corners": outliers,
-        "summary": {
-            "n_views_used": cal.views.iter().filter(|v| v.used).count(),
-            "n_corners": cal.summary.n_corners,
-            "s0_px": cal.summary.s0_px,
-            "zhang_condition": cal.summary.zhang_condition,
-            "normal_condition": cal.summary.normal_condition,
-            "max_board_angle_deg": cal.summary.max_board_angle_deg,
-            "removed_views": cal.summary.removed_views,
-            "warnings": cal.summary.warnings,
-            "solver_report": cal.summary.solver_report,
-        },
-    })
 }
 
 fn write_json(path: &Path, v: &Value) -> Result<()> {
@@ -299,7 +214,7 @@ fn print_camera(label: &str, cal: &CameraCalibration) {
 fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
     let (pattern, options) = a.solve.options()?;
     let mut skipped = Vec::new();
-    let paths = expand(&a.images, &mut skipped);
+    let paths = expand_image_specs(&a.images, &mut skipped);
     let (slots, detect_skipped) = detect_view_slots(&paths, &pattern, a.solve.subpix_window.window());
     skipped.extend(detect_skipped);
     report_skipped(&skipped);
@@ -331,8 +246,8 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
 fn stereo(a: &StereoArgs) -> Result<ExitCode> {
     let (pattern, options) = a.solve.options()?;
     let mut skipped = Vec::new();
-    let left_paths = expand(&a.left, &mut skipped);
-    let right_paths = expand(&a.right, &mut skipped);
+    let left_paths = expand_image_specs(&a.left, &mut skipped);
+    let right_paths = expand_image_specs(&a.right, &mut skipped);
     if left_paths.len() != right_paths.len() {
         report_skipped(&skipped);
         bail!(
@@ -373,28 +288,7 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
         st.calibration.rms_px
     );
     if let Some(p) = &a.json {
-        let v = json!({
-            "left": camera_json(st.left()),
-            "right": camera_json(st.right()),
-            "rotation_deg": st.rotation_deg.as_slice(),
-            "translation_mm": st.translation_mm.as_slice(),
-            "rms_px": st.calibration.rms_px,
-            "rotation_std_deg": st.rotation_std_deg.as_slice(),
-            "translation_std_mm": st.translation_std_mm.as_slice(),
-            "baseline_mm": st.baseline_mm,
-            "baseline_std_mm": st.baseline_std_mm,
-            "rms_left_px": st.left().rms_px,
-            "rms_right_px": st.right().rms_px,
-            "convention": "T_right_left (OpenCV stereoCalibrate R, T): p_right = R p_left + T; rotation as a rotation vector",
-            "n_pairs": n_pairs,
-            "n_views": st.calibration.n_views,
-            "s0_px": st.calibration.s0_px,
-            "reversed_views": st.calibration.reversed_views.iter().map(|(k, n)| json!({"camera": k, "image": n})).collect::<Vec<_>>(),
-            "pattern": pattern.to_string(),
-            "fix_aspect": a.solve.fix_aspect,
-            "skipped": skipped_json(&skipped),
-            "solver_report": st.calibration.solver_report,
-        });
+        let v = stereo_json(&st, n_pairs, &pattern, a.solve.fix_aspect, &skipped);
         write_json(p, &v)?;
     }
     for (cal, path, ros, name) in [

@@ -9,7 +9,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ferrocal_datasets::import::{list_images, natural_cmp, ImageFolderOptions};
+use ferrocal_datasets::import::images::image_entries;
 use ferrocal_vision::detect::{
     load_gray, median_background, AprilTagOptions, DetectOptions, Detector, ImageResult, Pattern, TagBackend, TagRefine,
 };
@@ -60,43 +60,6 @@ pub struct DetectArgs {
     pub tag_backend: String,
 }
 
-/// Expands image specifications into a sorted list: `Ok(path)` for images to process,
-/// `Err((name, reason))` for entries that cannot be read.
-fn expand(specs: &[String]) -> Vec<std::result::Result<PathBuf, (String, String)>> {
-    let mut out = Vec::new();
-    for spec in specs {
-        let opts = ImageFolderOptions { joints_table: None, decode: false };
-        match list_images(spec, &opts) {
-            Ok(folder) => {
-                let mut entries: Vec<std::result::Result<PathBuf, (String, String)>> =
-                    folder.images.into_iter().map(|e| Ok(e.path)).collect();
-                entries.extend(folder.skipped.into_iter().map(|s| {
-                    let empty = std::fs::metadata(&s.path).is_ok_and(|m| m.is_file() && m.len() == 0);
-                    let reason = if empty {
-                        "the file is empty (0 bytes)".to_string()
-                    } else {
-                        s.reason.trim().replace('\n', " ")
-                    };
-                    Err((s.path.display().to_string(), reason))
-                }));
-                entries.sort_by(|a, b| {
-                    let name = |e: &std::result::Result<PathBuf, (String, String)>| match e {
-                        Ok(p) => p.display().to_string(),
-                        Err((n, _)) => n.clone(),
-                    };
-                    natural_cmp(&name(a), &name(b))
-                });
-                if entries.is_empty() {
-                    out.push(Err((spec.clone(), "no image files match".to_string())));
-                }
-                out.extend(entries);
-            }
-            Err(e) => out.push(Err((spec.clone(), e.to_string()))),
-        }
-    }
-    out
-}
-
 /// Runs `ferrocal detect`.
 pub fn run(args: &DetectArgs) -> Result<ExitCode> {
     let pattern: Pattern = args.pattern.parse()?;
@@ -110,7 +73,7 @@ pub fn run(args: &DetectArgs) -> Result<ExitCode> {
         None
     } else {
         let mut frames = Vec::new();
-        for entry in expand(&args.background) {
+        for entry in image_entries(&args.background) {
             match entry {
                 Ok(p) => frames.push(load_gray(&p)?),
                 Err((name, reason)) => bail!("background image {name}: {reason}"),
@@ -118,7 +81,7 @@ pub fn run(args: &DetectArgs) -> Result<ExitCode> {
         }
         Some(median_background(&frames).context("background median")?)
     };
-    let entries = expand(&args.images);
+    let entries = image_entries(&args.images);
     if entries.is_empty() {
         bail!("no images given");
     }
@@ -150,57 +113,4 @@ pub fn run(args: &DetectArgs) -> Result<ExitCode> {
         args.json.display()
     );
     Ok(if failed == 0 { ExitCode::SUCCESS } else { ExitCode::from(2) })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn write_board(path: &std::path::Path) {
-        // A plain 4 x 3 inner-corner chessboard, 40 px squares, lightly blurred.
-        let (w, h) = (320u32, 260u32);
-        let img = image::GrayImage::from_fn(w, h, |x, y| {
-            let (u, v) = (x as f64 - 60.0, y as f64 - 50.0);
-            let inside = (0.0..200.0).contains(&u) && (0.0..160.0).contains(&v);
-            let dark = inside && ((u / 40.0).floor() as i64 + (v / 40.0).floor() as i64) % 2 == 0;
-            image::Luma([if dark { 30 } else { 210 }])
-        });
-        img.save(path).unwrap();
-    }
-
-    #[test]
-    fn bad_images_are_reported_and_the_batch_continues() {
-        let dir = std::env::temp_dir().join(format!("ferrocal_detect_test_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        write_board(&dir.join("a_board.png"));
-        std::fs::write(dir.join("b_empty.png"), b"").unwrap();
-        image::GrayImage::from_pixel(100, 80, image::Luma([128])).save(dir.join("c_blank.png")).unwrap();
-        let json = dir.join("out.json");
-        let args = DetectArgs {
-            images: vec![dir.display().to_string()],
-            pattern: "chessboard:4x3:20mm".into(),
-            json: json.clone(),
-            partial: false,
-            no_refine: false,
-            background: vec![],
-            tag_edge_refine: false,
-            tag_backend: "c".into(),
-        };
-        let code = run(&args).unwrap();
-        assert_eq!(code, ExitCode::from(2));
-        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
-        let a = v.as_array().unwrap();
-        assert_eq!(a.len(), 3);
-        assert_eq!(a[0]["detections"][0]["corners_px"].as_array().unwrap().len(), 12);
-        assert!(a[0].get("error").is_none());
-        assert!(
-            a[1]["error"].as_str().unwrap().contains("b_empty.png")
-                || a[1]["image"].as_str().unwrap().contains("b_empty.png")
-        );
-        assert!(a[2]["error"].as_str().unwrap().contains("not found"));
-        let bad = DetectArgs { pattern: "chessboard:4x3".into(), ..args };
-        let e = run(&bad).unwrap_err().to_string();
-        assert!(e.contains("'chessboard:4x3'") && e.contains("expected"), "{e}");
-        std::fs::remove_dir_all(&dir).ok();
-    }
 }

@@ -4,6 +4,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
+use ferrocal_calib::check::{Check, CheckCounts, CheckStatus};
 use serde::Serialize;
 use serde_json::Value;
 
@@ -78,8 +79,9 @@ pub struct Section {
     pub id: String,
     /// Heading.
     pub title: String,
-    /// Status shown beside the heading (`ok`, `FAILED`, ...), if any.
-    pub status: Option<(bool, String)>,
+    /// The section's check, shown beside the heading, if any: only a passed check counts as
+    /// passing; a skipped or reported one says so.
+    pub status: Option<Check>,
     /// Blocks in order.
     pub blocks: Vec<Block>,
     /// Machine-readable results of the section, copied into the JSON.
@@ -120,10 +122,54 @@ impl Section {
         self.blocks.push(Block::Pre(t.into()));
         self
     }
-    /// Sets the status shown beside the heading.
+    /// Sets a pass (`ok`) or fail status shown beside the heading.
     pub fn status(&mut self, ok: bool, t: impl Into<String>) -> &mut Self {
-        self.status = Some((ok, t.into()));
+        self.status = Some(Check::from_bool(self.title.clone(), ok, t));
         self
+    }
+    /// Sets the section's check.
+    pub fn check(&mut self, c: Check) -> &mut Self {
+        self.status = Some(c);
+        self
+    }
+    /// Marks the section skipped (its input is absent) and says why in the text.
+    pub fn skipped(&mut self, why: impl Into<String>) -> &mut Self {
+        let why = why.into();
+        self.text(format!("{why}: section skipped."));
+        self.check(Check::skipped(self.title.clone(), why))
+    }
+    /// Marks the section as reporting numbers without a pass/fail criterion.
+    pub fn reported(&mut self, what: impl Into<String>) -> &mut Self {
+        self.check(Check::reported(self.title.clone(), what))
+    }
+    /// True when the section's check failed (a section without a check does not fail).
+    pub fn failed(&self) -> bool {
+        self.status.as_ref().is_some_and(Check::failed)
+    }
+    /// The text shown beside the heading.
+    fn badge(&self) -> String {
+        match &self.status {
+            None => String::new(),
+            Some(c) => {
+                let class = match c.status {
+                    CheckStatus::Pass => "ok",
+                    CheckStatus::Fail => "bad",
+                    CheckStatus::Skipped | CheckStatus::Reported => "note",
+                };
+                format!(" <span class=\"{class}\">{}</span>", esc(&status_text(c)))
+            }
+        }
+    }
+}
+
+/// The status text of a check: its detail, prefixed with `skipped` or `reported` when the
+/// check has no pass/fail outcome.
+fn status_text(c: &Check) -> String {
+    match c.status {
+        CheckStatus::Pass | CheckStatus::Fail => c.detail.clone(),
+        CheckStatus::Skipped | CheckStatus::Reported if c.detail.starts_with(c.status.name()) => c.detail.clone(),
+        CheckStatus::Skipped | CheckStatus::Reported if c.detail.is_empty() => c.status.name().to_string(),
+        CheckStatus::Skipped | CheckStatus::Reported => format!("{}: {}", c.status.name(), c.detail),
     }
 }
 
@@ -147,6 +193,41 @@ impl Report {
         Self { title: title.to_string(), provenance, sections: Vec::new() }
     }
 
+    /// True when a section's check failed.
+    pub fn failed(&self) -> bool {
+        self.sections.iter().any(Section::failed)
+    }
+
+    /// Counts of the sections' check outcomes (sections without a check are not counted).
+    pub fn counts(&self) -> CheckCounts {
+        CheckCounts::of(self.sections.iter().filter_map(|s| s.status.as_ref()))
+    }
+
+    /// A summary section: every section with a check and its status, and the counts. It has no
+    /// check of its own (it would count every other one twice).
+    pub fn summary_section(&self) -> Section {
+        let n = self.counts();
+        let mut s = Section::new("summary", "Summary");
+        s.text(format!(
+            "{} checks passed, {} failed, {} skipped (input absent), {} reported without a pass/fail criterion. Skipped and reported sections are not counted as passing.",
+            n.passed, n.failed, n.skipped, n.reported
+        ));
+        let rows = self
+            .sections
+            .iter()
+            .filter_map(|x| x.status.as_ref().map(|c| (x, c)))
+            .map(|(x, c)| vec![x.title.clone(), c.status.name().to_string(), c.detail.clone()])
+            .collect();
+        s.table("Sections", &["section", "status", "detail"], rows);
+        s.data = serde_json::json!({
+            "counts": n,
+            "sections": self.sections.iter().filter_map(|x| x.status.as_ref().map(|c| serde_json::json!({
+                "id": x.id, "status": c.status, "detail": c.detail,
+            }))).collect::<Vec<_>>(),
+        });
+        s
+    }
+
     /// The report as HTML (self-contained: styles and SVG inline).
     pub fn to_html(&self) -> String {
         let mut h = String::new();
@@ -159,19 +240,11 @@ impl Report {
         );
         h.push_str("<nav><ul>");
         for s in &self.sections {
-            let badge = match &s.status {
-                Some((ok, t)) => format!(" <span class=\"{}\">{}</span>", if *ok { "ok" } else { "bad" }, esc(t)),
-                None => String::new(),
-            };
-            let _ = write!(h, "<li><a href=\"#{}\">{}</a>{badge}</li>", esc(&s.id), esc(&s.title));
+            let _ = write!(h, "<li><a href=\"#{}\">{}</a>{}</li>", esc(&s.id), esc(&s.title), s.badge());
         }
         h.push_str("</ul></nav>\n");
         for s in &self.sections {
-            let badge = match &s.status {
-                Some((ok, t)) => format!(" <span class=\"{}\">{}</span>", if *ok { "ok" } else { "bad" }, esc(t)),
-                None => String::new(),
-            };
-            let _ = writeln!(h, "<section id=\"{}\"><h2>{}{badge}</h2>", esc(&s.id), esc(&s.title));
+            let _ = writeln!(h, "<section id=\"{}\"><h2>{}{}</h2>", esc(&s.id), esc(&s.title), s.badge());
             for b in &s.blocks {
                 match b {
                     Block::Text(t) => {
@@ -231,9 +304,14 @@ impl Report {
         for s in &self.sections {
             let mut m = serde_json::Map::new();
             m.insert("title".into(), Value::String(s.title.clone()));
-            if let Some((ok, t)) = &s.status {
-                m.insert("ok".into(), Value::Bool(*ok));
-                m.insert("status".into(), Value::String(t.clone()));
+            if let Some(c) = &s.status {
+                // `ok` only where there is a criterion: a skipped or reported section is not
+                // passing.
+                if c.has_criterion() {
+                    m.insert("ok".into(), Value::Bool(c.passed()));
+                }
+                m.insert("status".into(), Value::String(status_text(c)));
+                m.insert("check".into(), Value::String(c.status.name().into()));
             }
             m.insert("data".into(), s.data.clone());
             sections.insert(s.id.clone(), Value::Object(m));
@@ -274,6 +352,7 @@ th{background:#eef}caption{font-weight:bold;text-align:left;padding:4px 0}\
 figure{margin:1em 0}figcaption{font-size:90%;color:#444}.attr{font-size:80%;color:#666}\
 .ok{color:#fff;background:#2a7;padding:1px 6px;border-radius:3px;font-size:70%}\
 .bad{color:#fff;background:#c33;padding:1px 6px;border-radius:3px;font-size:70%}\
+.note{color:#fff;background:#888;padding:1px 6px;border-radius:3px;font-size:70%}\
 pre{background:#f6f6f6;padding:6px;overflow-x:auto}nav ul{columns:2}";
 
 /// An 8-bit grey image as an inline `<img>` (PNG, base64), for figures.
@@ -291,4 +370,57 @@ pub fn inline_png(img: &image::GrayImage, alt: &str) -> String {
         esc(alt),
         base64::engine::general_purpose::STANDARD.encode(bytes)
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report() -> Report {
+        let mut r = Report::new("t", Provenance::new(Value::Null));
+        let mut a = Section::new("a", "A");
+        a.status(true, "within 1 mm");
+        let mut b = Section::new("b", "B");
+        b.skipped("x.csv is not present");
+        let mut c = Section::new("c", "C");
+        c.reported("numbers only");
+        r.sections = vec![a, b, c];
+        r
+    }
+
+    #[test]
+    fn skipped_and_reported_sections_are_not_ok_and_say_so() {
+        let r = report();
+        let j = r.to_json();
+        let s = &j["sections"];
+        assert_eq!(s["a"]["ok"], Value::Bool(true));
+        assert_eq!(s["a"]["status"], "within 1 mm");
+        assert_eq!(s["a"]["check"], "pass");
+        for (k, want) in [("b", "skipped: x.csv is not present"), ("c", "reported: numbers only")] {
+            assert!(s[k].get("ok").is_none(), "{k}: {}", s[k]);
+            assert_eq!(s[k]["status"], want);
+        }
+        let html = r.to_html();
+        assert!(html.contains("<span class=\"note\">skipped: x.csv is not present</span>"), "{html}");
+        assert!(html.contains("x.csv is not present: section skipped."));
+        assert!(!r.failed());
+    }
+
+    #[test]
+    fn the_summary_counts_and_lists_every_check() {
+        let mut r = report();
+        let mut d = Section::new("d", "D");
+        d.status(false, "3 mm, limit 1 mm");
+        r.sections.push(d);
+        assert!(r.failed());
+        let s = r.summary_section();
+        assert!(s.status.is_none(), "the summary does not count itself");
+        assert_eq!(s.data["counts"]["passed"], 1);
+        assert_eq!(s.data["counts"]["failed"], 1);
+        assert_eq!(s.data["counts"]["skipped"], 1);
+        assert_eq!(s.data["counts"]["reported"], 1);
+        let statuses: Vec<&str> =
+            s.data["sections"].as_array().unwrap().iter().map(|x| x["status"].as_str().unwrap()).collect();
+        assert_eq!(statuses, ["pass", "skipped", "reported", "fail"]);
+    }
 }

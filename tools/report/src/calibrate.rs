@@ -1,0 +1,229 @@
+//! Report sections and the JSON summary of a kinematic calibration (`ferrocal calibrate`, the
+//! demo).
+
+use anyhow::{Context, Result};
+use ferrocal_calib::kinematic::{
+    calibrate, split_rows, CalibratedModel, ErrorStats, KinematicCalibration, KinematicOptions, ModelParams,
+};
+use ferrocal_calib::PoseMeasurement;
+use ferrocal_robot::RobotModel;
+use serde_json::json;
+
+use crate::plot::{self, Series};
+use crate::report::Section;
+
+/// A calibration on the training rows with the nominal and calibrated held-out errors.
+pub type Validation = Option<(KinematicCalibration, ErrorStats, ErrorStats)>;
+
+/// The JSON summary of `ferrocal calibrate --json` (keys per `shared/spec/cli.md`).
+pub fn report_json(
+    cal: &KinematicCalibration,
+    validation: &Validation,
+    n_final: usize,
+    fixed_split: bool,
+) -> serde_json::Value {
+    json!({
+        "n_poses": n_final,
+        "split": if fixed_split { "from the table" } else if validation.is_some() { "validation on every second pose, final fit on all" } else { "none" },
+        "train_before": cal.train_before,
+        "train_after": cal.train_after,
+        "heldout": validation.as_ref().map(|(v, b, a)| json!({"n_train": v.train_after.n, "before": b, "after": a})),
+        "s0": cal.s0,
+        "used_orientation": cal.used_orientation,
+        "parameters": cal.params,
+        "identifiability": {
+            "rank": cal.identifiability_before.rank,
+            "candidates": cal.layout.len(),
+            "condition_number": cal.identifiability_after.condition_number,
+            "dressler_ratio": cal.identifiability_after.dressler_ratio,
+            "singular_values": cal.identifiability_after.singular_values,
+            "classes": cal.identifiability_before.names.iter().zip(&cal.identifiability_before.classes).map(|(n, c)| json!({"name": n, "class": c})).collect::<Vec<_>>(),
+            "coupled_groups": cal.identifiability_before.describe_groups(),
+        },
+        "practical_dropped": cal.practical_dropped,
+        "advice": cal.advice,
+        "solver": cal.summary,
+        "device_frame": ferrocal_calib::file::FrameJson::from_isometry(&cal.calibrated.device_frame),
+        "tool": ferrocal_calib::file::FrameJson::from_isometry(&cal.calibrated.tool),
+    })
+}
+
+/// Report sections of a calibration (also used by the demo).
+pub fn calibration_sections(
+    cal: &KinematicCalibration,
+    validation: &Validation,
+    rows: &[&PoseMeasurement],
+) -> Vec<Section> {
+    let mut out = Vec::new();
+    let mut s = Section::new("calibration-summary", "Calibration: before and after");
+    let row = |name: &str, e: &ErrorStats| {
+        vec![
+            name.to_string(),
+            e.n.to_string(),
+            format!("{:.4}", e.mean_mm),
+            format!("{:.4}", e.rms_mm),
+            format!("{:.4}", e.max_mm),
+            format!("{:.4} / {:.4} / {:.4}", e.rms_axis_mm[0], e.rms_axis_mm[1], e.rms_axis_mm[2]),
+            e.mean_deg.map(|v| format!("{v:.4}")).unwrap_or_default(),
+        ]
+    };
+    let mut rows_t =
+        vec![row("training, nominal model", &cal.train_before), row("training, calibrated", &cal.train_after)];
+    if let Some((_, b, a)) = validation {
+        rows_t.push(row("held out, nominal model", b));
+        rows_t.push(row("held out, calibrated", a));
+    }
+    s.table(
+        "Position errors [mm]",
+        &["set", "poses", "mean", "RMS", "max", "RMS x / y / z", "mean orientation [deg]"],
+        rows_t,
+    );
+    s.text(format!(
+        "Solver: {} after {} iterations; a-posteriori factor s0 = {:.3} (1 when the stated noise is right). {} of {} candidate parameters identified; {} fixed as not identifiable.",
+        cal.summary.termination,
+        cal.summary.iterations,
+        cal.s0,
+        cal.free.len(),
+        cal.layout.len(),
+        cal.layout.len() - cal.free.len()
+    ));
+    for a in &cal.advice {
+        s.text(format!("Advice: {a}"));
+    }
+    if let Ok((pos, _)) = cal.calibrated.errors(rows) {
+        let norms: Vec<f64> = pos.iter().map(|e| e.norm() * 1e3).collect();
+        s.figure(
+            "Position errors after calibration (training poses)",
+            plot::histogram("Residual position errors", "error [mm]", &norms, 40),
+        );
+        let pts: Vec<(f64, f64)> = norms.iter().enumerate().map(|(k, v)| (k as f64, *v)).collect();
+        s.figure(
+            "Residual error per pose in measuring order (structure here points at effects the model leaves out: run `ferrocal diagnose`)",
+            plot::xy_plot("Residual per pose", "pose (measuring order)", "error [mm]", &[Series { name: "error", points: &pts, line: false }]),
+        );
+    }
+    out.push(s);
+    let mut p = Section::new("calibration-parameters", "Identified parameters");
+    p.table(
+        "Parameters (lengths in mm, angles in mrad for readability; nu = parameter-to-noise ratio)",
+        &["parameter", "start", "value", "std", "nu", "status"],
+        cal.params
+            .iter()
+            .map(|q| {
+                let f = match q.unit {
+                    ferrocal_robot::Unit::Metre | ferrocal_robot::Unit::Radian => 1e3,
+                    _ => 1.0,
+                };
+                vec![
+                    q.name.clone(),
+                    format!("{:.4}", q.start * f),
+                    format!("{:.4}", q.value * f),
+                    q.std.map(|v| format!("{:.4}", v * f)).unwrap_or_default(),
+                    q.nu.map(|v| format!("{v:.1}")).unwrap_or_default(),
+                    q.fixed_because.clone().unwrap_or_else(|| "identified".into()),
+                ]
+            })
+            .collect(),
+    );
+    for g in cal.identifiability_before.describe_groups() {
+        p.text(format!("Coupled: {g}"));
+    }
+    // Correlation picture of the free parameters.
+    let n = cal.free.len();
+    if n > 1 && n <= 80 {
+        let c = &cal.covariance;
+        let corr: Vec<Vec<f64>> =
+            (0..n).map(|i| (0..n).map(|j| c[(i, j)] / (c[(i, i)] * c[(j, j)]).sqrt()).collect()).collect();
+        let labels: Vec<String> = cal.free.iter().map(|&i| cal.layout.names[i].clone()).collect();
+        p.figure(
+            "Correlation of the identified parameters (blue -1, white 0, red +1)",
+            plot::matrix_map("Parameter correlation", &labels, &corr, -1.0, 1.0),
+        );
+    }
+    let sv: Vec<(f64, f64)> = cal
+        .identifiability_after
+        .singular_values
+        .iter()
+        .enumerate()
+        .map(|(k, v)| (k as f64 + 1.0, v.max(1e-300).log10()))
+        .collect();
+    p.figure(
+        "Singular values of the scaled Jacobian (log10); those below the tolerance are the parameter combinations the data cannot see",
+        plot::xy_plot("Singular values", "index", "log10(singular value)", &[Series { name: "sigma", points: &sv, line: false }]),
+    );
+    p.data = json!({"condition_number": cal.identifiability_after.condition_number});
+    out.push(p);
+    out
+}
+
+/// A calibration as `ferrocal calibrate` delivers it: the fit on all rows (or on the training
+/// rows when the table fixes the split) with the validation fit on the training rows.
+pub struct CalibrationRun<'a> {
+    /// The delivered calibration.
+    pub cal: KinematicCalibration,
+    /// The validation fit with the nominal and calibrated held-out errors, when rows are held out.
+    pub validation: Validation,
+    /// The rows of the delivered fit.
+    pub final_rows: Vec<&'a PoseMeasurement>,
+    /// True when the table's `split` column fixed the split.
+    pub fixed_split: bool,
+}
+
+/// Calibrates `model` from `rows`: a validation fit on the training rows (every second pose, or
+/// the table's split; none when `validate` is false and the table has no split), then the
+/// delivered fit on all rows unless the table fixes the split. `step` is called after each fit.
+pub fn calibrate_table<'a>(
+    model: &RobotModel,
+    rows: &'a [PoseMeasurement],
+    opts: &KinematicOptions,
+    validate: bool,
+    step: &dyn Fn(),
+) -> Result<CalibrationRun<'a>> {
+    let fixed_split = rows.iter().any(|r| r.split.is_some());
+    let (train, test) = split_rows(rows, validate);
+    // Validation: fit on the training rows, evaluate on the held-out rows.
+    let validation = if test.is_empty() {
+        None
+    } else {
+        let cal = calibrate(model, &train, opts).context("calibration on the training rows")?;
+        let before = nominal_stats(model, &train, &test)?;
+        let after = cal.calibrated.evaluate(&test)?;
+        Some((cal, before, after))
+    };
+    step();
+    // The delivered calibration: all rows, unless the table fixes the split.
+    let final_rows: Vec<&PoseMeasurement> = if fixed_split { train.clone() } else { rows.iter().collect() };
+    let cal = match (&validation, fixed_split) {
+        (Some((c, _, _)), true) => c.clone(),
+        _ => calibrate(model, &final_rows, opts).context("calibration")?,
+    };
+    step();
+    Ok(CalibrationRun { cal, validation, final_rows, fixed_split })
+}
+
+/// Errors of the nominal model on `test` with frames registered on `train`.
+pub fn nominal_stats(model: &RobotModel, train: &[&PoseMeasurement], test: &[&PoseMeasurement]) -> Result<ErrorStats> {
+    let opts =
+        KinematicOptions { model_params: ModelParams::None, joint_offsets: false, ..KinematicOptions::default() };
+    let cal = calibrate(model, train, &opts).context("registering the nominal model")?;
+    Ok(cal.calibrated.evaluate(test)?)
+}
+
+/// The JSON of `ferrocal evaluate` (`n`, `mean_mm`, `rms_mm`, `max_mm`, per-axis RMS,
+/// orientation errors, per pose) and the statistics, for the calibrated model `cm` on `rows`.
+pub fn evaluate_json(cm: &CalibratedModel, rows: &[PoseMeasurement]) -> Result<(serde_json::Value, ErrorStats)> {
+    let refs: Vec<&PoseMeasurement> = rows.iter().collect();
+    let (pos, ori) = cm.errors(&refs)?;
+    let stats = ErrorStats::from_errors(&pos, &ori);
+    let per_pose: Vec<serde_json::Value> = rows
+        .iter()
+        .zip(&pos)
+        .map(|(r, e)| json!({"pose_id": r.pose_id, "error_mm": e.norm() * 1e3, "dx_mm": e.x * 1e3, "dy_mm": e.y * 1e3, "dz_mm": e.z * 1e3}))
+        .collect();
+    let out = json!({
+        "n": stats.n, "mean_mm": stats.mean_mm, "rms_mm": stats.rms_mm, "max_mm": stats.max_mm,
+        "rms_axis_mm": stats.rms_axis_mm, "mean_deg": stats.mean_deg, "max_deg": stats.max_deg,
+        "per_pose": per_pose,
+    });
+    Ok((out, stats))
+}

@@ -1,0 +1,26 @@
+//! Reports of ferrocal: self-contained HTML with SVG plots and a JSON twin ([`report`], [`plot`]),
+//! and the report sections of every command and study, built from the libraries' results.
+//!
+//! A section carries a [`Check`](ferrocal_calib::check::Check) when it has one: only a passed
+//! check counts as passing, and a skipped or reported section says so in the HTML and the JSON.
+//!
+//! - [`calibrate`]: kinematic calibration (`ferrocal calibrate`, the demo);
+//! - [`camera`]: the JSON of `ferrocal camera calibrate` and `stereo`;
+//! - [`corner_study`]: the Markdown table of `ferrocal corner-study`;
+//! - [`plan`]: the measurement plan (`ferrocal plan`), its flow and its report;
+//! - [`dynamics`]: force-sensor models and hexapod dynamics (`ferrocal dynamics study`);
+//! - [`stiffness`]: elastostatic identification (`ferrocal stiffness study` and `identify`);
+//! - [`demo`]: the sections of `ferrocal demo`.
+#![deny(missing_docs)]
+
+pub mod calibrate;
+pub mod camera;
+pub mod corner_study;
+pub mod demo;
+pub mod dynamics;
+pub mod plan;
+pub mod plot;
+pub mod report;
+pub mod stiffness;
+
+pub use report::{inline_png, write_atomic, Block, Provenance, Report, Section};
