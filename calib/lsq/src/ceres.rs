@@ -137,7 +137,14 @@ fn round(
             max_step = max_step.max(delta.iter().fold(0.0f64, |a, v| a.max(v.abs())));
         }
     }
-    Ok((summary.initial_cost(), summary.final_cost(), iterations, summary.brief_report(), max_step, values))
+    Ok(Round {
+        initial_cost: summary.initial_cost(),
+        final_cost: summary.final_cost(),
+        iterations,
+        report: summary.brief_report(),
+        max_step,
+        values,
+    })
 }
 
 /// Solves `problem` in place with Ceres.
@@ -146,13 +153,13 @@ pub(crate) fn solve(problem: &mut Problem, index: &StateIndex, opts: &SolverOpti
     let (mut final_cost, mut iterations, mut report) = (0.0, 0, String::new());
     let mut settled = false;
     for _ in 0..opts.max_rounds {
-        let (c0, c1, it, rep, max_step, values) = round(problem, index, opts)?;
-        initial_cost.get_or_insert(c0);
-        final_cost = c1;
-        iterations += it;
-        report = rep;
-        problem.set_all_values(values);
-        if max_step < 1e-10 || it == 0 {
+        let r = round(problem, index, opts)?;
+        initial_cost.get_or_insert(r.initial_cost);
+        final_cost = r.final_cost;
+        iterations += r.iterations;
+        report = r.report;
+        problem.set_all_values(r.values);
+        if r.max_step < 1e-10 || r.iterations == 0 {
             settled = true;
             break;
         }

@@ -5,10 +5,11 @@ use serde::{Deserialize, Serialize};
 /// A robust loss `rho(s)` applied to the squared norm `s` of each whitened residual block (so its
 /// thresholds are in standard deviations). Ceres uses the same definitions, so a problem gives the
 /// same cost on either back end.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Loss {
     /// Plain least squares, `rho(s) = s`.
+    #[default]
     Squared,
     /// Huber: quadratic up to `delta` (in whitened units, i.e. standard deviations), linear beyond.
     Huber {
@@ -20,12 +21,6 @@ pub enum Loss {
         /// Scale in standard deviations.
         delta: f64,
     },
-}
-
-impl Default for Loss {
-    fn default() -> Self {
-        Self::Squared
-    }
 }
 
 impl Loss {
