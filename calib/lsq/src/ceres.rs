@@ -18,12 +18,20 @@ fn failed(detail: impl std::fmt::Display) -> LsqError {
     LsqError::Diverged(format!("Ceres: {detail}"))
 }
 
-/// One Ceres round; returns (initial cost, final cost, iterations, report, largest manifold step).
-fn round(
-    problem: &Problem,
-    index: &StateIndex,
-    opts: &SolverOptions,
-) -> Result<(f64, f64, usize, String, f64, Vec<Vec<f64>>)> {
+/// What one Ceres round did.
+struct Round {
+    initial_cost: f64,
+    final_cost: f64,
+    iterations: usize,
+    report: String,
+    /// Largest tangent step of a manifold (non-Euclidean) block.
+    max_step: f64,
+    /// The blocks' values after the round.
+    values: Vec<Vec<f64>>,
+}
+
+/// One Ceres round.
+fn round(problem: &Problem, index: &StateIndex, opts: &SolverOptions) -> Result<Round> {
     let blocks = problem.blocks();
     let x0: Vec<Vec<f64>> = blocks.iter().map(|b| b.values.clone()).collect();
     let free: Vec<Option<usize>> = (0..blocks.len()).map(|k| index.offset(crate::BlockId(k))).collect();
