@@ -22,6 +22,8 @@ struct Polynomial {
     e0: Vec<f64>,
     /// Largest plausible coefficient of an added term.
     max_coefficient: f64,
+    /// Retire the first accepted term once two are accepted (a backward check's verdict).
+    prune_first: bool,
 }
 
 fn lstsq(x: &[f64], y: &[f64], terms: &[u32], rows: &[usize]) -> DVector<f64> {
@@ -32,7 +34,7 @@ fn lstsq(x: &[f64], y: &[f64], terms: &[u32], rows: &[usize]) -> DVector<f64> {
 
 impl Polynomial {
     fn new(x: Vec<f64>, y: Vec<f64>, max_coefficient: f64) -> Self {
-        let mut p = Self { x, y, folds: 5, terms: vec![0, 1], e0: Vec::new(), max_coefficient };
+        let mut p = Self { x, y, folds: 5, terms: vec![0, 1], e0: Vec::new(), max_coefficient, prune_first: false };
         p.e0 = p.heldout(&p.terms.clone());
         p
     }
@@ -67,15 +69,21 @@ impl Family for Polynomial {
         Unit::Millimetre
     }
 
-    fn begin_step(&mut self, _accepted: &[u32]) -> Result<StepStart> {
+    fn begin_step(&mut self, accepted: &[u32]) -> Result<StepStart> {
+        if self.prune_first && accepted.len() == 2 {
+            self.prune_first = false;
+            self.terms.retain(|t| *t != accepted[0]);
+            self.e0 = self.heldout(&self.terms.clone());
+            return Ok(StepStart::Pruned { index: 0, p_value: 0.5, change: -0.001 });
+        }
         Ok(StepStart::Baseline(Baseline {
             heldout: rms(&self.e0),
             mse: self.e0.iter().sum::<f64>() / self.e0.len() as f64,
         }))
     }
 
-    fn candidates(&self, accepted: &[u32], _retired: &[u32]) -> Vec<u32> {
-        [2, 3, 4].into_iter().filter(|p| !accepted.contains(p)).collect()
+    fn candidates(&self, accepted: &[u32], retired: &[u32]) -> Vec<u32> {
+        [2, 3, 4].into_iter().filter(|p| !accepted.contains(p) && !retired.contains(p)).collect()
     }
 
     fn describe(&self, p: &u32) -> Describe {
@@ -220,4 +228,29 @@ fn the_correction_counts_the_candidates() {
     for r in &d.steps[0].rows {
         assert!((r.p_corrected - (3.0 * r.p_value).min(1.0)).abs() < 1e-12, "{r:?}");
     }
+}
+
+#[test]
+fn a_retired_effect_leaves_the_findings_and_is_not_proposed_again() {
+    let (x, y) = data(300, None, 0.05, 7);
+    // Truth with two extra terms: x^2 and x^3.
+    let y: Vec<f64> = x.iter().zip(&y).map(|(x, y)| y + 0.3 * x * x + 0.3 * x.powi(3)).collect();
+    let mut family = Polynomial::new(x, y, 10.0);
+    family.prune_first = true;
+    let d = select(&mut family, &policy(Selection::Ranked { max_checked: 4 })).unwrap();
+    assert_eq!(d.retired.len(), 1, "{:#?}", d.steps);
+    // The second term stays; the first leaves the findings (x^4 may take over what the retired
+    // x^2 explained: it is still open).
+    let kept: Vec<u32> = d.findings.iter().map(|f| f.accepted).collect();
+    assert!(!kept.is_empty() && !kept.contains(&d.retired[0]), "{kept:?}, retired {:?}", d.retired);
+    assert_eq!(d.notes.len(), 1);
+    assert!(
+        d.notes[0].starts_with(&format!("power_{} on joints [] was accepted first but dropped", d.retired[0])),
+        "{}",
+        d.notes[0]
+    );
+    // The retired term is never a candidate again.
+    assert!(d.steps.len() >= 3);
+    let after_prune = &d.steps[2..];
+    assert!(after_prune.iter().flat_map(|s| &s.rows).all(|r| r.label != format!("x^{}", d.retired[0])));
 }
