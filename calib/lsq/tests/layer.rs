@@ -245,11 +245,10 @@ fn schur_covariance_equals_the_global_corner_of_the_dense_one() {
             1
         }
         fn evaluate(&self, p: &[&[f64]], out: &mut [f64], jac: Option<&mut [Option<DMatrix<f64>>]>) -> Result<()> {
-            let mut jac = jac;
             let mut sub: Option<Vec<Option<DMatrix<f64>>>> = jac.as_ref().map(|j| vec![j[0].clone(), j[1].clone()]);
             self.0.evaluate(&p[..2], out, sub.as_deref_mut())?;
             out[0] += p[2][0] / self.0.sigma;
-            if let (Some(j), Some(sub)) = (jac.as_deref_mut(), sub) {
+            if let (Some(j), Some(sub)) = (jac, sub) {
                 j[0] = sub[0].clone();
                 j[1] = sub[1].clone();
                 if let Some(j2) = &mut j[2] {
