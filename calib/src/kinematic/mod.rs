@@ -38,7 +38,7 @@ mod split;
 
 use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
-use problem::KinProblem;
+use problem::{whitening_matrices, KinProblem};
 pub use split::split_rows;
 
 /// Which of the model's own parameters are free.
@@ -95,6 +95,12 @@ pub struct KinematicOptions {
     pub sigma_position_m: f64,
     /// Orientation standard deviation for rows without one.
     pub sigma_orientation_rad: f64,
+    /// Whiten the residual of a row that carries a full covariance
+    /// ([`PoseMeasurement::covariance`]) with it (a Cholesky factor of the block the residual
+    /// uses); `false` treats such rows like the others (their `sigma_m` / `sigma_rad`, else the
+    /// standard deviations above). Rows without a covariance are weighted the same either way.
+    #[serde(default = "default_use_covariance")]
+    pub use_covariance: bool,
     /// Robust loss on each pose's whitened residual.
     pub loss: Loss,
     /// Relative singular-value tolerance of the structural identifiability.
@@ -111,6 +117,10 @@ pub struct KinematicOptions {
     pub lm: LmOptions,
 }
 
+fn default_use_covariance() -> bool {
+    true
+}
+
 impl Default for KinematicOptions {
     fn default() -> Self {
         Self {
@@ -122,6 +132,7 @@ impl Default for KinematicOptions {
             use_orientation: true,
             sigma_position_m: 20e-6,
             sigma_orientation_rad: 1e-4,
+            use_covariance: true,
             loss: Loss::Squared,
             rank_tolerance: 1e-8,
             practical_threshold: None,
@@ -365,6 +376,7 @@ pub fn calibrate(
     if sigma_pos.iter().chain(&sigma_ori).any(|s| !(s.is_finite() && *s > 0.0)) {
         return Err(CalibError::Data("every standard deviation must be positive".into()));
     }
+    let whiten = whitening_matrices(rows, use_ori, &sigma_ori, opts.use_covariance, opts.cost)?;
     let params = model.parameters();
     let mut start = vec![0.0; layout.len()];
     for (k, &pi) in layout.model_index.iter().enumerate() {
@@ -382,6 +394,7 @@ pub fn calibrate(
         free: all.clone(),
         sigma_pos,
         sigma_ori,
+        whiten,
         effects: opts.effects.clone(),
         cost: opts.cost,
         n_legs: model.parallel().and_then(|p| p.mechanism().ok()).map_or(0, |m| m.legs.len()),
@@ -623,6 +636,7 @@ pub fn design_jacobian(
         free: (0..layout.len()).collect(),
         sigma_pos: vec![sigma_position_m; rows.len()],
         sigma_ori: vec![opts.sigma_orientation_rad; rows.len()],
+        whiten: vec![None; rows.len()],
         effects: opts.effects.clone(),
         cost: Cost::ForwardKinematics,
         n_legs: 0,

@@ -24,6 +24,10 @@ pub(super) struct KinProblem<'a> {
     pub(super) free: Vec<usize>,
     pub(super) sigma_pos: Vec<f64>,
     pub(super) sigma_ori: Vec<f64>,
+    /// Per row, the whitening matrix `W = L^-1` of the row's covariance block `L L^T` (3 x 3,
+    /// or 6 x 6 with orientations), when the row carries a covariance; `None` rows are divided
+    /// by `sigma_pos` / `sigma_ori` exactly as before covariances existed.
+    pub(super) whiten: Vec<Option<DMatrix<f64>>>,
     pub(super) effects: Vec<EffectSpec>,
     pub(super) cost: Cost,
     /// Legs of a parallel robot (closure cost).
@@ -88,7 +92,8 @@ impl KinProblem<'_> {
         }
     }
 
-    /// Closure residuals: leg-length errors at the measured pose, over the row's sigma.
+    /// Closure residuals: leg-length errors at the measured pose, over the row's sigma (a row's
+    /// full covariance is not used here: leg lengths are not the measured coordinates).
     pub(super) fn closure_residuals(&self, cm: &CalibratedModel) -> Result<DVector<f64>> {
         let b = self.block();
         let par =
@@ -123,6 +128,16 @@ impl KinProblem<'_> {
         let mut r = DVector::zeros(self.rows.len() * b);
         for (k, row) in self.rows.iter().enumerate() {
             let t = cm.predict_row(row).map_err(|e| row_error(row, e))?;
+            if let Some(w) = &self.whiten[k] {
+                let mut e = DVector::zeros(b);
+                e.fixed_rows_mut::<3>(0).copy_from(&(row.position_m - t.translation.vector));
+                if self.use_ori {
+                    let qm = row.orientation.expect("checked");
+                    e.fixed_rows_mut::<3>(3).copy_from(&(qm * t.rotation.inverse()).scaled_axis());
+                }
+                r.rows_mut(k * b, b).copy_from(&(w * e));
+                continue;
+            }
             let e = (row.position_m - t.translation.vector) / self.sigma_pos[k];
             r.fixed_rows_mut::<3>(k * b).copy_from(&e);
             if self.use_ori {
@@ -216,8 +231,18 @@ impl KinProblem<'_> {
             let p = t_dev_tool.translation.vector;
             let sp = self.sigma_pos[k];
             let so = self.sigma_ori[k];
+            let whiten = self.whiten[k].as_ref();
             // d(prediction) columns: (dp, dw) in the device frame; residual = -d(prediction).
             let mut put = |col: usize, dp: Vector3<f64>, dw: Vector3<f64>| {
+                if let Some(w) = whiten {
+                    let mut d = DVector::zeros(b);
+                    d.fixed_rows_mut::<3>(0).copy_from(&dp);
+                    if self.use_ori {
+                        d.fixed_rows_mut::<3>(3).copy_from(&dw);
+                    }
+                    jac.view_mut((k * b, col), (b, 1)).copy_from(&(-(w * d)));
+                    return;
+                }
                 jac.fixed_view_mut::<3, 1>(k * b, col).copy_from(&(-dp / sp));
                 if self.use_ori {
                     jac.fixed_view_mut::<3, 1>(k * b + 3, col).copy_from(&(-dw / so));
@@ -298,4 +323,46 @@ impl KinProblem<'_> {
         }
         Ok(jac)
     }
+}
+
+/// Per row, the whitening matrix `W = L^-1` of the covariance block the residual uses, when the
+/// row carries a covariance and `use_covariance` is set: the position block (3 x 3) without
+/// orientations; with orientations the 6 x 6 covariance, or for a position-only covariance the
+/// position block beside `sigma_ori^2 I` (no cross terms). `W Sigma W^T = I`, so the whitened
+/// residual `W e` has unit covariance. The closure cost keeps the scalar sigmas (`None`).
+pub(super) fn whitening_matrices(
+    rows: &[&PoseMeasurement],
+    use_ori: bool,
+    sigma_ori: &[f64],
+    use_covariance: bool,
+    cost: Cost,
+) -> Result<Vec<Option<DMatrix<f64>>>> {
+    rows.iter()
+        .zip(sigma_ori)
+        .map(|(r, &so)| {
+            let Some(c) = r.covariance.as_ref().filter(|_| use_covariance && cost == Cost::ForwardKinematics) else {
+                return Ok(None);
+            };
+            c.validate().map_err(|e| row_error(r, e))?;
+            let block = match (use_ori, c.pose()) {
+                (false, _) => DMatrix::from_fn(3, 3, |i, j| c.position_m2()[(i, j)]),
+                (true, Some(m6)) => DMatrix::from_fn(6, 6, |i, j| m6[(i, j)]),
+                (true, None) => {
+                    let p = c.position_m2();
+                    DMatrix::from_fn(6, 6, |i, j| match (i < 3, j < 3) {
+                        (true, true) => p[(i, j)],
+                        (false, false) if i == j => so * so,
+                        _ => 0.0,
+                    })
+                }
+            };
+            let n = block.nrows();
+            let chol = block.cholesky().ok_or_else(|| row_error(r, "the covariance is not positive definite"))?;
+            let w = chol
+                .l()
+                .solve_lower_triangular(&DMatrix::identity(n, n))
+                .ok_or_else(|| row_error(r, "the covariance's Cholesky factor is singular"))?;
+            Ok(Some(w))
+        })
+        .collect()
 }
