@@ -184,3 +184,30 @@ impl MeasurementSet {
         self.rows.iter().filter(|r| r.split.unwrap_or(Split::Train) == which).collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn covariance_units_and_validation() {
+        // 1 mm^2 in x, 0.5 mm rad cross term, 1e-6 rad^2 in rx.
+        let mut mm = Matrix6::identity() * 1e-6;
+        mm[(0, 0)] = 1.0;
+        mm[(0, 3)] = 5e-4;
+        mm[(3, 0)] = 5e-4;
+        let c = PoseCovariance::from_mm_rad(&mm);
+        let si = c.pose().unwrap();
+        assert!((si[(0, 0)] - 1e-6).abs() < 1e-18, "mm^2 -> m^2");
+        assert!((si[(0, 3)] - 5e-7).abs() < 1e-18, "mm rad -> m rad");
+        assert!((si[(3, 3)] - 1e-6).abs() < 1e-18, "rad^2 unchanged");
+        assert!((c.position_m2()[(0, 0)] - 1e-6).abs() < 1e-18);
+        assert!(c.validate().is_ok());
+        let not_pd = PoseCovariance::Position { m2: Matrix3::new(1.0, 2.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0) };
+        assert!(not_pd.validate().unwrap_err().contains("positive definite"));
+        let asym = PoseCovariance::Position { m2: Matrix3::new(1.0, 0.5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0) };
+        assert!(asym.validate().unwrap_err().contains("symmetric"));
+        let nan = PoseCovariance::Position { m2: Matrix3::identity() * f64::NAN };
+        assert!(nan.validate().is_err());
+    }
+}
