@@ -9,7 +9,8 @@ use nalgebra::Vector3;
 
 fn ur5_rows() -> Vec<PoseMeasurement> {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/ur5_tracker/ur5_grid_train.csv");
-    let text = std::fs::read_to_string(path).expect("../shared/data/ur5_tracker beside the checkout");
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{path}: {e} (../shared/data/ur5_tracker must be beside the checkout)"));
     text.lines()
         .skip(1)
         .map(|l| {

@@ -27,4 +27,4 @@ pub mod measurement;
 pub mod stiffness;
 
 pub use error::{CalibError, Result};
-pub use measurement::{MeasurementSet, PoseMeasurement, Split};
+pub use measurement::{MeasurementSet, PoseCovariance, PoseMeasurement, Split};

@@ -4,15 +4,19 @@
 //! written as a measurement table that the robot calibration reads like a tracker's.
 //!
 //! Positions are in the frame of the first camera (`cam0`), metres inside, millimetres in the
-//! written table. Each row's `sigma` is the RMS of the position standard deviations.
+//! written table. Each row carries the pose estimate's full 6 x 6 covariance
+//! ([`PoseMeasurement::covariance`], SI units), which the kinematic calibration weights with;
+//! its `sigma` is the RMS of the position standard deviations (what the table can hold).
+//! With [`CornerSource::Detector`] the detector's per-corner covariances weight the pose
+//! estimate (corners without one get [`MeasureOptions::corner_sigma_px`]).
 
 use std::path::Path;
 
-use ferrocal_calib::{MeasurementSet, PoseMeasurement};
+use ferrocal_calib::{MeasurementSet, PoseCovariance, PoseMeasurement};
 use ferrocal_vision::calib::{calibrate_rig, CalibrationOptions, PlanarTarget, RigCalibration, View};
 use ferrocal_vision::camera::ImageSize;
 use ferrocal_vision::pose::{estimate_pose_rig, CornerNoise, PoseEstimate, RigObservation};
-use nalgebra::{Point2, Point3};
+use nalgebra::{Matrix2, Point2, Point3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -20,8 +24,16 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::DatasetError;
 
+/// Corners of one image with the detector's covariance of each (px^2), when it gave one.
+#[derive(Clone, Debug)]
+struct ImageCorners {
+    px: Vec<Point2<f64>>,
+    /// Empty when the source gives no covariances.
+    covariance_px2: Vec<Option<Matrix2<f64>>>,
+}
+
 /// Corners per image id (`None`: the whole pattern was not seen).
-type CornersById = std::collections::HashMap<String, Option<Vec<Point2<f64>>>>;
+type CornersById = std::collections::HashMap<String, Option<ImageCorners>>;
 /// Exact corners per image id, per corner index (`None`: outside the image).
 type TruthCorners = std::collections::HashMap<String, Vec<Option<Point2<f64>>>>;
 use crate::sim::SessionManifest;
@@ -81,7 +93,10 @@ fn detect_images(
                 let found = load_gray(&path).and_then(|img| detect(&img, pattern, &opts, None));
                 match found {
                     Ok(d) => match d.into_iter().find(|d| d.complete && d.corners.len() == n_points) {
-                        Some(d) => Some(d.corners_px()),
+                        Some(d) => Some(ImageCorners {
+                            px: d.corners_px(),
+                            covariance_px2: d.corners.iter().map(|c| c.covariance_px2).collect(),
+                        }),
                         None => {
                             notes.push(format!("{f}: the whole pattern was not found"));
                             None
@@ -103,7 +118,9 @@ fn detect_images(
 pub struct MeasureOptions {
     /// Corner source.
     pub corners: CornerSource,
-    /// Corner noise assumed by the pose estimation, pixels.
+    /// Corner noise assumed by the pose estimation, pixels: for every corner with
+    /// [`CornerSource::TruthWithNoise`], and for corners the detector gave no usable covariance
+    /// with [`CornerSource::Detector`] (the others are weighted by their own covariance).
     pub corner_sigma_px: f64,
     /// Camera calibration options (lens model, robust loss, ...).
     pub calibration: CalibrationOptions,
@@ -240,14 +257,16 @@ fn corners_for(
                     let v = if c.iter().any(|p| p.is_none()) {
                         None
                     } else {
-                        Some(
-                            c.iter()
+                        Some(ImageCorners {
+                            px: c
+                                .iter()
                                 .map(|p| {
                                     let p = p.expect("checked");
                                     Point2::new(p.x + noise.sample(&mut rng), p.y + noise.sample(&mut rng))
                                 })
                                 .collect(),
-                        )
+                            covariance_px2: Vec::new(),
+                        })
                     };
                     (id.clone(), v)
                 })
@@ -271,7 +290,7 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
     // Corners per camera and pose.
     let mut notes = Vec::new();
     let target_pattern = manifest.target.clone().expect("checked by target_points");
-    let mut corners: Vec<Vec<Option<Vec<Point2<f64>>>>> = Vec::new();
+    let mut corners: Vec<Vec<Option<ImageCorners>>> = Vec::new();
     for (ci, cam) in manifest.cameras.iter().enumerate() {
         let source = match &opts.corners {
             CornerSource::TruthWithNoise { sigma_px, seed } => {
@@ -313,7 +332,10 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
                     let size = ImageSize { width_px: cam.width_px, height_px: cam.height_px };
                     ids.iter()
                         .map(|id| {
-                            m.get(id).cloned().flatten().map(|c| View::new(format!("{} board {id}", cam.name), size, c))
+                            m.get(id)
+                                .cloned()
+                                .flatten()
+                                .map(|c| View::new(format!("{} board {id}", cam.name), size, c.px))
                         })
                         .collect()
                 })
@@ -332,7 +354,8 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
                         .iter()
                         .zip(&joints)
                         .map(|(c, row)| {
-                            c.as_ref().map(|c| View::new(format!("{} pose {}", cam.name, row.pose_id), size, c.clone()))
+                            c.as_ref()
+                                .map(|c| View::new(format!("{} pose {}", cam.name, row.pose_id), size, c.px.clone()))
                         })
                         .collect()
                 })
@@ -351,11 +374,15 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
             .iter()
             .enumerate()
             .filter_map(|(c, per_pose)| {
-                per_pose[k].as_ref().map(|px| RigObservation {
+                per_pose[k].as_ref().map(|ic| RigObservation {
                     camera: c,
                     point_ids: ids.clone(),
-                    corners_px: px.clone(),
-                    noise: CornerNoise::Isotropic { sigma_px: opts.corner_sigma_px },
+                    corners_px: ic.px.clone(),
+                    noise: if ic.covariance_px2.is_empty() {
+                        CornerNoise::Isotropic { sigma_px: opts.corner_sigma_px }
+                    } else {
+                        CornerNoise::from_detected(&ic.covariance_px2, opts.corner_sigma_px)
+                    },
                 })
             })
             .collect();
@@ -372,6 +399,8 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
                 m.sigma_m = Some((s.norm_squared() / 3.0).sqrt() * 1e-3);
                 let r = est.sigma_rotation_deg();
                 m.sigma_rad = Some((r.norm_squared() / 3.0).sqrt().to_radians());
+                // The whole 6 x 6 (mm, rad) in SI; the same chart as the kinematic residual.
+                m.covariance = Some(PoseCovariance::from_mm_rad(&est.covariance));
                 rows.push(m);
                 let centres = obs
                     .iter()

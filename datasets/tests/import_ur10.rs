@@ -27,7 +27,7 @@ fn series_b() -> Ur10Recording {
 /// Header names and the cells of 1-based line `line`, split and converted independently of the
 /// importer (`;` separator, decimal comma).
 fn raw_line(path: &str, line: usize) -> (Vec<String>, Vec<String>) {
-    let text = std::fs::read_to_string(path).unwrap();
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let mut lines = text.lines();
     let header: Vec<String> = lines.next().unwrap().split(';').map(String::from).collect();
     let cells = text.lines().nth(line - 1).unwrap().split(';').map(String::from).collect();

@@ -9,7 +9,7 @@ const UR5: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/ur5_tr
 
 /// The cells of 1-based line `line` of the raw file, parsed independently of the importer.
 fn raw_line(line: usize) -> Vec<f64> {
-    let text = std::fs::read_to_string(UR5).unwrap();
+    let text = std::fs::read_to_string(UR5).unwrap_or_else(|e| panic!("{UR5}: {e}"));
     let l = text.lines().nth(line - 1).unwrap();
     l.split(',').map(|c| c.trim().parse::<f64>().unwrap()).collect()
 }

@@ -13,7 +13,9 @@ fn data_file() -> PathBuf {
 
 #[test]
 fn ur5_preset_reproduces_recorded_targets() {
-    let mut rdr = csv::Reader::from_path(data_file()).expect("../shared/data/ur5_tracker must be beside the checkout");
+    let path = data_file();
+    let mut rdr = csv::Reader::from_path(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (../shared/data/ur5_tracker must be beside the checkout)", path.display()));
     let mut robot = presets::ur5();
     robot.tool = Pose::translation(0.0, 0.09e-3, 31.0e-3);
     let mut n = 0;

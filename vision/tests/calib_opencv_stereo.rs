@@ -13,14 +13,12 @@ const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/openc
 const INDICES: [u32; 13] = [1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13, 14];
 const SQUARE_M: f64 = 0.025;
 
-fn data_dir() -> Option<PathBuf> {
+/// The data folder; CI always has `../shared` beside the checkout, so a missing folder fails
+/// the test (naming the path) instead of passing it unseen.
+fn data_dir() -> PathBuf {
     let p = Path::new(DATA);
-    if p.is_dir() {
-        Some(p.to_path_buf())
-    } else {
-        eprintln!("skipped: {DATA} not present");
-        None
-    }
+    assert!(p.is_dir(), "{DATA} is missing: these tests need ../shared/data/opencv_stereo beside the checkout");
+    p.to_path_buf()
 }
 
 fn views(dir: &Path, side: &str) -> Vec<View> {
@@ -113,7 +111,7 @@ fn side_by_side(name: &str, ours: &ferrocal_vision::calib::CameraCalibration, cv
 
 #[test]
 fn left_camera_matches_the_published_calibration_and_opencv() {
-    let Some(dir) = data_dir() else { return };
+    let dir = data_dir();
     let views = views(&dir, "left");
     let target = PlanarTarget::chessboard(9, 6, SQUARE_M);
     let ours = calibrate_camera(&views, &target, &fix_aspect()).unwrap();
@@ -151,7 +149,7 @@ fn left_camera_matches_the_published_calibration_and_opencv() {
 
 #[test]
 fn right_camera_matches_opencv() {
-    let Some(dir) = data_dir() else { return };
+    let dir = data_dir();
     let views = views(&dir, "right");
     let target = PlanarTarget::chessboard(9, 6, SQUARE_M);
     let ours = calibrate_camera(&views, &target, &fix_aspect()).unwrap();
@@ -166,7 +164,7 @@ fn right_camera_matches_opencv() {
 
 #[test]
 fn stereo_baseline_matches_opencv_stereo_calibrate() {
-    let Some(dir) = data_dir() else { return };
+    let dir = data_dir();
     let left = views(&dir, "left");
     let right = views(&dir, "right");
     let target = PlanarTarget::chessboard(9, 6, SQUARE_M);
@@ -241,7 +239,7 @@ fn stereo_baseline_matches_opencv_stereo_calibrate() {
 /// same images fit twice as well and left02 is no longer an outlier.
 #[test]
 fn an_adaptive_subpixel_window_halves_the_rms() {
-    let Some(dir) = data_dir() else { return };
+    let dir = data_dir();
     let target = PlanarTarget::chessboard(9, 6, SQUARE_M);
     let mut sides = Vec::new();
     for side in ["left", "right"] {

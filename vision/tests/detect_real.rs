@@ -14,8 +14,11 @@ type View = Vec<(Point2<f64>, [f64; 3])>;
 /// Per camera: (our corners with target points, OpenCV's corners) per image.
 type Views = std::collections::BTreeMap<String, Vec<(View, Vec<Point2<f64>>)>>;
 
+/// A folder of `../shared/data`; CI always has it, so a missing folder fails the test by name.
 fn data(dir: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/")).join(dir)
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/")).join(dir);
+    assert!(p.is_dir(), "{} is missing: ../shared/data must be beside the checkout", p.display());
+    p
 }
 
 /// One label line: `id, (x0 y0), (x1 y1), (x2 y2), (x3 y3)`; corners shifted by -0.5 px from

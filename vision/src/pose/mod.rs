@@ -138,6 +138,30 @@ pub enum CornerNoise {
 }
 
 impl CornerNoise {
+    /// The detector's per-corner covariances (px^2, e.g. [`crate::detect::Corner::covariance_px2`]
+    /// of a detection, in the order of its corners) as weights: each corner keeps its own where
+    /// it is usable (finite, symmetric positive definite), the others get `fallback_sigma_px`
+    /// isotropic.
+    pub fn from_detected(covariances_px2: &[Option<Matrix2<f64>>], fallback_sigma_px: f64) -> Self {
+        let fallback = Matrix2::identity() * (fallback_sigma_px * fallback_sigma_px);
+        CornerNoise::PerCorner(
+            covariances_px2
+                .iter()
+                .map(|c| match c {
+                    Some(m)
+                        if m.iter().all(|v| v.is_finite())
+                            && m[(0, 0)] > 0.0
+                            && m.determinant() > 0.0
+                            && (m[(0, 1)] - m[(1, 0)]).abs() <= 1e-12 * m[(0, 0)].max(m[(1, 1)]) =>
+                    {
+                        *m
+                    }
+                    _ => fallback,
+                })
+                .collect(),
+        )
+    }
+
     /// The information matrix (inverse covariance) of corner `i`.
     fn information(&self, i: usize, n: usize) -> Result<Matrix2<f64>> {
         match self {

@@ -3,6 +3,7 @@
 
 use nalgebra::{Matrix2, Point2};
 
+use super::grid::estimate_noise;
 use super::line::{LineState, Sample, Segment};
 use super::*;
 use crate::detect::{detect, synth, DetectOptions, Pattern};

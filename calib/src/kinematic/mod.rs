@@ -22,15 +22,24 @@
 use std::ops::Range;
 
 use ferrocal_robot::{JointKind, Kinematics, Parameterized, RobotModel, Unit};
-use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, Isometry3, Point3};
 use serde::{Deserialize, Serialize};
 
 use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
-use crate::frames::{exp6, fit_rigid, log6};
+use crate::frames::{fit_rigid, log6};
 use crate::identifiability::{analyze, Identifiability};
-use crate::lsq::{covariance, solve, LmOptions, LmSummary, Loss, Problem};
+use crate::lsq::{covariance, solve, LmOptions, LmSummary, Loss};
 use crate::measurement::PoseMeasurement;
+
+mod model;
+mod problem;
+mod split;
+
+use model::row_error;
+pub use model::{CalibratedModel, ErrorStats};
+use problem::{whitening_matrices, KinProblem};
+pub use split::split_rows;
 
 /// Which of the model's own parameters are free.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -86,6 +95,12 @@ pub struct KinematicOptions {
     pub sigma_position_m: f64,
     /// Orientation standard deviation for rows without one.
     pub sigma_orientation_rad: f64,
+    /// Whiten the residual of a row that carries a full covariance
+    /// ([`PoseMeasurement::covariance`]) with it (a Cholesky factor of the block the residual
+    /// uses); `false` treats such rows like the others (their `sigma_m` / `sigma_rad`, else the
+    /// standard deviations above). Rows without a covariance are weighted the same either way.
+    #[serde(default = "default_use_covariance")]
+    pub use_covariance: bool,
     /// Robust loss on each pose's whitened residual.
     pub loss: Loss,
     /// Relative singular-value tolerance of the structural identifiability.
@@ -102,6 +117,10 @@ pub struct KinematicOptions {
     pub lm: LmOptions,
 }
 
+fn default_use_covariance() -> bool {
+    true
+}
+
 impl Default for KinematicOptions {
     fn default() -> Self {
         Self {
@@ -113,6 +132,7 @@ impl Default for KinematicOptions {
             use_orientation: true,
             sigma_position_m: 20e-6,
             sigma_orientation_rad: 1e-4,
+            use_covariance: true,
             loss: Loss::Squared,
             rank_tolerance: 1e-8,
             practical_threshold: None,
@@ -256,152 +276,6 @@ pub struct ParamResult {
     pub nu: Option<f64>,
 }
 
-/// Position (and orientation) error statistics.
-#[derive(Clone, Debug, Default, Serialize, Deserialize)]
-pub struct ErrorStats {
-    /// Number of poses.
-    pub n: usize,
-    /// Mean position error.
-    pub mean_mm: f64,
-    /// RMS position error.
-    pub rms_mm: f64,
-    /// Largest position error.
-    pub max_mm: f64,
-    /// RMS per axis (device frame).
-    pub rms_axis_mm: [f64; 3],
-    /// Mean orientation error, when orientations were compared.
-    pub mean_deg: Option<f64>,
-    /// Largest orientation error.
-    pub max_deg: Option<f64>,
-}
-
-impl ErrorStats {
-    /// Statistics of position error vectors (metres) and optional orientation errors (radians).
-    pub fn from_errors(pos_m: &[Vector3<f64>], ori_rad: &[f64]) -> Self {
-        let n = pos_m.len();
-        if n == 0 {
-            return Self::default();
-        }
-        let norms: Vec<f64> = pos_m.iter().map(|e| e.norm() * 1e3).collect();
-        let mut axis = [0.0; 3];
-        for e in pos_m {
-            for k in 0..3 {
-                axis[k] += (e[k] * 1e3).powi(2);
-            }
-        }
-        Self {
-            n,
-            mean_mm: norms.iter().sum::<f64>() / n as f64,
-            rms_mm: (norms.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt(),
-            max_mm: norms.iter().copied().fold(0.0, f64::max),
-            rms_axis_mm: axis.map(|a| (a / n as f64).sqrt()),
-            mean_deg: (!ori_rad.is_empty())
-                .then(|| ori_rad.iter().sum::<f64>() / ori_rad.len() as f64 * 180.0 / std::f64::consts::PI),
-            max_deg: (!ori_rad.is_empty()).then(|| ori_rad.iter().copied().fold(0.0, f64::max).to_degrees()),
-        }
-    }
-}
-
-/// A calibrated model: everything needed to predict measurements.
-#[derive(Clone, Debug)]
-pub struct CalibratedModel {
-    /// The robot model with the identified parameters.
-    pub model: RobotModel,
-    /// `T_device_base`.
-    pub device_frame: Isometry3<f64>,
-    /// `T_flange_target` (the model's own tool frame included before it).
-    pub tool: Isometry3<f64>,
-    /// Joint offsets added to the readings.
-    pub joint_offsets: Vec<f64>,
-    /// Whether the target's orientation was calibrated (orientations are compared only then).
-    pub orientation_calibrated: bool,
-    /// Physical effects with their identified parameters.
-    pub effects: Vec<(EffectSpec, Vec<f64>)>,
-    /// The model whose link frames place the masses for the gravity loads of the effects: the
-    /// nominal geometry. The calibrated model may move link frames along directions the
-    /// kinematics cannot see (kinematically redundant parameters), which would move the masses
-    /// and bias every load-dependent effect.
-    pub load_model: RobotModel,
-}
-
-impl CalibratedModel {
-    /// Effective joint values and length scale of `row` under the joint offsets and effects.
-    pub fn effective(&self, row: &PoseMeasurement) -> Result<(Vec<f64>, f64)> {
-        if row.q.len() != self.joint_offsets.len() {
-            return Err(CalibError::Data(format!(
-                "the robot has {} joints, the row {}",
-                self.joint_offsets.len(),
-                row.q.len()
-            )));
-        }
-        let mut dq = self.joint_offsets.clone();
-        let mut scale = 1.0;
-        for (e, theta) in &self.effects {
-            e.add_joint_delta(&self.load_model, row, theta, &mut dq)?;
-            scale *= e.length_scale(row, theta);
-        }
-        Ok((row.q.iter().zip(&dq).map(|(a, b)| a + b).collect(), scale))
-    }
-
-    /// Predicted `T_device_target` for a measured row (its joints and, for effects, its
-    /// approach directions, temperature, time and payload).
-    pub fn predict_row(&self, row: &PoseMeasurement) -> Result<Isometry3<f64>> {
-        let (q, scale) = self.effective(row)?;
-        let mut t = self.model.forward(&q)? * self.tool;
-        for (e, theta) in &self.effects {
-            if matches!(e, EffectSpec::LinkCompliance { .. }) {
-                t = e.pose_correction(&self.load_model, row, &q, theta)? * t;
-            }
-        }
-        if scale != 1.0 {
-            t.translation.vector *= scale;
-        }
-        Ok(self.device_frame * t)
-    }
-
-    /// Predicted `T_device_target` for joint readings `q`, without the effects (which need a
-    /// row's inputs: see [`CalibratedModel::predict_row`]).
-    pub fn predict(&self, q: &[f64]) -> Result<Isometry3<f64>> {
-        if q.len() != self.joint_offsets.len() {
-            return Err(CalibError::Data(format!(
-                "the robot has {} joints, the row {}",
-                self.joint_offsets.len(),
-                q.len()
-            )));
-        }
-        let qq: Vec<f64> = q.iter().zip(&self.joint_offsets).map(|(a, b)| a + b).collect();
-        Ok(self.device_frame * self.model.forward(&qq)? * self.tool)
-    }
-
-    /// Position (and orientation) errors of `rows` under this model: `measured - predicted`.
-    pub fn errors(&self, rows: &[&PoseMeasurement]) -> Result<(Vec<Vector3<f64>>, Vec<f64>)> {
-        let mut pos = Vec::with_capacity(rows.len());
-        let mut ori = Vec::new();
-        for r in rows {
-            let t = self.predict_row(r).map_err(|e| row_error(r, e))?;
-            pos.push(r.position_m - t.translation.vector);
-            if let (true, Some(qm)) = (self.orientation_calibrated, &r.orientation) {
-                ori.push(qm.angle_to(&t.rotation));
-            }
-        }
-        if ori.len() != rows.len() {
-            ori.clear();
-        }
-        Ok((pos, ori))
-    }
-
-    /// Error statistics of `rows`.
-    pub fn evaluate(&self, rows: &[&PoseMeasurement]) -> Result<ErrorStats> {
-        let (p, o) = self.errors(rows)?;
-        Ok(ErrorStats::from_errors(&p, &o))
-    }
-}
-
-fn row_error(r: &PoseMeasurement, e: impl std::fmt::Display) -> CalibError {
-    let line = r.source_line.map(|l| format!(" (line {l})")).unwrap_or_default();
-    CalibError::Data(format!("pose '{}'{line}: {e}", r.pose_id))
-}
-
 /// The result of [`calibrate`].
 #[derive(Clone, Debug)]
 pub struct KinematicCalibration {
@@ -435,295 +309,6 @@ pub struct KinematicCalibration {
     pub used_orientation: bool,
     /// Advice for parameters the data cannot identify.
     pub advice: Vec<String>,
-}
-
-struct KinProblem<'a> {
-    base_model: RobotModel,
-    rows: &'a [&'a PoseMeasurement],
-    layout: &'a StateLayout,
-    f0: Isometry3<f64>,
-    tool0: Isometry3<f64>,
-    use_ori: bool,
-    /// Start values of all candidates.
-    start: Vec<f64>,
-    /// Free candidate indices.
-    free: Vec<usize>,
-    sigma_pos: Vec<f64>,
-    sigma_ori: Vec<f64>,
-    effects: Vec<EffectSpec>,
-    cost: Cost,
-    /// Legs of a parallel robot (closure cost).
-    n_legs: usize,
-}
-
-impl KinProblem<'_> {
-    fn full(&self, x: &[f64]) -> Vec<f64> {
-        let mut v = self.start.clone();
-        for (k, &i) in self.free.iter().enumerate() {
-            v[i] = x[k];
-        }
-        v
-    }
-
-    fn model_for(&self, full: &[f64]) -> Result<RobotModel> {
-        let mut m = self.base_model.clone();
-        if !self.layout.model_index.is_empty() {
-            let mut vals = m.parameter_values();
-            for (k, &pi) in self.layout.model_index.iter().enumerate() {
-                vals[pi] = full[self.layout.model.start + k];
-            }
-            m.set_parameter_values(&vals)?;
-        }
-        Ok(m)
-    }
-
-    fn frames(&self, full: &[f64]) -> (Isometry3<f64>, Isometry3<f64>) {
-        let f = exp6(&full[self.layout.frame.clone()]) * self.f0;
-        let t = &full[self.layout.tool.clone()];
-        let tool =
-            if t.len() == 6 { self.tool0 * exp6(t) } else { self.tool0 * Isometry3::translation(t[0], t[1], t[2]) };
-        (f, tool)
-    }
-
-    fn calibrated(&self, full: &[f64]) -> Result<CalibratedModel> {
-        let (device_frame, tool) = self.frames(full);
-        Ok(CalibratedModel {
-            model: self.model_for(full)?,
-            device_frame,
-            tool,
-            joint_offsets: full[self.layout.offsets.clone()].to_vec(),
-            orientation_calibrated: self.use_ori,
-            effects: self
-                .effects
-                .iter()
-                .zip(&self.layout.effects)
-                .map(|(e, r)| (e.clone(), full[r.clone()].to_vec()))
-                .collect(),
-            load_model: self.base_model.clone(),
-        })
-    }
-
-    fn block(&self) -> usize {
-        if self.cost == Cost::Closure {
-            return self.n_legs;
-        }
-        if self.use_ori {
-            6
-        } else {
-            3
-        }
-    }
-
-    /// Closure residuals: leg-length errors at the measured pose, over the row's sigma.
-    fn closure_residuals(&self, cm: &CalibratedModel) -> Result<DVector<f64>> {
-        let b = self.block();
-        let par =
-            cm.model.parallel().ok_or_else(|| CalibError::Data("the closure cost needs a parallel robot".into()))?;
-        let mech = par.mechanism()?;
-        let mut r = DVector::zeros(self.rows.len() * b);
-        let f_inv = cm.device_frame.inverse();
-        let tool_inv = cm.tool.inverse();
-        for (k, row) in self.rows.iter().enumerate() {
-            let (q, scale) = cm.effective(row).map_err(|e| row_error(row, e))?;
-            let rot = row.orientation.unwrap_or_else(UnitQuaternion::identity);
-            let t_dev = Isometry3::from_parts(Translation3::from(row.position_m), rot);
-            let mut t_base_target = f_inv * t_dev;
-            if scale != 1.0 {
-                t_base_target.translation.vector /= scale;
-            }
-            let t_base_tool = t_base_target * tool_inv;
-            let legs = mech.leg_states(&q, &t_base_tool).map_err(|e| row_error(row, e))?;
-            for (j, leg) in legs.iter().enumerate() {
-                r[k * b + j] = leg.length_error_m() / self.sigma_pos[k];
-            }
-        }
-        Ok(r)
-    }
-
-    /// Whitened residuals of every row for a calibrated model.
-    fn residuals_of(&self, cm: &CalibratedModel) -> Result<DVector<f64>> {
-        if self.cost == Cost::Closure {
-            return self.closure_residuals(cm);
-        }
-        let b = self.block();
-        let mut r = DVector::zeros(self.rows.len() * b);
-        for (k, row) in self.rows.iter().enumerate() {
-            let t = cm.predict_row(row).map_err(|e| row_error(row, e))?;
-            let e = (row.position_m - t.translation.vector) / self.sigma_pos[k];
-            r.fixed_rows_mut::<3>(k * b).copy_from(&e);
-            if self.use_ori {
-                let qm = row.orientation.expect("checked");
-                let w = (qm * t.rotation.inverse()).scaled_axis() / self.sigma_ori[k];
-                r.fixed_rows_mut::<3>(k * b + 3).copy_from(&w);
-            }
-        }
-        Ok(r)
-    }
-}
-
-impl Problem for KinProblem<'_> {
-    fn n_params(&self) -> usize {
-        self.free.len()
-    }
-    fn n_residuals(&self) -> usize {
-        self.rows.len() * self.block()
-    }
-    fn block_size(&self) -> usize {
-        self.block()
-    }
-    fn scales(&self) -> Vec<f64> {
-        self.free.iter().map(|&i| self.layout.scales[i]).collect()
-    }
-    fn residuals(&self, x: &[f64]) -> Result<DVector<f64>> {
-        let full = self.full(x);
-        let cm = self.calibrated(&full)?;
-        self.residuals_of(&cm)
-    }
-    fn jacobian(&self, x: &[f64]) -> Result<DMatrix<f64>> {
-        let full = self.full(x);
-        let jfull = self.full_jacobian(&full)?;
-        let mut j = DMatrix::zeros(jfull.nrows(), self.free.len());
-        for (k, &i) in self.free.iter().enumerate() {
-            j.set_column(k, &jfull.column(i));
-        }
-        Ok(j)
-    }
-}
-
-impl KinProblem<'_> {
-    /// Jacobian of the whitened residuals with respect to every candidate at `full`.
-    fn full_jacobian(&self, full: &[f64]) -> Result<DMatrix<f64>> {
-        if self.cost == Cost::Closure {
-            let mut jac = DMatrix::zeros(self.n_residuals(), self.layout.len());
-            for col in 0..self.layout.len() {
-                let h = 1e-3 * self.layout.scales[col];
-                let mut fp = full.to_vec();
-                fp[col] += h;
-                let rp = self.residuals_of(&self.calibrated(&fp)?)?;
-                fp[col] -= 2.0 * h;
-                let rm = self.residuals_of(&self.calibrated(&fp)?)?;
-                jac.set_column(col, &((rp - rm) / (2.0 * h)));
-            }
-            return Ok(jac);
-        }
-        let b = self.block();
-        let cm = self.calibrated(full)?;
-        let n_cand = self.layout.len();
-        let mut jac = DMatrix::zeros(self.rows.len() * b, n_cand);
-        let rf = cm.device_frame.rotation;
-        let kinds = cm.model.joint_kinds();
-        // Analytic columns: frame, tool, offsets, serial corrections.
-        let serial = match &cm.model {
-            RobotModel::Serial(c) => Some(c),
-            _ => None,
-        };
-        let corr_cols: Vec<(usize, usize, usize)> = match serial {
-            Some(_) => self
-                .layout
-                .model_index
-                .iter()
-                .enumerate()
-                .filter_map(|(k, &pi)| {
-                    let name = &self.base_model.parameters()[pi].name;
-                    let joint: usize = name.strip_prefix("joint")?.split('.').next()?.parse().ok()?;
-                    let comp = ferrocal_robot::serial::CORRECTION_NAMES
-                        .iter()
-                        .position(|c| name.ends_with(&format!(".{c}")))?;
-                    Some((self.layout.model.start + k, joint - 1, comp))
-                })
-                .collect(),
-            None => Vec::new(),
-        };
-        let params = self.base_model.parameters();
-        for (k, row) in self.rows.iter().enumerate() {
-            let (qq, _) = cm.effective(row).map_err(|e| row_error(row, e))?;
-            let t_base_flange = cm.model.forward(&qq).map_err(|e| row_error(row, e))?;
-            let t_dev_tool = cm.device_frame * t_base_flange * cm.tool;
-            let p = t_dev_tool.translation.vector;
-            let sp = self.sigma_pos[k];
-            let so = self.sigma_ori[k];
-            // d(prediction) columns: (dp, dw) in the device frame; residual = -d(prediction).
-            let mut put = |col: usize, dp: Vector3<f64>, dw: Vector3<f64>| {
-                jac.fixed_view_mut::<3, 1>(k * b, col).copy_from(&(-dp / sp));
-                if self.use_ori {
-                    jac.fixed_view_mut::<3, 1>(k * b + 3, col).copy_from(&(-dw / so));
-                }
-            };
-            // Device frame (left increment): dp = dt + dr x p.
-            for a in 0..3 {
-                put(self.layout.frame.start + a, Vector3::ith(a, 1.0), Vector3::zeros());
-                let w = Vector3::ith(a, 1.0);
-                put(self.layout.frame.start + 3 + a, w.cross(&p), w);
-            }
-            // Tool (right increment in the tool frame).
-            let t_dev_tool0 = cm.device_frame * t_base_flange * self.tool0;
-            for a in 0..self.layout.tool.len().min(3) {
-                put(self.layout.tool.start + a, t_dev_tool0.rotation * Vector3::ith(a, 1.0), Vector3::zeros());
-            }
-            if self.layout.tool.len() == 6 {
-                for a in 0..3 {
-                    let w = t_dev_tool.rotation * Vector3::ith(a, 1.0);
-                    put(self.layout.tool.start + 3 + a, Vector3::zeros(), w);
-                }
-            }
-            // Joint offsets: geometric Jacobian of the model's tool point, moved to the target.
-            let jg = cm.model.jacobian(&qq).map_err(|e| row_error(row, e))?;
-            let lever = p - (cm.device_frame * t_base_flange).translation.vector;
-            for i in 0..cm.model.dof() {
-                let v = rf * Vector3::new(jg[(0, i)], jg[(1, i)], jg[(2, i)]);
-                let w = rf * Vector3::new(jg[(3, i)], jg[(4, i)], jg[(5, i)]);
-                put(self.layout.offsets.start + i, v + w.cross(&lever), w);
-            }
-            // Serial corrections (right increment of each corrected link frame).
-            if let Some(chain) = serial {
-                if !corr_cols.is_empty() {
-                    let fr = chain.frames(&qq).map_err(|e| row_error(row, e))?;
-                    for &(col, j, comp) in &corr_cols {
-                        let link = cm.device_frame * fr.links[j];
-                        let e = link.rotation * Vector3::ith(comp % 3, 1.0);
-                        if comp < 3 {
-                            put(col, e, Vector3::zeros());
-                        } else {
-                            put(col, e.cross(&(p - link.translation.vector)), e);
-                        }
-                    }
-                }
-            }
-            let _ = kinds.len();
-        }
-        // Numeric columns: effect parameters.
-        for r in &self.layout.effects {
-            for col in r.clone() {
-                let h = 1e-3 * self.layout.scales[col];
-                let mut fp = full.to_vec();
-                fp[col] += h;
-                let rp = self.residuals_of(&self.calibrated(&fp)?)?;
-                fp[col] -= 2.0 * h;
-                let rm = self.residuals_of(&self.calibrated(&fp)?)?;
-                jac.set_column(col, &((rp - rm) / (2.0 * h)));
-            }
-        }
-        // Numeric columns: model parameters without an analytic form.
-        let analytic: Vec<usize> = corr_cols.iter().map(|c| c.0).collect();
-        for (kk, &pi) in self.layout.model_index.iter().enumerate() {
-            let col = self.layout.model.start + kk;
-            if analytic.contains(&col) {
-                continue;
-            }
-            let h = match params[pi].unit {
-                Unit::Metre => 1e-7,
-                Unit::Radian => 1e-7,
-                _ => 1e-7,
-            };
-            let mut fp = full.to_vec();
-            fp[col] += h;
-            let rp = self.residuals_of(&self.calibrated(&fp)?)?;
-            fp[col] -= 2.0 * h;
-            let rm = self.residuals_of(&self.calibrated(&fp)?)?;
-            jac.set_column(col, &((rp - rm) / (2.0 * h)));
-        }
-        Ok(jac)
-    }
 }
 
 /// Calibrates `model` from `rows` (the training rows).
@@ -791,6 +376,7 @@ pub fn calibrate(
     if sigma_pos.iter().chain(&sigma_ori).any(|s| !(s.is_finite() && *s > 0.0)) {
         return Err(CalibError::Data("every standard deviation must be positive".into()));
     }
+    let whiten = whitening_matrices(rows, use_ori, &sigma_ori, opts.use_covariance, opts.cost)?;
     let params = model.parameters();
     let mut start = vec![0.0; layout.len()];
     for (k, &pi) in layout.model_index.iter().enumerate() {
@@ -808,6 +394,7 @@ pub fn calibrate(
         free: all.clone(),
         sigma_pos,
         sigma_ori,
+        whiten,
         effects: opts.effects.clone(),
         cost: opts.cost,
         n_legs: model.parallel().and_then(|p| p.mechanism().ok()).map_or(0, |m| m.legs.len()),
@@ -1001,26 +588,6 @@ fn advise(model: &RobotModel, rows: &[&PoseMeasurement], id: &Identifiability) -
     out
 }
 
-/// Splits rows into training and held-out sets: by the `split` column when any row has one,
-/// else every second row held out (the source's choice) when `holdout_every_second`.
-pub fn split_rows(
-    rows: &[PoseMeasurement],
-    holdout_every_second: bool,
-) -> (Vec<&PoseMeasurement>, Vec<&PoseMeasurement>) {
-    if rows.iter().any(|r| r.split.is_some()) {
-        let train = rows.iter().filter(|r| r.split != Some(crate::measurement::Split::Test)).collect();
-        let test = rows.iter().filter(|r| r.split == Some(crate::measurement::Split::Test)).collect();
-        return (train, test);
-    }
-    if holdout_every_second {
-        let train = rows.iter().step_by(2).collect();
-        let test = rows.iter().skip(1).step_by(2).collect();
-        (train, test)
-    } else {
-        (rows.iter().collect(), Vec::new())
-    }
-}
-
 /// The device frame as `(translation mm, rotation vector deg)`.
 pub fn frame_mm_deg(t: &Isometry3<f64>) -> ([f64; 3], [f64; 3]) {
     let v = log6(t);
@@ -1069,6 +636,7 @@ pub fn design_jacobian(
         free: (0..layout.len()).collect(),
         sigma_pos: vec![sigma_position_m; rows.len()],
         sigma_ori: vec![opts.sigma_orientation_rad; rows.len()],
+        whiten: vec![None; rows.len()],
         effects: opts.effects.clone(),
         cost: Cost::ForwardKinematics,
         n_legs: 0,

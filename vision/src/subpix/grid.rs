@@ -1,0 +1,786 @@
+//! The line fits and intersections behind [`refine_grid`]: segments and lines of a
+//! [`CheckerGrid`], the blurred-step fits, corner covariances and the noise estimate.
+
+use nalgebra::{Matrix2, Point2, Vector2};
+
+use super::line::{LineFit, LineState, Sample, Segment};
+use super::{CheckerGrid, LineSupport, NoiseModel, NoiseSpec, RefineOptions, RefineSummary, RefinedCorner};
+use crate::camera::CameraModel;
+use crate::detect::GrayF32;
+use crate::error::{Result, VisionError};
+
+/// Maps between image pixels and the coordinates in which lines are straight.
+enum Coords<'a> {
+    Pixel,
+    Undistorted(&'a CameraModel),
+}
+
+impl Coords<'_> {
+    fn to_fit(&self, p: Vector2<f64>) -> Option<Vector2<f64>> {
+        match self {
+            Coords::Pixel => Some(p),
+            Coords::Undistorted(cam) => {
+                let n = cam.unproject_normalized(&Point2::new(p.x, p.y)).ok()?;
+                let k = &cam.intrinsics;
+                Some(Vector2::new(k.fx_px * n.x + k.cx_px, k.fy_px * n.y + k.cy_px))
+            }
+        }
+    }
+
+    fn to_pixel(&self, q: Vector2<f64>) -> Option<Vector2<f64>> {
+        match self {
+            Coords::Pixel => Some(q),
+            Coords::Undistorted(cam) => {
+                let k = &cam.intrinsics;
+                let p =
+                    cam.project_normalized(&Point2::new((q.x - k.cx_px) / k.fx_px, (q.y - k.cy_px) / k.fy_px)).ok()?;
+                Some(Vector2::new(p.x, p.y))
+            }
+        }
+    }
+
+    /// d(pixel)/d(fit coordinates) by central differences.
+    fn jacobian(&self, q: Vector2<f64>) -> Option<Matrix2<f64>> {
+        match self {
+            Coords::Pixel => Some(Matrix2::identity()),
+            Coords::Undistorted(_) => {
+                let h = 1e-3;
+                let dx =
+                    (self.to_pixel(q + Vector2::new(h, 0.0))? - self.to_pixel(q - Vector2::new(h, 0.0))?) / (2.0 * h);
+                let dy =
+                    (self.to_pixel(q + Vector2::new(0.0, h))? - self.to_pixel(q - Vector2::new(0.0, h))?) / (2.0 * h);
+                Some(Matrix2::from_columns(&[dx, dy]))
+            }
+        }
+    }
+}
+
+/// One segment of a line job, in fit coordinates.
+#[derive(Clone, Debug)]
+struct SegJob {
+    a: Vector2<f64>,
+    b: Vector2<f64>,
+    /// Directions of the crossing lines at `a` and `b` (unit).
+    cross_a: Vector2<f64>,
+    cross_b: Vector2<f64>,
+    /// Room on either side of the edge before the next parallel edge, pixels.
+    room_px: f64,
+}
+
+/// A line to fit: origin, initial tangent, segments, and (local support) the largest `|t|`.
+#[derive(Clone, Debug)]
+struct LineJob {
+    origin: Vector2<f64>,
+    tangent: Vector2<f64>,
+    segments: Vec<SegJob>,
+    t_limit: Option<f64>,
+}
+
+/// A fitted line in fit coordinates.
+#[derive(Clone, Debug)]
+struct FittedLine {
+    origin: Vector2<f64>,
+    state: LineState,
+    fit: LineFit,
+    pixels: usize,
+}
+
+impl FittedLine {
+    fn reduced_chi2(&self) -> f64 {
+        self.fit.chi2 / (self.fit.n - self.fit.p) as f64
+    }
+}
+
+/// Collects the band pixels of every segment for the line's current state.
+fn gather(
+    img: &GrayF32,
+    coords: &Coords,
+    job: &LineJob,
+    state: &LineState,
+    blur: f64,
+    options: &RefineOptions,
+) -> Vec<Option<Vec<Sample>>> {
+    let n = state.normal();
+    let t = state.tangent();
+    let (w_img, h_img) = (img.width as f64, img.height as f64);
+    job.segments
+        .iter()
+        .map(|seg| {
+            let mut w = 2.5 * blur + 2.0;
+            w = w.min(seg.room_px - 2.5 * blur - 0.5);
+            if let Some(m) = options.max_band_px {
+                w = w.min(m);
+            }
+            if w < 1.5 {
+                w = w.max(1.0);
+                if seg.room_px < 2.0 {
+                    return None;
+                }
+            }
+            let ex = |cross: Vector2<f64>| {
+                let sin = (t.x * cross.y - t.y * cross.x).abs().max(0.25);
+                let cos = t.dot(&cross).abs();
+                (3.0 * blur + 1.0 + w * cos) / sin
+            };
+            let ta = t.dot(&(seg.a - job.origin));
+            let tb = t.dot(&(seg.b - job.origin));
+            let (mut lo, mut hi) = if ta <= tb {
+                (ta + ex(seg.cross_a), tb - ex(seg.cross_b))
+            } else {
+                (tb + ex(seg.cross_b), ta - ex(seg.cross_a))
+            };
+            if let Some(l) = job.t_limit {
+                lo = lo.max(-l);
+                hi = hi.min(l);
+            }
+            if hi - lo < 3.0 {
+                return None;
+            }
+            // Bounding box of the band in pixels.
+            let mut bb = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+            let steps = if matches!(coords, Coords::Pixel) { 1 } else { 8 };
+            for k in 0..=steps {
+                let tt = lo + (hi - lo) * k as f64 / steps as f64;
+                for uu in [-w, w] {
+                    let q = job.origin + t * tt + n * (state.d + uu);
+                    let p = coords.to_pixel(q)?;
+                    bb[0] = bb[0].min(p.x);
+                    bb[1] = bb[1].min(p.y);
+                    bb[2] = bb[2].max(p.x);
+                    bb[3] = bb[3].max(p.y);
+                }
+            }
+            let margin = if matches!(coords, Coords::Pixel) { 1.0 } else { 3.0 };
+            let x0 = (bb[0] - margin).floor().max(0.0);
+            let y0 = (bb[1] - margin).floor().max(0.0);
+            let x1 = (bb[2] + margin).ceil().min(w_img - 1.0);
+            let y1 = (bb[3] + margin).ceil().min(h_img - 1.0);
+            if x1 < x0 || y1 < y0 {
+                return None;
+            }
+            let mut out = Vec::new();
+            for yi in y0 as usize..=y1 as usize {
+                for xi in x0 as usize..=x1 as usize {
+                    let Some(q) = coords.to_fit(Vector2::new(xi as f64, yi as f64)) else { continue };
+                    let x = q - job.origin;
+                    let tt = t.dot(&x);
+                    let u = n.dot(&x) - state.d;
+                    if tt >= lo && tt <= hi && u.abs() <= w {
+                        out.push(Sample { x: x.x, y: x.y, v: f64::from(img.get(xi, yi)), w: 1.0 });
+                    }
+                }
+            }
+            if out.len() < 8 {
+                None
+            } else {
+                Some(out)
+            }
+        })
+        .collect()
+}
+
+/// Moves the initial line onto the strongest gradient along profiles across each segment
+/// (a few pixels either way), so that the band of the first fit contains the edge even when
+/// the initial corners are off by several pixels (e.g. predicted through a homography).
+fn snap_line(img: &GrayF32, coords: &Coords, job: &LineJob, state: &mut LineState, options: &RefineOptions) {
+    let n = state.normal();
+    let t = state.tangent();
+    let mut pts: Vec<(f64, f64, f64)> = Vec::new();
+    for seg in &job.segments {
+        let ta = t.dot(&(seg.a - job.origin));
+        let tb = t.dot(&(seg.b - job.origin));
+        let (mut lo, mut hi) = (ta.min(tb), ta.max(tb));
+        let len = hi - lo;
+        lo += 0.25 * len;
+        hi -= 0.25 * len;
+        if let Some(l) = job.t_limit {
+            lo = lo.max(-l);
+            hi = hi.min(l);
+        }
+        if hi - lo < 2.0 {
+            continue;
+        }
+        let reach = (0.3 * seg.room_px).clamp(1.5, 6.0);
+        let reach = options.max_band_px.map_or(reach, |m| reach.min(m));
+        for k in 0..5 {
+            let tt = lo + (hi - lo) * (k as f64 + 0.5) / 5.0;
+            let steps = (reach / 0.5).round() as i32;
+            let mut prof = Vec::with_capacity(2 * steps as usize + 1);
+            for m in -steps..=steps {
+                let u = state.d + m as f64 * 0.5;
+                let mut v = 0.0;
+                let mut ok = true;
+                for dt in [-1.0, 0.0, 1.0] {
+                    let q = job.origin + t * (tt + dt) + n * u;
+                    match coords.to_pixel(q) {
+                        Some(p)
+                            if p.x >= 0.0
+                                && p.y >= 0.0
+                                && p.x <= (img.width - 1) as f64
+                                && p.y <= (img.height - 1) as f64 =>
+                        {
+                            v += img.bilinear(p.x, p.y)
+                        }
+                        _ => ok = false,
+                    }
+                }
+                if !ok {
+                    prof.clear();
+                    break;
+                }
+                prof.push(v / 3.0);
+            }
+            if prof.len() < 5 {
+                continue;
+            }
+            let mut best = (0usize, 0.0f64);
+            for i in 1..prof.len() - 1 {
+                let g = (prof[i + 1] - prof[i - 1]).abs();
+                if g > best.1 {
+                    best = (i, g);
+                }
+            }
+            let i = best.0;
+            if i == 0 {
+                continue;
+            }
+            // Parabolic peak of |gradient|.
+            let g = |j: usize| (prof[(j + 1).min(prof.len() - 1)] - prof[j.saturating_sub(1)]).abs();
+            let (gm, g0, gp) = (g(i - 1), g(i), g(i + 1));
+            let den = gm - 2.0 * g0 + gp;
+            let off = if den < 0.0 { (0.5 * (gm - gp) / den).clamp(-0.5, 0.5) } else { 0.0 };
+            let u = state.d + (i as f64 - steps as f64 + off) * 0.5;
+            pts.push((tt, u, best.1));
+        }
+    }
+    if pts.len() < 3 {
+        return;
+    }
+    let gmax = pts.iter().map(|p| p.2).fold(0.0, f64::max);
+    pts.retain(|p| p.2 >= 0.3 * gmax);
+    if pts.len() < 3 {
+        return;
+    }
+    let fit = |pts: &[(f64, f64, f64)]| -> Option<(f64, f64)> {
+        let n = pts.len() as f64;
+        let (st, su) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+        let (mt, mu) = (st / n, su / n);
+        let stt: f64 = pts.iter().map(|p| (p.0 - mt).powi(2)).sum();
+        let stu: f64 = pts.iter().map(|p| (p.0 - mt) * (p.1 - mu)).sum();
+        let m = if stt > 1e-9 { stu / stt } else { 0.0 };
+        Some((mu - m * mt, m))
+    };
+    let Some((d0, m)) = fit(&pts) else { return };
+    let kept: Vec<(f64, f64, f64)> = pts.iter().copied().filter(|p| (p.1 - d0 - m * p.0).abs() < 1.0).collect();
+    let (d0, m) = if kept.len() >= 3 { fit(&kept).unwrap_or((d0, m)) } else { (d0, m) };
+    if m.abs() > 0.2 {
+        return;
+    }
+    let nn = (n - t * m) / (1.0 + m * m).sqrt();
+    state.phi = nn.y.atan2(nn.x);
+    state.d = d0 / (1.0 + m * m).sqrt();
+}
+
+/// Fits one line job: band selection, fit, dropping segments without an edge, reselection
+/// when the line moved. Unweighted (pass 1).
+fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOptions) -> Option<FittedLine> {
+    let phi0 = job.tangent.y.atan2(job.tangent.x) - std::f64::consts::FRAC_PI_2;
+    let mut state = LineState { phi: phi0, d: 0.0, segments: Vec::new() };
+    snap_line(img, coords, job, &mut state, options);
+    let phi0 = state.phi;
+    let mut blur = options.initial_blur_px;
+    let mut prev = (phi0, state.d);
+    let mut fitted: Option<LineFit> = None;
+    let mut kept: Vec<bool> = vec![true; job.segments.len()];
+    for round in 0..4 {
+        let gathered = gather(img, coords, job, &state, blur, options);
+        let old: Vec<Segment> = std::mem::take(&mut state.segments);
+        let mut idx = 0;
+        for (k, g) in gathered.into_iter().enumerate() {
+            let prior = if round > 0 && kept[k] {
+                let s = old.get(idx).cloned();
+                idx += 1;
+                s
+            } else {
+                None
+            };
+            match g {
+                Some(samples) if kept[k] => {
+                    let (a, b, ln_s, g) = prior.map(|s| (s.a, s.b, s.ln_s, s.g)).unwrap_or((0.0, 0.0, blur.ln(), 0.0));
+                    state.segments.push(Segment { a, b, ln_s, g, samples });
+                }
+                _ => kept[k] = false,
+            }
+        }
+        if state.segments.is_empty() {
+            return None;
+        }
+        if round == 0 {
+            state.init_intensities();
+        }
+        let mut fit = state.solve(options.max_iterations)?;
+        // Drop segments without a clear step and refit.
+        let max_b = state.segments.iter().map(|s| s.b.abs()).fold(0.0, f64::max);
+        let thresh = options.min_contrast_dn.max(0.25 * max_b);
+        if state.segments.iter().any(|s| s.b.abs() < thresh) {
+            let mut j = 0;
+            for keep in kept.iter_mut() {
+                if *keep {
+                    if state.segments[j].b.abs() < thresh {
+                        *keep = false;
+                    }
+                    j += 1;
+                }
+            }
+            state.segments.retain(|s| s.b.abs() >= thresh);
+            if state.segments.is_empty() {
+                return None;
+            }
+            fit = state.solve(options.max_iterations)?;
+        }
+        let new_blur = state.segments.iter().map(|s| s.ln_s.exp()).fold(0.0, f64::max);
+        let reach = job.t_limit.unwrap_or(200.0);
+        let moved = (state.d - prev.1).abs() + (state.phi - prev.0).abs() * reach;
+        let blur_changed = (new_blur / blur - 1.0).abs() > 0.25;
+        prev = (state.phi, state.d);
+        fitted = Some(fit);
+        if moved < 0.3 && !blur_changed {
+            // The band the pixels came from is the band of the fitted line.
+            break;
+        }
+        blur = new_blur.clamp(0.3, 8.0);
+    }
+    let fit = fitted?;
+    let pixels = state.segments.iter().map(|s| s.samples.len()).sum();
+    Some(FittedLine { origin: job.origin, state, fit, pixels })
+}
+
+/// Corner of two fitted lines, in fit coordinates, with the Jacobian blocks.
+fn intersect(l1: &FittedLine, l2: &FittedLine) -> Option<(Vector2<f64>, [nalgebra::Matrix2<f64>; 2])> {
+    let (n1, n2) = (l1.state.normal(), l2.state.normal());
+    let m = Matrix2::new(n1.x, n1.y, n2.x, n2.y);
+    let det = m.determinant();
+    if det.abs() < 0.2 {
+        // Lines closer than ~11.5 degrees to parallel.
+        return None;
+    }
+    let minv = m.try_inverse()?;
+    let c = Vector2::new(n1.dot(&l1.origin) + l1.state.d, n2.dot(&l2.origin) + l2.state.d);
+    let p = minv * c;
+    let mut blocks = [Matrix2::zeros(); 2];
+    for (i, l) in [l1, l2].into_iter().enumerate() {
+        let e = minv.column(i).into_owned();
+        let tp = l.state.tangent().dot(&(p - l.origin));
+        // Columns: d/dphi, d/dd.
+        blocks[i] = Matrix2::from_columns(&[-e * tp, e]);
+    }
+    Some((p, blocks))
+}
+
+/// Grid point lookup with extrapolation along a direction.
+struct Points<'a> {
+    grid: &'a CheckerGrid,
+    fit: Vec<Option<Vector2<f64>>>,
+}
+
+impl Points<'_> {
+    fn get(&self, i: isize, j: isize) -> Option<Vector2<f64>> {
+        let (r, c) = (self.grid.field_rows as isize + 1, self.grid.field_cols as isize + 1);
+        if i < 0 || j < 0 || i >= r || j >= c {
+            return None;
+        }
+        self.fit[(i * c + j) as usize]
+    }
+
+    /// The point, or its linear extrapolation from the two next along `(di, dj)` (either
+    /// direction).
+    fn get_or_extrapolate(&self, i: isize, j: isize, di: isize, dj: isize) -> Option<Vector2<f64>> {
+        if let Some(p) = self.get(i, j) {
+            return Some(p);
+        }
+        for s in [1, -1] {
+            if let (Some(p1), Some(p2)) = (self.get(i + s * di, j + s * dj), self.get(i + 2 * s * di, j + 2 * s * dj)) {
+                return Some(p1 * 2.0 - p2);
+            }
+        }
+        None
+    }
+
+    /// Unit direction of the grid line crossing point `(i, j)` along `(di, dj)`.
+    fn direction(&self, i: isize, j: isize, di: isize, dj: isize) -> Option<Vector2<f64>> {
+        let c = self.get_or_extrapolate(i, j, di, dj)?;
+        let fwd = self.get_or_extrapolate(i + di, j + dj, di, dj);
+        let back = self.get_or_extrapolate(i - di, j - dj, di, dj);
+        let v = match (fwd, back) {
+            (Some(f), Some(b)) => f - b,
+            (Some(f), None) => f - c,
+            (None, Some(b)) => c - b,
+            (None, None) => return None,
+        };
+        let n = v.norm();
+        (n > 1e-9).then(|| v / n)
+    }
+
+    /// Distance between neighbouring parallel lines at point `(i, j)` across direction
+    /// `(di, dj)` (i.e. to the points one step along the crossing direction), both sides.
+    fn room(
+        &self,
+        i: isize,
+        j: isize,
+        seg_dir: (isize, isize),
+        field_a: (isize, isize),
+        field_b: (isize, isize),
+    ) -> f64 {
+        let (di, dj) = (seg_dir.1, seg_dir.0); // crossing direction
+        let c = self.get_or_extrapolate(i, j, di, dj);
+        let mut room = f64::INFINITY;
+        let g = self.grid;
+        for (s, f) in [(-1isize, field_a), (1, field_b)] {
+            let along = self.get_or_extrapolate(i + s * di, j + s * dj, di, dj);
+            let dist = match (c, along) {
+                (Some(c), Some(a)) => (a - c).norm(),
+                _ => f64::INFINITY,
+            };
+            let width = if g.inside(f.0, f.1) {
+                dist
+            } else {
+                // Beyond the fields: the outside band's width relative to the neighbouring field.
+                let other = self.get_or_extrapolate(i - s * di, j - s * dj, di, dj);
+                match (c, other) {
+                    (Some(c), Some(o)) => g.outside_width_fraction * (o - c).norm(),
+                    _ => f64::INFINITY,
+                }
+            };
+            room = room.min(width);
+        }
+        room
+    }
+}
+
+fn segment_job(pts: &Points, i: isize, j: isize, dir: usize) -> Option<SegJob> {
+    // Segment from (i, j) to (i, j+1) (dir 0) or (i+1, j) (dir 1).
+    let (di, dj) = if dir == 0 { (0, 1) } else { (1, 0) };
+    let a = pts.get_or_extrapolate(i, j, di, dj)?;
+    let b = pts.get_or_extrapolate(i + di, j + dj, di, dj)?;
+    let (ci, cj) = (dj, di);
+    let cross_a = pts.direction(i, j, ci, cj).unwrap_or_else(|| perp(b - a));
+    let cross_b = pts.direction(i + di, j + dj, ci, cj).unwrap_or_else(|| perp(b - a));
+    let (fa, fb) = if dir == 0 { ((i - 1, j), (i, j)) } else { ((i, j - 1), (i, j)) };
+    let room = pts.room(i, j, (di, dj), fa, fb).min(pts.room(i + di, j + dj, (di, dj), fa, fb));
+    Some(SegJob { a, b, cross_a, cross_b, room_px: room })
+}
+
+fn perp(v: Vector2<f64>) -> Vector2<f64> {
+    let n = v.norm().max(1e-12);
+    Vector2::new(-v.y / n, v.x / n)
+}
+
+/// Refines grid points of a [`CheckerGrid`] from the edges that meet there.
+///
+/// `wanted` lists the grid points `(row, col)` to return (in that order); each needs an
+/// initial position within about one blur width plus one pixel, and at least one edge along
+/// each of its two grid lines. Points that cannot be refined come back as `None`.
+pub fn refine_grid(
+    image: &GrayF32,
+    grid: &CheckerGrid,
+    wanted: &[(usize, usize)],
+    options: &RefineOptions,
+) -> Result<(Vec<Option<RefinedCorner>>, RefineSummary)> {
+    grid.check()?;
+    options.validate()?;
+    // The bands and the excluded corner neighbourhoods are placed from the grid points: when a
+    // corner moves by more than 0.5 px, refine again from the refined points (at most twice).
+    let mut current = grid.clone();
+    let mut result = refine_grid_once(image, &current, wanted, options)?;
+    for _ in 0..2 {
+        let mut moved = false;
+        for (&(i, j), c) in wanted.iter().zip(&result.0) {
+            if let Some(c) = c {
+                let k = i * (grid.field_cols + 1) + j;
+                if let Some(p) = current.points_px[k] {
+                    moved |= (p - c.position_px).norm() > 0.5;
+                }
+                current.points_px[k] = Some(c.position_px);
+            }
+        }
+        if !moved {
+            break;
+        }
+        result = refine_grid_once(image, &current, wanted, options)?;
+    }
+    Ok(result)
+}
+
+fn refine_grid_once(
+    image: &GrayF32,
+    grid: &CheckerGrid,
+    wanted: &[(usize, usize)],
+    options: &RefineOptions,
+) -> Result<(Vec<Option<RefinedCorner>>, RefineSummary)> {
+    let coords = match &options.camera {
+        Some(c) => Coords::Undistorted(c),
+        None => Coords::Pixel,
+    };
+    let pts = Points {
+        grid,
+        fit: grid.points_px.iter().map(|p| p.and_then(|p| coords.to_fit(Vector2::new(p.x, p.y)))).collect(),
+    };
+    for &(i, j) in wanted {
+        if i > grid.field_rows || j > grid.field_cols {
+            return Err(VisionError::BadOption {
+                name: "wanted",
+                value: format!("({i}, {j})"),
+                reason: format!("grid points run to ({}, {})", grid.field_rows, grid.field_cols),
+            });
+        }
+    }
+    // Line jobs: per wanted point (local) or per grid line (global). key: (dir, index, point).
+    let mut jobs: Vec<LineJob> = Vec::new();
+    let mut corner_jobs: Vec<Option<(usize, usize)>> = Vec::with_capacity(wanted.len());
+    let mut global_index: std::collections::HashMap<(usize, usize), Option<usize>> = std::collections::HashMap::new();
+    for &(i, j) in wanted {
+        let (ii, jj) = (i as isize, j as isize);
+        let Some(c) = pts.get(ii, jj) else {
+            corner_jobs.push(None);
+            continue;
+        };
+        let mut pair = [None, None];
+        for (dir, slot) in pair.iter_mut().enumerate() {
+            match options.support {
+                LineSupport::Local => {
+                    let mut segs = Vec::new();
+                    // The two segments of this line that end at (i, j).
+                    let (si, sj) = if dir == 0 { (0, 1) } else { (1, 0) };
+                    for (pi, pj) in [(ii - si, jj - sj), (ii, jj)] {
+                        if grid.is_edge(pi, pj, dir) {
+                            if let Some(s) = segment_job(&pts, pi, pj, dir) {
+                                segs.push(s);
+                            }
+                        }
+                    }
+                    if segs.is_empty() {
+                        continue;
+                    }
+                    let t = pts.direction(ii, jj, si, sj);
+                    let Some(t) = t else { continue };
+                    jobs.push(LineJob { origin: c, tangent: t, segments: segs, t_limit: Some(options.max_segment_px) });
+                    *slot = Some(jobs.len() - 1);
+                }
+                LineSupport::Global => {
+                    let key = (dir, if dir == 0 { i } else { j });
+                    let entry = global_index.entry(key).or_insert_with(|| {
+                        let n = if dir == 0 { grid.field_cols } else { grid.field_rows };
+                        let mut segs = Vec::new();
+                        let mut members = Vec::new();
+                        for k in 0..=n as isize {
+                            let (pi, pj) = if dir == 0 { (ii, k) } else { (k, jj) };
+                            if let Some(p) = pts.get(pi, pj) {
+                                members.push(p);
+                            }
+                            if k < n as isize && grid.is_edge(pi, pj, dir) {
+                                if let Some(s) = segment_job(&pts, pi, pj, dir) {
+                                    segs.push(s);
+                                }
+                            }
+                        }
+                        if segs.is_empty() || members.len() < 2 {
+                            return None;
+                        }
+                        let origin = members.iter().sum::<Vector2<f64>>() / members.len() as f64;
+                        let v = members[members.len() - 1] - members[0];
+                        let tangent = v / v.norm().max(1e-12);
+                        jobs.push(LineJob { origin, tangent, segments: segs, t_limit: None });
+                        Some(jobs.len() - 1)
+                    });
+                    *slot = *entry;
+                }
+            }
+        }
+        corner_jobs.push(match pair {
+            [Some(a), Some(b)] => Some((a, b)),
+            _ => None,
+        });
+    }
+    // Pass 1: unweighted.
+    let mut fitted: Vec<Option<FittedLine>> = jobs.iter().map(|j| fit_job(image, &coords, j, options)).collect();
+    // Illumination (vignetting, uneven light): a smooth field fitted to the segments' light
+    // levels gives each segment its fixed gradient across the edge; refit.
+    if let Some(field) = IlluminationField::fit(&fitted, options.min_contrast_dn) {
+        for f in fitted.iter_mut() {
+            let Some(line) = f.as_mut() else { continue };
+            let n = line.state.normal();
+            let origin = line.origin;
+            for seg in &mut line.state.segments {
+                seg.g = field.gradient(origin + seg.centre()).dot(&n);
+            }
+            match line.state.solve(options.max_iterations) {
+                Some(fit) => line.fit = fit,
+                None => *f = None,
+            }
+        }
+    }
+    // Noise model.
+    let noise = match options.noise {
+        NoiseSpec::Unweighted => None,
+        NoiseSpec::Known(m) => Some(m),
+        NoiseSpec::Estimate => {
+            let mut s = [0.0f64; 5];
+            for f in fitted.iter().flatten() {
+                for (a, b) in s.iter_mut().zip(f.fit.noise_sums) {
+                    *a += b;
+                }
+            }
+            estimate_noise(&s)
+        }
+    };
+    // Pass 2: weighted.
+    if let Some(nm) = &noise {
+        for f in fitted.iter_mut() {
+            let Some(line) = f.as_mut() else { continue };
+            line.state.set_weights(Some(nm));
+            match line.state.solve(options.max_iterations) {
+                Some(fit) => line.fit = fit,
+                None => *f = None,
+            }
+        }
+    }
+    let lines_fitted = fitted.iter().filter(|f| f.is_some()).count();
+    let (mut chi_sum, mut chi_n) = (0.0, 0.0);
+    for f in fitted.iter().flatten() {
+        chi_sum += f.fit.chi2;
+        chi_n += (f.fit.n - f.fit.p) as f64;
+    }
+    let summary = RefineSummary {
+        noise,
+        lines_fitted,
+        lines_failed: jobs.len() - lines_fitted,
+        reduced_chi2: if chi_n > 0.0 { chi_sum / chi_n } else { f64::NAN },
+    };
+    let corners = corner_jobs
+        .iter()
+        .map(|cj| {
+            let (a, b) = (*cj)?;
+            let (l1, l2) = (fitted[a].as_ref()?, fitted[b].as_ref()?);
+            let (q, blocks) = intersect(l1, l2)?;
+            // The refined corner must stay near its start.
+            let jac = coords.jacobian(q)?;
+            let p = coords.to_pixel(q)?;
+            let mut cov = Matrix2::zeros();
+            let mut crb = Matrix2::zeros();
+            for (blk, l) in blocks.iter().zip([l1, l2]) {
+                let j = jac * blk;
+                cov += j * (l.state_h_inv() * l.reduced_chi2()) * j.transpose();
+                crb += j * l.state_h_inv() * j.transpose();
+            }
+            let segs: Vec<&Segment> = l1.state.segments.iter().chain(&l2.state.segments).collect();
+            let blur = segs.iter().map(|s| s.ln_s.exp()).sum::<f64>() / segs.len() as f64;
+            let contrast = segs.iter().map(|s| s.b.abs()).sum::<f64>() / segs.len() as f64;
+            Some(RefinedCorner {
+                position_px: Point2::new(p.x, p.y),
+                covariance_px2: cov,
+                crb_px2: noise.map(|_| crb),
+                blur_px: blur,
+                contrast_dn: contrast,
+                pixels: l1.pixels + l2.pixels,
+            })
+        })
+        .collect();
+    Ok((corners, summary))
+}
+
+impl FittedLine {
+    fn state_h_inv(&self) -> Matrix2<f64> {
+        self.fit.h_inv_line
+    }
+}
+
+/// A smooth illumination field: `ln L(x, y)` as a polynomial (quadratic with at least 12
+/// segments, linear with at least 4) fitted to the light levels of the segments.
+struct IlluminationField {
+    centre: Vector2<f64>,
+    scale: f64,
+    coef: Vec<f64>,
+}
+
+impl IlluminationField {
+    fn terms(&self, p: Vector2<f64>) -> (Vec<f64>, Vec<Vector2<f64>>) {
+        let x = (p.x - self.centre.x) / self.scale;
+        let y = (p.y - self.centre.y) / self.scale;
+        let k = 1.0 / self.scale;
+        let all = [
+            (1.0, Vector2::zeros()),
+            (x, Vector2::new(k, 0.0)),
+            (y, Vector2::new(0.0, k)),
+            (x * x, Vector2::new(2.0 * x * k, 0.0)),
+            (x * y, Vector2::new(y * k, x * k)),
+            (y * y, Vector2::new(0.0, 2.0 * y * k)),
+        ];
+        let n = self.coef.len();
+        (all[..n].iter().map(|t| t.0).collect(), all[..n].iter().map(|t| t.1).collect())
+    }
+
+    fn fit(lines: &[Option<FittedLine>], min_contrast: f64) -> Option<Self> {
+        let mut pts: Vec<(Vector2<f64>, f64)> = Vec::new();
+        for l in lines.iter().flatten() {
+            for seg in &l.state.segments {
+                let level = seg.light_level();
+                if seg.b.abs() >= min_contrast && level > 1.0 {
+                    pts.push((l.origin + seg.centre(), level.ln()));
+                }
+            }
+        }
+        let nterms = if pts.len() >= 12 {
+            6
+        } else if pts.len() >= 4 {
+            3
+        } else {
+            return None;
+        };
+        let centre = pts.iter().fold(Vector2::zeros(), |a, p| a + p.0) / pts.len() as f64;
+        let scale = pts.iter().map(|p| (p.0 - centre).norm()).fold(0.0, f64::max).max(1.0);
+        let mut field = Self { centre, scale, coef: vec![0.0; nterms] };
+        let mut ata = nalgebra::DMatrix::<f64>::zeros(nterms, nterms);
+        let mut atb = nalgebra::DVector::<f64>::zeros(nterms);
+        for (p, v) in &pts {
+            let (t, _) = field.terms(*p);
+            for i in 0..nterms {
+                atb[i] += t[i] * v;
+                for j in 0..nterms {
+                    ata[(i, j)] += t[i] * t[j];
+                }
+            }
+        }
+        let sol = ata.cholesky()?.solve(&atb);
+        field.coef = sol.iter().copied().collect();
+        Some(field)
+    }
+
+    /// Gradient of `ln L` at `p`.
+    fn gradient(&self, p: Vector2<f64>) -> Vector2<f64> {
+        let (_, d) = self.terms(p);
+        d.iter().zip(&self.coef).fold(Vector2::zeros(), |a, (di, c)| a + di * *c)
+    }
+}
+
+/// Least squares `r^2 = offset + slope m` from pooled sums `(1, m, m^2, r^2, m r^2)`.
+pub(super) fn estimate_noise(s: &[f64; 5]) -> Option<NoiseModel> {
+    if s[0] < 10.0 {
+        return None;
+    }
+    let det = s[0] * s[2] - s[1] * s[1];
+    let (mut offset, mut slope) = if det > 1e-9 * s[0] * s[2] {
+        ((s[2] * s[3] - s[1] * s[4]) / det, (s[0] * s[4] - s[1] * s[3]) / det)
+    } else {
+        (s[3] / s[0], 0.0)
+    };
+    if slope < 0.0 {
+        slope = 0.0;
+        offset = s[3] / s[0];
+    }
+    // The variance at the darkest level must stay positive.
+    let min_var = 0.02;
+    if offset < min_var {
+        offset = min_var;
+    }
+    Some(NoiseModel { offset_dn2: offset, slope_dn: slope })
+}
