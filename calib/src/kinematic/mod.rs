@@ -35,6 +35,8 @@ use crate::measurement::PoseMeasurement;
 mod model;
 mod problem;
 mod split;
+#[cfg(test)]
+mod tests;
 
 use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
