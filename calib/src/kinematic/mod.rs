@@ -255,6 +255,17 @@ impl StateLayout {
     pub fn is_empty(&self) -> bool {
         self.names.is_empty()
     }
+
+    /// Start values of every candidate: zero increments of frames, tool, offsets and effects,
+    /// and the model's own values of its parameters.
+    fn start_values(&self, model: &RobotModel) -> Vec<f64> {
+        let params = model.parameters();
+        let mut start = vec![0.0; self.len()];
+        for (k, &pi) in self.model_index.iter().enumerate() {
+            start[self.model.start + k] = params[pi].value;
+        }
+        start
+    }
 }
 
 /// One parameter of a calibration result.
@@ -379,11 +390,7 @@ pub fn calibrate(
         return Err(CalibError::Data("every standard deviation must be positive".into()));
     }
     let whiten = whitening_matrices(rows, use_ori, &sigma_ori, opts.use_covariance, opts.cost)?;
-    let params = model.parameters();
-    let mut start = vec![0.0; layout.len()];
-    for (k, &pi) in layout.model_index.iter().enumerate() {
-        start[layout.model.start + k] = params[pi].value;
-    }
+    let start = layout.start_values(model);
     let all: Vec<usize> = (0..layout.len()).collect();
     let mut problem = KinProblem {
         base_model: model.clone(),
@@ -622,11 +629,7 @@ pub fn design_jacobian(
     let refs: Vec<&PoseMeasurement> = rows.iter().collect();
     let use_ori = with_orientation && opts.use_orientation;
     let layout = StateLayout::new(model, if use_ori { 6 } else { 3 }, &opts.model_params, &opts.effects);
-    let params = model.parameters();
-    let mut start = vec![0.0; layout.len()];
-    for (k, &pi) in layout.model_index.iter().enumerate() {
-        start[layout.model.start + k] = params[pi].value;
-    }
+    let start = layout.start_values(model);
     let problem = KinProblem {
         base_model: model.clone(),
         rows: &refs,

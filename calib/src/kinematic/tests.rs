@@ -42,11 +42,7 @@ fn check(model: &RobotModel, use_ori: bool, covariance: bool, effects: Vec<Effec
     let sigma_ori = vec![2e-4; refs.len()];
     let whiten = whitening_matrices(&refs, use_ori, &sigma_ori, true, Cost::ForwardKinematics).unwrap();
     assert_eq!(whiten.iter().all(Option::is_some), covariance);
-    let params = model.parameters();
-    let mut start = vec![0.0; layout.len()];
-    for (k, &pi) in layout.model_index.iter().enumerate() {
-        start[layout.model.start + k] = params[pi].value;
-    }
+    let start = layout.start_values(model);
     let problem = KinProblem {
         base_model: model.clone(),
         rows: &refs,
