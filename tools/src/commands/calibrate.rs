@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use ferrocal_calib::file::CalibrationFile;
 use ferrocal_calib::kinematic::{
-    calibrate, split_rows, ErrorStats, KinematicCalibration, KinematicOptions, ModelParams,
+    calibrate, split_rows, split_rows_by_plane, ErrorStats, KinematicCalibration, KinematicOptions, ModelParams,
 };
 use ferrocal_calib::lsq::Loss;
 use ferrocal_calib::PoseMeasurement;
@@ -173,7 +173,15 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
     progress.finish_and_clear();
     let file = CalibrationFile::new(&args.robot, &cal.calibrated);
     write_atomic(&args.out, serde_json::to_string_pretty(&file)?.as_bytes())?;
-    let summary = report_json(&cal, &validation, final_rows.len(), fixed_split);
+    let mut summary = report_json(&cal, &validation, final_rows.len(), fixed_split);
+    // A spatially separated check beside the default one (new key; the others are unchanged).
+    if validation.is_some() && !fixed_split {
+        if let Some((tr, te, plane)) = split_rows_by_plane(&rows) {
+            let c = calibrate(&model, &tr, &opts).context("calibration on the spatial training rows")?;
+            let (before, after) = (nominal_stats(&model, &tr, &te)?, c.calibrated.evaluate(&te)?);
+            summary["heldout_spatial"] = json!({"split": "rows beyond the median plane normal to the positions' first principal axis held out", "plane": plane, "n_train": tr.len(), "before": before, "after": after});
+        }
+    }
     if let Some(j) = &args.json {
         write_atomic(j, serde_json::to_string_pretty(&summary)?.as_bytes())?;
     }
