@@ -41,7 +41,7 @@ mod tests;
 use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
 use problem::{whitening_matrices, KinProblem};
-pub use split::split_rows;
+pub use split::{split_rows, split_rows_by_plane, SplitPlane};
 
 /// Which of the model's own parameters are free.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

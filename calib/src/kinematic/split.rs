@@ -1,5 +1,8 @@
 //! Training and held-out rows.
 
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+
 use crate::measurement::PoseMeasurement;
 
 /// Splits rows into training and held-out sets: by the `split` column when any row has one,
@@ -19,5 +22,73 @@ pub fn split_rows(
         (train, test)
     } else {
         (rows.iter().collect(), Vec::new())
+    }
+}
+
+/// The plane of a spatially separated split: rows with `normal . (p - point_m) > 0` are held out.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SplitPlane {
+    /// A point of the plane (the median of the positions along the normal), device frame, m.
+    pub point_m: Vector3<f64>,
+    /// Unit normal: the direction in which the measured positions spread most (the first
+    /// principal axis of the positions about their centroid).
+    pub normal: Vector3<f64>,
+}
+
+/// A held-out split separated in space from the training rows, unlike every second pose of a
+/// grid (which sits next to training poses): the rows beyond the plane through the median of the
+/// measured positions, normal to their first principal axis, are held out (half the rows, the
+/// far half of the workspace), so the held-out error measures extrapolation to a region without
+/// training poses. `None` with fewer than 2 rows.
+pub fn split_rows_by_plane(
+    rows: &[PoseMeasurement],
+) -> Option<(Vec<&PoseMeasurement>, Vec<&PoseMeasurement>, SplitPlane)> {
+    if rows.len() < 2 {
+        return None;
+    }
+    let n = rows.len() as f64;
+    let centroid = rows.iter().fold(Vector3::zeros(), |s, r| s + r.position_m) / n;
+    let scatter = rows.iter().fold(Matrix3::zeros(), |s, r| {
+        let d = r.position_m - centroid;
+        s + d * d.transpose()
+    });
+    let eig = scatter.symmetric_eigen();
+    let k = eig.eigenvalues.imax();
+    let mut normal: Vector3<f64> = eig.eigenvectors.column(k).into_owned();
+    // A deterministic sign: the largest component positive.
+    if normal[normal.iamax()] < 0.0 {
+        normal = -normal;
+    }
+    let mut along: Vec<f64> = rows.iter().map(|r| normal.dot(&(r.position_m - centroid))).collect();
+    along.sort_by(f64::total_cmp);
+    let m = along.len();
+    let median = if m.is_multiple_of(2) { 0.5 * (along[m / 2 - 1] + along[m / 2]) } else { along[m / 2] };
+    let point_m = centroid + normal * median;
+    let (test, train): (Vec<&PoseMeasurement>, Vec<&PoseMeasurement>) =
+        rows.iter().partition(|r| normal.dot(&(r.position_m - point_m)) > 0.0);
+    Some((train, test, SplitPlane { point_m, normal }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_plane_split_holds_out_the_far_half_along_the_widest_direction() {
+        // A 10 x 3 x 2 grid, widest along y.
+        let mut rows = Vec::new();
+        for i in 0..3 {
+            for j in 0..10 {
+                for k in 0..2 {
+                    let p = Vector3::new(i as f64 * 0.1, j as f64 * 0.1, k as f64 * 0.1);
+                    rows.push(PoseMeasurement::new(format!("{i}{j}{k}"), vec![0.0], p));
+                }
+            }
+        }
+        let (train, test, plane) = split_rows_by_plane(&rows).unwrap();
+        assert_eq!((train.len(), test.len()), (30, 30));
+        assert!((plane.normal - Vector3::y()).norm() < 1e-9, "{:?}", plane.normal);
+        assert!(test.iter().all(|r| r.position_m.y > 0.45) && train.iter().all(|r| r.position_m.y < 0.45));
+        assert!(split_rows_by_plane(&rows[..1]).is_none());
     }
 }

@@ -3,7 +3,8 @@
 
 use anyhow::{Context, Result};
 use ferrocal_calib::kinematic::{
-    calibrate, split_rows, CalibratedModel, ErrorStats, KinematicCalibration, KinematicOptions, ModelParams,
+    calibrate, split_rows, split_rows_by_plane, CalibratedModel, ErrorStats, KinematicCalibration, KinematicOptions,
+    ModelParams,
 };
 use ferrocal_calib::PoseMeasurement;
 use ferrocal_robot::RobotModel;
@@ -167,6 +168,10 @@ pub struct CalibrationRun<'a> {
     pub final_rows: Vec<&'a PoseMeasurement>,
     /// True when the table's `split` column fixed the split.
     pub fixed_split: bool,
+    /// The spatially separated check (`heldout_spatial` of the report JSON): rows beyond the
+    /// median plane normal to the positions' first principal axis held out; with every-second-pose
+    /// validation only.
+    pub heldout_spatial: Option<serde_json::Value>,
 }
 
 /// Calibrates `model` from `rows`: a validation fit on the training rows (every second pose, or
@@ -197,8 +202,21 @@ pub fn calibrate_table<'a>(
         (Some((c, _, _)), true) => c.clone(),
         _ => calibrate(model, &final_rows, opts).context("calibration")?,
     };
+    // A spatially separated check beside the default one: training poses are not neighbours of
+    // the held-out ones.
+    let mut heldout_spatial = None;
+    if validation.is_some() && !fixed_split {
+        if let Some((tr, te, plane)) = split_rows_by_plane(rows) {
+            let c = calibrate(model, &tr, opts).context("calibration on the spatial training rows")?;
+            let (before, after) = (nominal_stats(model, &tr, &te)?, c.calibrated.evaluate(&te)?);
+            heldout_spatial = Some(json!({
+                "split": "rows beyond the median plane normal to the positions' first principal axis held out",
+                "plane": plane, "n_train": tr.len(), "before": before, "after": after,
+            }));
+        }
+    }
     step();
-    Ok(CalibrationRun { cal, validation, final_rows, fixed_split })
+    Ok(CalibrationRun { cal, validation, final_rows, fixed_split, heldout_spatial })
 }
 
 /// Errors of the nominal model on `test` with frames registered on `train`.

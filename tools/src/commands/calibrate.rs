@@ -152,10 +152,13 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
     let progress = crate::progress::bar(2, "calibrating");
     let run = calibrate_table(&model, &rows, &opts, !args.no_validation, &|| progress.inc(1))?;
     progress.finish_and_clear();
-    let CalibrationRun { cal, validation, final_rows, fixed_split } = &run;
+    let CalibrationRun { cal, validation, final_rows, fixed_split, heldout_spatial } = &run;
     let file = CalibrationFile::new(&args.robot, &cal.calibrated);
     write_atomic(&args.out, serde_json::to_string_pretty(&file)?.as_bytes())?;
-    let summary = report_json(cal, validation, final_rows.len(), *fixed_split);
+    let mut summary = report_json(cal, validation, final_rows.len(), *fixed_split);
+    if let Some(spatial) = heldout_spatial {
+        summary["heldout_spatial"] = spatial.clone();
+    }
     if let Some(j) = &args.json {
         write_atomic(j, serde_json::to_string_pretty(&summary)?.as_bytes())?;
     }
