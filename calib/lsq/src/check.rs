@@ -11,7 +11,9 @@ use crate::{LsqError, Manifold, Residual, Result};
 /// What a check found: the worst discrepancy and where.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CheckReport {
-    /// Largest `|analytic - numeric| / max(1, |numeric|)` over all entries checked.
+    /// Largest `|analytic - numeric| / max(1, max |numeric column|)` over all entries checked:
+    /// the error of an entry relative to the largest entry of its column (so that the rounding
+    /// of small entries beside large ones does not count), and absolute below 1.
     pub max_error: f64,
     /// Where it was: (block, residual row, tangent coordinate) for Jacobians.
     pub worst: (usize, usize, usize),
@@ -34,8 +36,8 @@ impl CheckReport {
     }
 }
 
-fn rel(a: f64, n: f64) -> f64 {
-    (a - n).abs() / n.abs().max(1.0)
+fn rel(a: f64, n: f64, column_max: f64) -> f64 {
+    (a - n).abs() / column_max.max(n.abs()).max(1.0)
 }
 
 /// Compares a residual's analytic tangent Jacobians with central differences through the
@@ -71,9 +73,10 @@ pub fn check_residual(
             }
             delta[i] = 0.0;
             owned[k].copy_from_slice(params[k]);
+            let column_max = (0..n).map(|r| ((rp[r] - rm[r]) / (2.0 * h)).abs()).fold(0.0, f64::max);
             for r in 0..n {
                 let numeric = (rp[r] - rm[r]) / (2.0 * h);
-                let e = rel(jac[(r, i)], numeric);
+                let e = rel(jac[(r, i)], numeric, column_max);
                 report.entries += 1;
                 if e > report.max_error || !e.is_finite() {
                     report.max_error = if e.is_finite() { e } else { f64::INFINITY };
@@ -99,9 +102,10 @@ pub fn check_dense_problem(problem: &dyn DenseProblem, x: &[f64], step: f64) -> 
         let rp = problem.residuals(&problem.retract(x, &dx))?;
         dx[i] = -h;
         let rm = problem.residuals(&problem.retract(x, &dx))?;
+        let column_max = (0..rp.len()).map(|r| ((rp[r] - rm[r]) / (2.0 * h)).abs()).fold(0.0, f64::max);
         for r in 0..rp.len() {
             let numeric = (rp[r] - rm[r]) / (2.0 * h);
-            let e = rel(jac[(r, i)], numeric);
+            let e = rel(jac[(r, i)], numeric, column_max);
             report.entries += 1;
             if e > report.max_error || !e.is_finite() {
                 report.max_error = if e.is_finite() { e } else { f64::INFINITY };
@@ -143,7 +147,7 @@ pub fn check_manifold(manifold: &dyn Manifold, x: &[f64], deltas: &[Vec<f64>]) -
         delta[i] = -h;
         manifold.plus(x, &delta, &mut ym);
         for r in 0..na {
-            worst = worst.max(rel(j[(r, i)], (yp[r] - ym[r]) / (2.0 * h)));
+            worst = worst.max(rel(j[(r, i)], (yp[r] - ym[r]) / (2.0 * h), 1.0));
         }
     }
     Ok(worst)
