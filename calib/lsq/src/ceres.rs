@@ -34,7 +34,7 @@ struct Round {
 fn round(problem: &Problem, index: &StateIndex, opts: &SolverOptions) -> Result<Round> {
     let blocks = problem.blocks();
     let x0: Vec<Vec<f64>> = blocks.iter().map(|b| b.values.clone()).collect();
-    let free: Vec<Option<usize>> = (0..blocks.len()).map(|k| index.offset(crate::BlockId(k))).collect();
+    let free = index.block_offsets(blocks.len());
     let mut ceres_index: Vec<Option<usize>> = vec![None; blocks.len()];
     let mut next = 0usize;
     let mut nlls = NllsProblem::new();
@@ -182,12 +182,13 @@ pub(crate) fn solve(problem: &mut Problem, index: &StateIndex, opts: &SolverOpti
     } else {
         Termination::Failed
     };
-    let (r, j) = problem.linearize()?;
-    let m = problem.measurement_index();
+    // Residuals only: forming the dense Jacobian here would undo what the sparse back end is for
+    // (the bundle adjustment computes its conditioning from its Schur complement).
+    let r = problem.residuals()?;
     let downweighted_blocks = problem
-        .residual_entries()
-        .zip(&m.entries)
-        .filter(|((_, _, _, loss), me)| loss.rho(r.rows(me.offset, me.size).norm_squared()).1 < 0.5)
+        .row_layout()
+        .into_iter()
+        .filter(|&(row, size, loss)| loss.rho(r.rows(row, size).norm_squared()).1 < 0.5)
         .count();
     Ok(Summary {
         iterations,
@@ -197,6 +198,6 @@ pub(crate) fn solve(problem: &mut Problem, index: &StateIndex, opts: &SolverOpti
         stop,
         converged: stop.converged(),
         downweighted_blocks,
-        condition_number: crate::dense::condition_number(&j),
+        condition_number: None,
     })
 }

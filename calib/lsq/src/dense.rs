@@ -163,7 +163,8 @@ pub struct Summary {
     /// Residual blocks down-weighted by the robust loss at the end (IRLS weight below 0.5).
     pub downweighted_blocks: usize,
     /// Condition number of the column-equilibrated Jacobian at the solution (`None` when it has
-    /// fewer rows than columns or a zero column).
+    /// fewer rows than columns or a zero column, and from the Ceres back end, which does not form
+    /// the dense Jacobian).
     pub condition_number: Option<f64>,
 }
 

@@ -163,6 +163,16 @@ impl StateIndex {
     pub fn offset(&self, block: BlockId) -> Option<usize> {
         self.entries.iter().find(|e| e.block == block).map(|e| e.offset)
     }
+    /// The first state coordinate of every block of a problem with `n_blocks` blocks (`None` for
+    /// the constant ones), in one pass.
+    pub(crate) fn block_offsets(&self, n_blocks: usize) -> Vec<Option<usize>> {
+        let mut out = vec![None; n_blocks];
+        for e in &self.entries {
+            out[e.block.0] = Some(e.offset);
+        }
+        out
+    }
+
     /// The state coordinate of a block's named coordinate.
     pub fn coordinate(&self, block: BlockId, name: &str) -> Option<usize> {
         let e = self.entries.iter().find(|e| e.block == block)?;
@@ -409,6 +419,20 @@ impl Problem {
         MeasurementIndex { entries }
     }
 
+    /// `(first row, rows, loss)` of every residual block: the measurement index without the
+    /// names, for the solvers' inner loops.
+    pub(crate) fn row_layout(&self) -> Vec<(usize, usize, Loss)> {
+        let mut offset = 0;
+        self.residuals
+            .iter()
+            .map(|e| {
+                let size = e.residual.n_residuals();
+                offset += size;
+                (offset - size, size, e.loss)
+            })
+            .collect()
+    }
+
     /// Residuals and (optionally) the Jacobian over the state index at `values` (one ambient
     /// vector per block).
     fn evaluate_at(
@@ -417,26 +441,27 @@ impl Problem {
         index: &StateIndex,
         with_jacobian: bool,
     ) -> Result<(DVector<f64>, Option<DMatrix<f64>>)> {
-        let m = self.measurement_index();
-        let mut r = DVector::zeros(m.len());
-        let mut jac = with_jacobian.then(|| DMatrix::zeros(m.len(), index.len()));
-        let offsets: Vec<Option<usize>> = (0..self.blocks.len()).map(|k| index.offset(BlockId(k))).collect();
-        for (entry, me) in self.residuals.iter().zip(&m.entries) {
+        let layout = self.row_layout();
+        let n_rows = layout.last().map_or(0, |&(o, n, _)| o + n);
+        let mut r = DVector::zeros(n_rows);
+        let mut jac = with_jacobian.then(|| DMatrix::zeros(n_rows, index.len()));
+        let offsets = index.block_offsets(self.blocks.len());
+        for (entry, &(row, size, _)) in self.residuals.iter().zip(&layout) {
             let params: Vec<&[f64]> = entry.blocks.iter().map(|b| values[b.0].as_slice()).collect();
-            let mut rows = vec![0.0; me.size];
+            let mut rows = vec![0.0; size];
             let mut jacs: Option<Vec<Option<DMatrix<f64>>>> = jac.as_ref().map(|_| {
                 entry
                     .blocks
                     .iter()
-                    .map(|b| offsets[b.0].map(|_| DMatrix::zeros(me.size, self.blocks[b.0].manifold.tangent_size())))
+                    .map(|b| offsets[b.0].map(|_| DMatrix::zeros(size, self.blocks[b.0].manifold.tangent_size())))
                     .collect()
             });
             entry.residual.evaluate(&params, &mut rows, jacs.as_deref_mut())?;
-            r.rows_mut(me.offset, me.size).copy_from_slice(&rows);
+            r.rows_mut(row, size).copy_from_slice(&rows);
             if let (Some(jac), Some(jacs)) = (jac.as_mut(), jacs) {
                 for (b, jb) in entry.blocks.iter().zip(jacs) {
                     if let (Some(off), Some(jb)) = (offsets[b.0], jb) {
-                        let mut view = jac.view_mut((me.offset, off), (me.size, jb.ncols()));
+                        let mut view = jac.view_mut((row, off), (size, jb.ncols()));
                         view += &jb;
                     }
                 }
@@ -463,12 +488,10 @@ impl Problem {
     /// The robust cost `sum_b rho_b(|r_b|^2) / 2` at the current values.
     pub fn cost(&self) -> Result<f64> {
         let r = self.residuals()?;
-        let m = self.measurement_index();
         Ok(self
-            .residuals
-            .iter()
-            .zip(&m.entries)
-            .map(|(e, me)| e.loss.rho(r.rows(me.offset, me.size).norm_squared()).0)
+            .row_layout()
+            .into_iter()
+            .map(|(row, size, loss)| loss.rho(r.rows(row, size).norm_squared()).0)
             .sum::<f64>()
             * 0.5)
     }
@@ -597,11 +620,10 @@ impl DenseProblem for DenseAdapter<'_> {
         self.index.entries.iter().map(|e| self.problem.blocks[e.block.0].manifold.ambient_size()).sum()
     }
     fn n_residuals(&self) -> usize {
-        self.problem.measurement_index().len()
+        self.problem.row_layout().last().map_or(0, |&(o, n, _)| o + n)
     }
     fn residual_blocks(&self, _loss: &Loss) -> Vec<(usize, usize, Loss)> {
-        let m = self.problem.measurement_index();
-        self.problem.residuals.iter().zip(&m.entries).map(|(e, me)| (me.offset, me.size, e.loss)).collect()
+        self.problem.row_layout()
     }
     fn residuals(&self, x: &[f64]) -> Result<DVector<f64>> {
         Ok(self.problem.evaluate_at(&self.unstack(x), self.index, false)?.0)

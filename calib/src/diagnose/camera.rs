@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use super::engine::{
     select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection, StepStart, Test,
 };
-use super::report::{best_verdict, explained, Decision, Finding, Unit};
+use super::report::{best_verdict, Decision, Finding, Unit};
 use super::stats::{bonferroni, paired_test};
 use crate::error::{CalibError, Result};
 use crate::lsq::{solve, LmOptions, Problem};
@@ -662,20 +662,7 @@ impl Family for CameraFamily<'_> {
         self.current = variant;
         self.current_cv = CrossValidation { errors: cv.errors.clone(), residuals: cv.residuals.clone() };
         self.current_fit = fit;
-        Ok(Finding {
-            accepted: variant,
-            effect: effect.into(),
-            joints: Vec::new(),
-            parameters,
-            heldout_before: before,
-            heldout_after: after,
-            explained_fraction: explained(before, after),
-            statement,
-            std_from_covariance: None,
-            telling_input: String::new(),
-            evidence: None,
-            decision: decision.clone(),
-        })
+        Ok(Finding::without_evidence(variant, effect, parameters, (before, after), statement, decision.clone()))
     }
 }
 

@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 use super::engine::{
     select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection, StepStart, Test,
 };
-use super::report::{best_verdict, explained, Decision, Finding, Unit};
+use super::report::{best_verdict, Decision, Finding, Unit};
 use super::stats::{binned_anova, bonferroni, quantile_groups};
 use crate::error::{CalibError, Result};
 use crate::linear::{fit, FitOptions, LinearFit, SensorModel, SensorRegressor, Weighting};
@@ -337,20 +337,14 @@ impl Family for ForceFamily<'_> {
         self.current_fit = new_fit;
         self.current_sse = screen.0.clone();
         self.current_res = screen.1.clone();
-        Ok(Finding {
-            accepted: cand,
-            effect: "platform_deformation".into(),
-            joints: Vec::new(),
+        Ok(Finding::without_evidence(
+            cand,
+            "platform_deformation",
             parameters,
-            heldout_before: before,
-            heldout_after: after,
-            explained_fraction: explained(before, after),
+            (before, after),
             statement,
-            std_from_covariance: None,
-            telling_input: String::new(),
-            evidence: None,
-            decision: decision.clone(),
-        })
+            decision.clone(),
+        ))
     }
 }
 

@@ -182,6 +182,34 @@ pub struct Finding<E> {
     pub decision: Decision,
 }
 
+impl<E> Finding<E> {
+    /// A finding of a family whose effects name no joints, no telling input and no evidence
+    /// (the camera and force families); the explained fraction follows from `before` / `after`.
+    pub fn without_evidence(
+        accepted: E,
+        effect: &str,
+        parameters: BTreeMap<String, f64>,
+        (heldout_before, heldout_after): (f64, f64),
+        statement: String,
+        decision: Decision,
+    ) -> Self {
+        Self {
+            accepted,
+            effect: effect.into(),
+            joints: Vec::new(),
+            parameters,
+            heldout_before,
+            heldout_after,
+            explained_fraction: explained(heldout_before, heldout_after),
+            statement,
+            std_from_covariance: None,
+            telling_input: String::new(),
+            evidence: None,
+            decision,
+        }
+    }
+}
+
 /// The result of a selection: every step's candidates and the accepted effects.
 #[derive(Clone, Debug)]
 pub struct Diagnosis<E> {
