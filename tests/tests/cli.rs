@@ -2,35 +2,8 @@
 //! and on bad input. The binary is the one `cargo test --workspace` builds beside this test.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn ferrocal() -> Command {
-    // target/<profile>/deps/cli-xxxx -> target/<profile>/ferrocal
-    let exe = std::env::current_exe().unwrap();
-    let dir = exe.parent().unwrap().parent().unwrap();
-    let bin = dir.join(format!("ferrocal{}", std::env::consts::EXE_SUFFIX));
-    assert!(bin.exists(), "{} not built: run `cargo build -p ferrocal` or `cargo test --workspace`", bin.display());
-    Command::new(bin)
-}
-
-/// A file or folder of `../shared/data`; CI always has it, so a missing one fails the test by name.
-fn data(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(rel);
-    assert!(p.exists(), "{} is missing: ../shared/data must be beside the checkout", p.display());
-    p
-}
-
-fn run(cmd: &mut Command) -> Output {
-    let out = cmd.output().unwrap();
-    if !out.status.success() {
-        eprintln!("stdout: {}\nstderr: {}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
-    }
-    out
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+use ferrocal_tests::{data, ferrocal, json, run};
 
 #[test]
 fn ur5_calibrate_and_evaluate_through_the_binary() {

@@ -34,6 +34,7 @@ use crate::measurement::PoseMeasurement;
 
 mod model;
 mod problem;
+mod refit;
 mod split;
 #[cfg(test)]
 mod tests;
@@ -41,6 +42,7 @@ mod tests;
 use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
 use problem::{whitening_matrices, KinProblem};
+pub use refit::{refit_frame, FrameRefit};
 pub use split::{split_rows, split_rows_by_plane, SplitPlane};
 
 /// Which of the model's own parameters are free.

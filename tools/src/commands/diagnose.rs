@@ -38,6 +38,10 @@ pub struct DiagnoseArgs {
     /// Write an HTML report with the evidence here.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Write the calibration refitted on all training rows with the accepted effects included
+    /// (the format `evaluate` reads; `evaluate` then predicts with the effects).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
     /// Folds of the cross-validation.
     #[arg(long, default_value_t = 5)]
     pub folds: usize,
@@ -58,6 +62,9 @@ pub struct DiagnoseArgs {
 
 /// Runs `ferrocal diagnose`.
 pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
+    if args.out.is_some() && (!args.images.is_empty() || args.pattern.is_some() || args.forces.is_some()) {
+        bail!("--out writes a robot calibration: it needs --robot and --measurements, not --images or --forces");
+    }
     if !args.images.is_empty() || args.pattern.is_some() {
         return run_camera(args);
     }
@@ -81,7 +88,24 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
     let progress = crate::progress::bar(1, "diagnosing");
     let rep = diagnose(&model, &rows, &opts).context("diagnosis")?;
     progress.finish_and_clear();
+    let compensated = match &args.out {
+        Some(_) => Some(
+            ferrocal_calib::diagnose::compensated_calibration(&model, &rows, &rep)
+                .context("refitting the calibration with the accepted effects")?,
+        ),
+        None => None,
+    };
     write_atomic(&args.json, serde_json::to_string_pretty(&rep)?.as_bytes())?;
+    if let (Some(path), Some(cal)) = (&args.out, &compensated) {
+        let file = ferrocal_calib::file::CalibrationFile::new(robot, &cal.calibrated);
+        write_atomic(path, serde_json::to_string_pretty(&file)?.as_bytes())?;
+        eprintln!(
+            "wrote {} ({} effect(s) with the geometry; training RMS {:.4} mm)",
+            path.display(),
+            cal.calibrated.effects.len(),
+            cal.train_after.rms_mm
+        );
+    }
     if let Some(h) = &args.report {
         let mut prov = Provenance::new(json!({"robot": robot, "options": opts}));
         prov.add_input(meas);
