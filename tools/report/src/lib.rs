@@ -17,6 +17,7 @@ pub mod calibrate;
 pub mod camera;
 pub mod corner_study;
 pub mod demo;
+pub mod diagnose;
 pub mod dynamics;
 pub mod plan;
 pub mod plot;
