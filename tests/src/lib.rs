@@ -34,3 +34,21 @@ pub fn run(cmd: &mut Command) -> Output {
 pub fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
+
+/// Runs a command that must succeed.
+pub fn ok(cmd: &mut Command) -> Output {
+    let out = run(cmd);
+    assert!(out.status.success(), "{cmd:?} failed");
+    out
+}
+
+/// The real UR5 recording imported as a measurement table `dir/ur5.csv`.
+pub fn import_ur5(dir: &Path) -> PathBuf {
+    let table = dir.join("ur5.csv");
+    ok(ferrocal()
+        .args(["import", "ur5", "--input"])
+        .arg(data("ur5_tracker/ur5_grid_train.csv"))
+        .arg("--out")
+        .arg(&table));
+    table
+}

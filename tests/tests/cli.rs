@@ -3,18 +3,12 @@
 
 use std::path::{Path, PathBuf};
 
-use ferrocal_tests::{data, ferrocal, json, run};
+use ferrocal_tests::{data, ferrocal, import_ur5, json, run};
 
 #[test]
 fn ur5_calibrate_and_evaluate_through_the_binary() {
     let tmp = tempfile::tempdir().unwrap();
-    let table = tmp.path().join("ur5.csv");
-    let out = run(ferrocal()
-        .args(["import", "ur5", "--input"])
-        .arg(data("ur5_tracker/ur5_grid_train.csv"))
-        .arg("--out")
-        .arg(&table));
-    assert!(out.status.success());
+    let table = import_ur5(tmp.path());
     let cal = tmp.path().join("cal.json");
     let rep = tmp.path().join("rep.json");
     let html = tmp.path().join("rep.html");

@@ -6,18 +6,12 @@
 
 use std::path::{Path, PathBuf};
 
-use ferrocal_tests::{data, ferrocal, json, run};
+use ferrocal_tests::{ferrocal, import_ur5, json, ok};
 
 /// The UR5 table with a split column that is not interleaved: blocks of 50 consecutive poses,
 /// every fourth block held out (`test`).
 fn ur5_blocks(dir: &Path) -> PathBuf {
-    let table = dir.join("ur5.csv");
-    let out = run(ferrocal()
-        .args(["import", "ur5", "--input"])
-        .arg(data("ur5_tracker/ur5_grid_train.csv"))
-        .arg("--out")
-        .arg(&table));
-    assert!(out.status.success());
+    let table = import_ur5(dir);
     let text = std::fs::read_to_string(&table).unwrap();
     let mut csv = String::new();
     let mut row = 0usize;
@@ -64,8 +58,7 @@ fn evaluate(cal: &Path, table: &Path, json_out: &Path, refit: bool) -> serde_jso
     if refit {
         cmd.arg("--refit-frame");
     }
-    let out = run(&mut cmd);
-    assert!(out.status.success());
+    ok(&mut cmd);
     json(json_out)
 }
 
@@ -78,19 +71,16 @@ fn diagnose_out_compensates_held_out_blocks_of_the_ur5() {
     let table = ur5_blocks(tmp.path());
     let test = test_rows(&table, tmp.path());
     let geo = tmp.path().join("geo.json");
-    let out =
-        run(ferrocal().args(["calibrate", "--robot", "ur5", "--measurements"]).arg(&table).arg("--out").arg(&geo));
-    assert!(out.status.success());
+    ok(ferrocal().args(["calibrate", "--robot", "ur5", "--measurements"]).arg(&table).arg("--out").arg(&geo));
     let comp = tmp.path().join("comp.json");
     let diag = tmp.path().join("diag.json");
-    let out = run(ferrocal()
+    ok(ferrocal()
         .args(["diagnose", "--robot", "ur5", "--measurements"])
         .arg(&table)
         .arg("--json")
         .arg(&diag)
         .arg("--out")
         .arg(&comp));
-    assert!(out.status.success());
     let findings = json(&diag)["findings"].as_array().unwrap().len();
     let c = json(&comp);
     assert_eq!(c["effects"].as_array().unwrap().len(), findings, "every accepted effect is in the calibration");
@@ -105,7 +95,7 @@ fn diagnose_out_compensates_held_out_blocks_of_the_ur5() {
 
     // The same model fitted from scratch by `calibrate --effects <diagnose json>`.
     let again = tmp.path().join("again.json");
-    let out = run(ferrocal()
+    ok(ferrocal()
         .args(["calibrate", "--robot", "ur5", "--measurements"])
         .arg(&table)
         .arg("--out")
@@ -113,7 +103,6 @@ fn diagnose_out_compensates_held_out_blocks_of_the_ur5() {
         .arg("--no-validation")
         .arg("--effects")
         .arg(&diag));
-    assert!(out.status.success());
     let e_again = evaluate(&again, &test, &tmp.path().join("e_again.json"), false);
     let a = e_again["mean_mm"].as_f64().unwrap();
     assert!((a - k).abs() < 0.002, "calibrate --effects {a:.4} mm vs diagnose --out {k:.4} mm");
@@ -124,20 +113,13 @@ fn diagnose_out_compensates_held_out_blocks_of_the_ur5() {
 #[test]
 fn evaluate_refit_frame_scores_a_model_in_another_devices_frame() {
     let tmp = tempfile::tempdir().unwrap();
-    let table = tmp.path().join("ur5.csv");
-    let out = run(ferrocal()
-        .args(["import", "ur5", "--input"])
-        .arg(data("ur5_tracker/ur5_grid_train.csv"))
-        .arg("--out")
-        .arg(&table));
-    assert!(out.status.success());
+    let table = import_ur5(tmp.path());
     let cal = tmp.path().join("cal.json");
-    let out = run(ferrocal()
+    ok(ferrocal()
         .args(["calibrate", "--robot", "ur5", "--no-validation", "--measurements"])
         .arg(&table)
         .arg("--out")
         .arg(&cal));
-    assert!(out.status.success());
     // Move every measured point by a rigid transform: 30 deg about z, then (1500, -200, 300) mm.
     let text = std::fs::read_to_string(&table).unwrap();
     let mut moved = String::new();
