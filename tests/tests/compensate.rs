@@ -152,3 +152,28 @@ fn evaluate_refit_frame_scores_a_model_in_another_devices_frame() {
     let t = &refit["refit_frame"]["device_frame_after"][0];
     assert!(t.as_array().unwrap().iter().all(|x| x.as_f64().unwrap().is_finite()));
 }
+
+/// A calibration that stops at its iteration limit is not delivered as a success.
+#[test]
+fn an_unconverged_calibration_exits_non_zero_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let table = import_ur5(tmp.path());
+    let cal = tmp.path().join("cal.json");
+    let out = ferrocal_tests::run(
+        ferrocal()
+            .args(["calibrate", "--robot", "ur5", "--max-iterations", "1", "--measurements"])
+            .arg(&table)
+            .arg("--out")
+            .arg(&cal),
+    );
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("did not converge") && err.contains("--accept-unconverged"), "{err}");
+    assert!(!cal.exists(), "an unconverged calibration was written");
+    ok(ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--max-iterations", "1", "--accept-unconverged", "--measurements"])
+        .arg(&table)
+        .arg("--out")
+        .arg(&cal));
+    assert!(cal.exists());
+}

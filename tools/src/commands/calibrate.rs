@@ -60,6 +60,13 @@ pub struct CalibrateArgs {
     /// leg-length errors at the measured pose; converges from poor start models).
     #[arg(long, default_value = "fk")]
     pub cost: String,
+    /// Largest number of solver iterations.
+    #[arg(long, default_value_t = 200)]
+    pub max_iterations: usize,
+    /// Deliver a calibration whose solver did not converge (with a warning) instead of exiting
+    /// with an error.
+    #[arg(long)]
+    pub accept_unconverged: bool,
     /// Physical effects to identify with the geometry: a `diagnose --json` report (its
     /// findings), a calibration file, or a list such as
     /// `joint_compliance:2,periodic_joint_error:3:180deg,backlash:1` (docs/diagnose.md).
@@ -144,6 +151,9 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
     if !positive(args.sigma_mm) || !positive(args.sigma_deg) {
         bail!("--sigma-mm and --sigma-deg must be positive");
     }
+    if args.max_iterations == 0 {
+        bail!("--max-iterations must be at least 1");
+    }
     Ok(KinematicOptions {
         model_params: parse_params(&args.params),
         use_orientation: !args.positions_only,
@@ -160,6 +170,7 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
             "closure" => ferrocal_calib::kinematic::Cost::Closure,
             other => bail!("--cost {other}: use fk or closure"),
         },
+        lm: ferrocal_calib::lsq::LmOptions { max_iterations: args.max_iterations, ..KinematicOptions::default().lm },
         ..KinematicOptions::default()
     })
 }
@@ -171,6 +182,18 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
     let run = calibrate_table(&model, &rows, &opts, !args.no_validation, &|| progress.inc(1))?;
     progress.finish_and_clear();
     let CalibrationRun { cal, validation, final_rows, fixed_split, heldout_spatial } = &run;
+    let fits = std::iter::once(("calibration", cal)).chain(validation.iter().map(|(v, _, _)| ("validation fit", v)));
+    for (what, fit) in fits {
+        if let Some(problem) = fit.convergence_problem() {
+            if !args.accept_unconverged {
+                bail!("{what}: {problem}; nothing was written (raise --max-iterations, check the data, or accept it with --accept-unconverged)");
+            }
+            eprintln!("warning: {what}: {problem}; delivered because of --accept-unconverged");
+        }
+    }
+    if let Some(w) = cal.noise_warning() {
+        eprintln!("note: {w}");
+    }
     let file = CalibrationFile::new(&args.robot, &cal.calibrated);
     write_atomic(&args.out, serde_json::to_string_pretty(&file)?.as_bytes())?;
     let mut summary = report_json(cal, validation, final_rows.len(), *fixed_split);
