@@ -318,6 +318,8 @@ pub fn calibrate_rig(
         views: poses,
         obs,
         loss: options.loss,
+        deform: None,
+        fixed_globals: false,
     };
     let (report, iterations) = bundle.solve(options.max_iterations)?;
     let (cov_global, s0_px, normal_condition) = match bundle.global_covariance() {
