@@ -384,8 +384,8 @@ fn name_views(e: VisionError, idx: &[usize], views: &[View]) -> VisionError {
     }
 }
 
-/// `s0^2 (J^T W J)^-1` of view `k`'s pose with everything else held, reordered from the
-/// solver's `[w, t]` to `[t, r]`.
+/// `s0^2 (J^T W J)^-1` of view `k`'s pose with everything else held (the solver's pose block
+/// is already `[t, r]`).
 fn pose_covariance(bundle: &Bundle, k: usize, view: &View) -> Result<Matrix6<f64>> {
     let camera = bundle.camera_model(0)?;
     let (mut n, mut sum_wr2, mut m) = (Matrix6::zeros(), 0.0, 0usize);
@@ -401,11 +401,5 @@ fn pose_covariance(bundle: &Bundle, k: usize, view: &View) -> Result<Matrix6<f64
     let inv = n.try_inverse().filter(|_| m > 6).ok_or_else(|| VisionError::DegenerateViews {
         detail: format!("{}: its corners do not determine its pose", view.name),
     })?;
-    let s0_sq = sum_wr2 / (m - 6) as f64;
-    let mut p = Matrix6::zeros();
-    for i in 0..3 {
-        p[(i, 3 + i)] = 1.0;
-        p[(3 + i, i)] = 1.0;
-    }
-    Ok(s0_sq * p * inv * p.transpose())
+    Ok(inv * (sum_wr2 / (m - 6) as f64))
 }

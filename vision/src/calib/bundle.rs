@@ -8,10 +8,13 @@
 //! 1. one block per camera: its *free* parameters, `fx fy cx cy k...` in
 //!    [`crate::camera::CameraModel::parameters`] order, or `f cx cy k...` with a fixed aspect ratio
 //!    (`fx = f`, `fy = a f`);
-//! 2. one block per camera 1.. : `[w, t]` of `T_cam_cam0` (left increment, radians; metres);
+//! 2. one block per camera 1.. : `[t, w]` of `T_cam_cam0` (metres; left increment, radians);
 //! 3. when the target's shape is estimated, one block `[b, s, t]` (metres), and when its print
 //!    scale is, one block `[e_x]` ([`super::deform`]);
-//! 4. one block per view: `[w, t]` of `T_cam0_target`.
+//! 4. one block per view: `[t, w]` of `T_cam0_target`.
+//!
+//! Pose blocks follow the project's 6-vector order (translation, then rotation;
+//! docs/conventions.md).
 //!
 //! With [`Bundle::fixed_globals`] blocks 1 to 3 are held constant (only the views' poses move).
 //! `Bundle::global_index_*` give the offset of a camera's, an extrinsic's or the target's block
@@ -105,8 +108,8 @@ impl CameraLayout {
 }
 
 /// The bundle's residual block: one corner seen by one camera, `projected - observed` in pixels,
-/// over the blocks `[camera free parameters, [w, t] of T_cam_cam0 (cameras 1..), [b, s, t] of
-/// the target's shape (when free), [e_x] of its print scale (when free), [w, t] of
+/// over the blocks `[camera free parameters, [t, w] of T_cam_cam0 (cameras 1..), [b, s, t] of
+/// the target's shape (when free), [e_x] of its print scale (when free), [t, w] of
 /// T_cam0_target]`, the pose blocks being charts around their reference rotations. Its Jacobians
 /// are those of [`observe`] and, for the target's blocks, `d r / d p0 R_view d point / d block`;
 /// all are checked by the least-squares layer's gradient checker in the tests.
@@ -193,10 +196,11 @@ impl ferrocal_lsq::Residual for CornerResidual {
     }
 }
 
-/// `d residual / d (point in the target frame)`: the view block's translation columns are
-/// `d residual / d p0` (`p0 = R_view x + t_view`), so this is those columns times `R_view`.
+/// `d residual / d (point in the target frame)`: the view block's translation columns (the
+/// first three) are `d residual / d p0` (`p0 = R_view x + t_view`), so this is those columns
+/// times `R_view`.
 fn d_residual_d_target_point(d_view: &nalgebra::Matrix2x6<f64>, view: &LocalPose) -> Matrix2x3<f64> {
-    d_view.fixed_view::<2, 3>(0, 3) * view.rotation().matrix()
+    d_view.fixed_view::<2, 3>(0, 0) * view.rotation().matrix()
 }
 
 /// One corner seen by one camera in one view.
@@ -305,7 +309,7 @@ impl Bundle {
     }
 
     /// One solve through the least-squares layer's Ceres back end: the camera blocks and the
-    /// `[w, t]` charts of the extrinsics and views around their reference rotations are
+    /// `[t, w]` charts of the extrinsics and views around their reference rotations are
     /// Euclidean blocks, one [`CornerResidual`] per observation.
     fn solve_once(&mut self, max_iterations: usize) -> Result<(String, usize, f64)> {
         let nc = self.cameras.len();

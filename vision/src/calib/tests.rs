@@ -41,10 +41,10 @@ fn residual_jacobians_match_finite_differences() {
         Vector3::new(-0.3, 0.02, 0.01),
         Vector3::new(0.01, -0.2, 0.05),
     ));
-    let ext_block = [0.01, -0.02, 0.03, -0.3, 0.02, 0.01];
+    let ext_block = [-0.3, 0.02, 0.01, 0.01, -0.02, 0.03];
     let view =
         LocalPose::from_isometry(&nalgebra::Isometry3::new(Vector3::new(0.1, 0.0, 0.6), Vector3::new(2.9, 0.2, -0.1)));
-    let view_block = [0.2, -0.1, 0.05, 0.1, 0.0, 0.6];
+    let view_block = [0.1, 0.0, 0.6, 0.2, -0.1, 0.05];
     for d in distortions() {
         for fix_aspect in [false, true] {
             for second_camera in [false, true] {
@@ -99,12 +99,12 @@ fn deformed_target_residual_jacobians_match_finite_differences() {
         Vector3::new(-0.3, 0.02, 0.01),
         Vector3::new(0.01, -0.2, 0.05),
     ));
-    let ext_block = [0.01, -0.02, 0.03, -0.3, 0.02, 0.01];
+    let ext_block = [-0.3, 0.02, 0.01, 0.01, -0.02, 0.03];
     let view = LocalPose::from_isometry(&nalgebra::Isometry3::new(
         Vector3::new(-0.05, -0.08, 0.6),
         Vector3::new(2.9, 0.2, -0.1),
     ));
-    let view_block = [0.2, -0.1, 0.05, -0.05, -0.08, 0.6];
+    let view_block = [-0.05, -0.08, 0.6, 0.2, -0.1, 0.05];
     let shape_block = [0.0012, -0.0007, 0.0004];
     let scale_block = [0.004];
     for d in distortions() {
