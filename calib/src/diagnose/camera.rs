@@ -11,7 +11,8 @@
 //! - `target_print_scale`: the printed spacing along the target's x axis differs from the one
 //!   along its y axis by the factor `1 + e` (`scale_x_minus_y` = `e`; printers scale x and y
 //!   differently). Only this anisotropic part shows in images: an overall scale trades with the
-//!   views' distances, so the y spacing is taken as nominal.
+//!   views' distances, so the y spacing is taken as nominal. It also trades with the camera's
+//!   `fy / fx` unless the board is turned in its plane between views (e.g. by 90 deg).
 //!
 //! Every fit is vision's bundle adjustment ([`ferrocal_vision::calib::adjust_bundle`]: Ceres,
 //! analytic Jacobians, the target's shape and print scale as blocks shared by all views) on the

@@ -22,7 +22,9 @@
 //!
 //! Entry points: [`calibrate_camera`], [`calibrate_stereo`], [`calibrate_rig`]; the inputs
 //! [`PlanarTarget`], [`View`], [`CalibrationOptions`]; [`Pattern`] strings; OpenCV corners
-//! for real images in [`corners`].
+//! for real images in [`corners`]. The bundle adjustment itself, with a bent or mis-printed
+//! target, other lens models and a poses-only mode: [`adjust_bundle`] ([`BundleSpec`],
+//! [`BundleModel`], [`BundleFit`]).
 //!
 //! # Conventions
 //! Pixel `(0, 0)` is the centre of the top-left pixel. Target points in metres in the target
