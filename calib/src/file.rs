@@ -78,6 +78,12 @@ pub struct CalibrationFile {
     /// Physical effects modelled beyond the geometry, with their parameter values.
     #[serde(default)]
     pub effects: Vec<EffectValues>,
+    /// The robot model (preset name or file) whose nominal geometry places the masses for the
+    /// effects' loads, when it is not the model the file is applied to (a calibration exported
+    /// with its URDF: the URDF holds the calibrated geometry, the loads come from the nominal
+    /// one, as in the calibration that identified the effects).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_model: Option<String>,
 }
 
 /// An effect and its identified parameters.
@@ -111,6 +117,7 @@ impl CalibrationFile {
                 .iter()
                 .map(|(spec, values)| EffectValues { spec: spec.clone(), values: values.clone() })
                 .collect(),
+            load_model: None,
         }
     }
 
@@ -138,6 +145,22 @@ impl CalibrationFile {
             values[i] = nv.value;
         }
         m.set_parameter_values(&values)?;
+        let load_model = match &self.load_model {
+            None => model.clone(),
+            Some(spec) => {
+                let l = RobotModel::load(spec).map_err(|e| {
+                    CalibError::Data(format!("the load model '{spec}' the calibration names cannot be loaded: {e}"))
+                })?;
+                if l.dof() != model.dof() {
+                    return Err(CalibError::Data(format!(
+                        "the load model '{spec}' has {} joints, the robot {}",
+                        l.dof(),
+                        model.dof()
+                    )));
+                }
+                l
+            }
+        };
         Ok(CalibratedModel {
             model: m,
             device_frame: self.device_frame.to_isometry(),
@@ -145,7 +168,7 @@ impl CalibrationFile {
             joint_offsets: self.joint_offsets.clone(),
             orientation_calibrated: self.orientation_calibrated,
             effects: self.effects.iter().map(|e| (e.spec.clone(), e.values.clone())).collect(),
-            load_model: model.clone(),
+            load_model,
         })
     }
 

@@ -18,6 +18,7 @@ pub mod diagnose;
 pub mod effect_list;
 pub mod effects;
 pub mod error;
+pub mod export;
 pub mod file;
 pub mod frames;
 pub mod identifiability;

@@ -177,3 +177,42 @@ fn an_unconverged_calibration_exits_non_zero_and_writes_nothing() {
         .arg(&cal));
     assert!(cal.exists());
 }
+
+/// The URDF export read back as the robot model reproduces `evaluate` on the UR5 table to
+/// 1e-6 mm per pose and axis (measured: 9e-13 mm).
+#[test]
+fn exported_urdf_reproduces_evaluate_on_the_ur5_table() {
+    let tmp = tempfile::tempdir().unwrap();
+    let table = import_ur5(tmp.path());
+    let cal = tmp.path().join("cal.json");
+    ok(ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--no-validation", "--measurements"])
+        .arg(&table)
+        .arg("--out")
+        .arg(&cal));
+    let urdf = tmp.path().join("ur5_calibrated.urdf");
+    ok(ferrocal().args(["export", "--robot", "ur5", "--calibration"]).arg(&cal).arg("--urdf").arg(&urdf));
+    let companion = tmp.path().join("ur5_calibrated.calibration.json");
+    assert!(std::fs::read_to_string(&urdf).unwrap().contains("<link name=\"target\">"));
+    let a = evaluate(&cal, &table, &tmp.path().join("a.json"), false);
+    let mut cmd = ferrocal();
+    cmd.arg("evaluate")
+        .arg("--robot")
+        .arg(&urdf)
+        .arg("--calibration")
+        .arg(&companion)
+        .arg("--measurements")
+        .arg(&table)
+        .arg("--json")
+        .arg(tmp.path().join("b.json"));
+    ok(&mut cmd);
+    let b = json(&tmp.path().join("b.json"));
+    let (pa, pb) = (a["per_pose"].as_array().unwrap(), b["per_pose"].as_array().unwrap());
+    assert_eq!(pa.len(), 1000);
+    let worst = pa
+        .iter()
+        .zip(pb)
+        .flat_map(|(x, y)| ["dx_mm", "dy_mm", "dz_mm"].map(|k| (x[k].as_f64().unwrap() - y[k].as_f64().unwrap()).abs()))
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-6, "{worst:e} mm");
+}

@@ -47,6 +47,8 @@ pub enum Command {
     Diagnose(crate::commands::diagnose::DiagnoseArgs),
     /// Predict a measurement table with a calibrated model and report the position errors.
     Evaluate(crate::commands::calibrate::EvaluateArgs),
+    /// Export a calibration for other tools: the calibrated serial robot as a URDF.
+    Export(crate::commands::calibrate::ExportArgs),
     /// Force-sensor models and dynamics of parallel machines: identification from quasi-static
     /// poses and excitation trajectories, experiment design, studies.
     Dynamics(crate::commands::dynamics::DynamicsArgs),

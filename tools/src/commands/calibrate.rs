@@ -252,3 +252,53 @@ pub fn run_evaluate(args: &EvaluateArgs) -> Result<ExitCode> {
     );
     Ok(ExitCode::SUCCESS)
 }
+
+/// `ferrocal export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// Robot model the calibration was made for.
+    #[arg(long)]
+    pub robot: String,
+    /// Calibration file (`calibrate --out` or `diagnose --out`).
+    #[arg(long)]
+    pub calibration: PathBuf,
+    /// Write the calibrated serial robot as a URDF here (root link `device`, tip link `target`),
+    /// and beside it `<name>.calibration.json`, the calibration `evaluate` takes with the URDF as
+    /// the robot model (it keeps the effects a URDF cannot hold).
+    #[arg(long)]
+    pub urdf: PathBuf,
+}
+
+pub fn run_export(args: &ExportArgs) -> Result<ExitCode> {
+    let model = RobotModel::load(&args.robot).with_context(|| format!("cannot load robot model '{}'", args.robot))?;
+    let file = CalibrationFile::read(&args.calibration)?;
+    let cm = file.apply(&model).with_context(|| format!("applying {}", args.calibration.display()))?;
+    let companion_path = args.urdf.with_extension("calibration.json");
+    for out in [&args.urdf, &companion_path] {
+        if std::fs::canonicalize(out).ok() == std::fs::canonicalize(&args.calibration).ok() && out.exists() {
+            bail!("{}: would overwrite the input calibration", out.display());
+        }
+    }
+    let comment = format!(
+        "written by ferrocal {} from {} (robot {}); joint origins include the calibrated corrections and zero offsets; the measured target is link 'target', the measuring device's frame is link 'device'",
+        env!("CARGO_PKG_VERSION"),
+        args.calibration.display(),
+        args.robot
+    );
+    let ex = ferrocal_calib::export::export_urdf(&cm, &args.robot, &args.urdf.display().to_string(), &comment)?;
+    write_atomic(&args.urdf, ex.urdf.as_bytes())?;
+    write_atomic(&companion_path, serde_json::to_string_pretty(&ex.companion)?.as_bytes())?;
+    eprintln!(
+        "wrote {} and {} (read back: {:.2e} mm, {:.2e} deg from the calibrated model{})",
+        args.urdf.display(),
+        companion_path.display(),
+        ex.roundtrip_m_rad.0 * 1e3,
+        ex.roundtrip_m_rad.1.to_degrees(),
+        if cm.effects.is_empty() {
+            String::new()
+        } else {
+            format!("; {} effect(s) kept in the calibration file", cm.effects.len())
+        }
+    );
+    Ok(ExitCode::SUCCESS)
+}

@@ -35,6 +35,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Calibrate(a) => calibrate::run_calibrate(&a),
         Command::Diagnose(a) => diagnose::run(&a),
         Command::Evaluate(a) => calibrate::run_evaluate(&a),
+        Command::Export(a) => calibrate::run_export(&a),
         Command::Dynamics(a) => dynamics::run(&a),
         Command::Stiffness(a) => stiffness::run(&a),
     }
