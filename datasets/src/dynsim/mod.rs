@@ -39,7 +39,7 @@ pub use hexapod::{HexapodFriction, HexapodSim};
 pub use platform::{Deformation, PlatformSim, StaticRecord};
 
 use ferrocal_calib::design::excitation::TrajectorySample;
-use ferrocal_calib::linear::signals::SampledSignal;
+use ferrocal_calib::dynamics::signals::SampledSignal;
 use ferrocal_robot::dynamics::{MotionState, RigidBody};
 use nalgebra::{DMatrix, Matrix3, Vector3, Vector6};
 use rand::Rng;
