@@ -216,10 +216,11 @@ pub fn fit(
 ) -> Result<LinearFit> {
     opts.validate()?;
     let s = prepare::prepare(a, y, names, w, opts.rank_policy)?;
+    let input = solve::Input { a, y, names, w };
     match opts.rank_policy {
-        RankPolicy::Refuse => solve::refusing(a, y, names, &s, opts),
-        RankPolicy::Truncate => solve::truncated(a, y, names, w, &s, opts),
-        RankPolicy::DropPivoted => solve::drop_pivoted(a, y, names, w, &s, opts),
+        RankPolicy::Refuse => solve::refusing(&input, &s, opts),
+        RankPolicy::Truncate => solve::truncated(&input, &s, opts),
+        RankPolicy::DropPivoted => solve::drop_pivoted(&input, &s, opts),
     }
 }
 

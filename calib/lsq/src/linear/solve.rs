@@ -10,6 +10,14 @@ use super::{rank_deficiency, zero_column, CovarianceScale, LinearFit, LinearOpti
 use crate::identifiability::{analyze, to_faer};
 use crate::{LsqError, Result};
 
+/// The caller's problem `y = A u` with its column names and noise model.
+pub(super) struct Input<'a> {
+    pub a: &'a DMatrix<f64>,
+    pub y: &'a DVector<f64>,
+    pub names: &'a [String],
+    pub w: &'a Weighting,
+}
+
 /// The `n x n` upper-triangular `R` of the (unpivoted) QR decomposition of `aw` (`m >= n`).
 pub(super) fn thin_r(aw: &Mat<f64>) -> DMatrix<f64> {
     let qr = aw.qr();
@@ -49,13 +57,8 @@ fn correlation(c: &DMatrix<f64>) -> DMatrix<f64> {
 
 /// [`RankPolicy::Refuse`]: QR of the whitened, scaled regressor; the rank from the singular
 /// values of `R`; `F^-1 = H R^-1 R^-T H`.
-pub(super) fn refusing(
-    a: &DMatrix<f64>,
-    y: &DVector<f64>,
-    names: &[String],
-    s: &Scaled,
-    opts: &LinearOptions,
-) -> Result<LinearFit> {
+pub(super) fn refusing(p: &Input, s: &Scaled, opts: &LinearOptions) -> Result<LinearFit> {
+    let (a, y, names) = (p.a, p.y, p.names);
     if let Some(j) = s.zero.iter().position(|z| *z) {
         return Err(zero_column(names, j));
     }
@@ -228,14 +231,8 @@ impl TruncatedSvd {
 
 /// [`RankPolicy::Truncate`]: the minimum-norm solution `x = H V_r S_r^-1 U_r^T y` and the
 /// covariance over the determined directions.
-pub(super) fn truncated(
-    a: &DMatrix<f64>,
-    y: &DVector<f64>,
-    names: &[String],
-    w: &Weighting,
-    s: &Scaled,
-    opts: &LinearOptions,
-) -> Result<LinearFit> {
+pub(super) fn truncated(p: &Input, s: &Scaled, opts: &LinearOptions) -> Result<LinearFit> {
+    let (a, y, names, w) = (p.a, p.y, p.names, p.w);
     let (m, p) = (s.a.nrows(), s.a.ncols());
     let t = TruncatedSvd::of_scaled(&s.a, s.h.clone(), opts.rank_tolerance)?;
     let (rank, u, v, sv, scale) = (t.rank, &t.u, &t.v, &t.s, &s.h);
@@ -308,14 +305,8 @@ pub(super) fn truncated(
 /// [`RankPolicy::DropPivoted`]: QR with column pivoting chooses the columns to keep (the first
 /// `rank` pivots, `|R_ii| > tol |R_11|`); they are fitted by the refusing QR, the others held at
 /// zero.
-pub(super) fn drop_pivoted(
-    a: &DMatrix<f64>,
-    y: &DVector<f64>,
-    names: &[String],
-    w: &Weighting,
-    s: &Scaled,
-    opts: &LinearOptions,
-) -> Result<LinearFit> {
+pub(super) fn drop_pivoted(p: &Input, s: &Scaled, opts: &LinearOptions) -> Result<LinearFit> {
+    let (a, y, names, w) = (p.a, p.y, p.names, p.w);
     let (m, n) = (s.a.nrows(), s.a.ncols());
     let (r_diagonal, pivot_order) = pivoted_diagonal(&s.a);
     let first = r_diagonal.first().copied().unwrap_or(0.0);
@@ -344,7 +335,7 @@ pub(super) fn drop_pivoted(
     let sub_names: Vec<String> = kept.iter().map(|&j| names[j].clone()).collect();
     let sub_opts = LinearOptions { rank_policy: RankPolicy::Refuse, rank_tolerance: 0.0, ..*opts };
     let sub = super::prepare::prepare(&sub_a, y, &sub_names, w, RankPolicy::Refuse)?;
-    let f = refusing(&sub_a, y, &sub_names, &sub, &sub_opts)?;
+    let f = refusing(&Input { a: &sub_a, y, names: &sub_names, w }, &sub, &sub_opts)?;
     let mut values = vec![0.0; n];
     let mut std = vec![f64::INFINITY; n];
     let mut covariance = DMatrix::zeros(n, n);
