@@ -15,7 +15,7 @@
 //!   differently sampled force stream) for tests of the bad-input messages.
 //!
 //! # Independence from the identification
-//! The identification (`ferrocal_calib::linear`) builds regressors linear in the parameters.
+//! The identification (`ferrocal_calib::dynamics`) builds regressors linear in the parameters.
 //! This simulator computes the same physics in the direct way: the Newton-Euler wrench about the
 //! centre of gravity in the base frame, the sensor forces by solving `J_P^-T f = w` with a
 //! wrench matrix built here from the strut geometry, the passive joints' friction as the gradient

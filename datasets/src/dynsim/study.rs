@@ -1,5 +1,5 @@
 //! The sources' experiments, run on the simulator: each function simulates the data, runs the
-//! identification of `ferrocal_calib::linear` and returns the numbers the sources report, so
+//! identification of `ferrocal_calib::dynamics` and returns the numbers the sources report, so
 //! that tests can assert them and `ferrocal dynamics study` can tabulate them.
 //!
 //! - [`models_study`]: models 0 to 9 on one quasi-static pose set and one trajectory
