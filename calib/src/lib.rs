@@ -3,8 +3,13 @@
 //! Entry points:
 //! - [`measurement`]: the measured-pose row every calibration consumes;
 //! - [`check`]: named checks that pass, fail, are skipped or only reported;
-//! - [`lsq`]: dense Levenberg-Marquardt with scaling, robust losses and covariance;
+//! - [`lsq`]: the least-squares layer (`ferrocal-lsq`) as this crate uses it: dense
+//!   Levenberg-Marquardt with scaling, robust losses and covariance; linear fits go through
+//!   `ferrocal_lsq::linear`;
 //! - [`identifiability`]: structural (SVD, pivoted QR) and practical identifiability;
+//! - [`kinematic`]: kinematic calibration; [`design`]: pose and experiment design;
+//! - [`dynamics`]: force-sensor models and hexapod dynamics identification;
+//! - [`diagnose`]: missing physics found by cross-validated candidate effects;
 //! - [`stiffness`]: elastostatic identification with model reduction to practically identifiable
 //!   parameters, experiment design and compliance compensation.
 //!
@@ -15,6 +20,7 @@
 pub mod check;
 pub mod design;
 pub mod diagnose;
+pub mod dynamics;
 pub mod effect_list;
 pub mod effects;
 pub mod error;
@@ -23,7 +29,6 @@ pub mod file;
 pub mod frames;
 pub mod identifiability;
 pub mod kinematic;
-pub mod linear;
 pub mod lsq;
 pub mod measurement;
 pub mod stiffness;

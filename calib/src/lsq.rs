@@ -43,6 +43,7 @@ impl From<ferrocal_lsq::LsqError> for CalibError {
             Ok(own) => own,
             Err(L::Setup(m)) => CalibError::Data(m),
             Err(L::TooFew(m)) => CalibError::TooFew(m),
+            Err(L::RankDeficient { message, .. }) => CalibError::TooFew(message),
             Err(L::Diverged(m)) => CalibError::Diverged(m),
             Err(other) => CalibError::Numeric(other.to_string().trim_start_matches("linear algebra: ").to_string()),
         }

@@ -10,6 +10,7 @@ use ferrocal_calib::diagnose::engine::{
 };
 use ferrocal_calib::diagnose::report::{explained, Decision, Diagnosis, Finding, Unit, Verdict};
 use ferrocal_calib::error::Result;
+use ferrocal_lsq::linear::{fit, LinearOptions, RankPolicy, Weighting};
 use nalgebra::{DMatrix, DVector};
 
 /// A polynomial in `x` with the powers `terms` (0 and 1: the base line), fitted by least squares.
@@ -29,7 +30,9 @@ struct Polynomial {
 fn lstsq(x: &[f64], y: &[f64], terms: &[u32], rows: &[usize]) -> DVector<f64> {
     let a = DMatrix::from_fn(rows.len(), terms.len(), |r, c| x[rows[r]].powi(terms[c] as i32));
     let b = DVector::from_iterator(rows.len(), rows.iter().map(|&i| y[i]));
-    a.svd(true, true).solve(&b, 1e-12).expect("SVD solve")
+    let names: Vec<String> = terms.iter().map(|t| format!("x^{t}")).collect();
+    let opts = LinearOptions::new(RankPolicy::Truncate, 1e-12);
+    DVector::from_vec(fit(&a, &b, &names, &Weighting::Unit, &opts).expect("least squares").values)
 }
 
 impl Polynomial {

@@ -6,10 +6,10 @@
 use criterion::{criterion_group, criterion_main, Criterion as Bench};
 use ferrocal_calib::design::criteria::Criterion;
 use ferrocal_calib::design::excitation::ExcitationSettings;
-use ferrocal_calib::linear::design::{optimise_trajectory, reference_scale};
-use ferrocal_calib::linear::dynamic::{identify, identify_from_streams};
-use ferrocal_calib::linear::models::{SensorModel, SensorRegressor};
-use ferrocal_calib::linear::{Differentiation, NoiseModel, SensorRows};
+use ferrocal_calib::dynamics::design::{optimise_trajectory, reference_scale};
+use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
+use ferrocal_calib::dynamics::identify::{identify, identify_from_streams};
+use ferrocal_calib::dynamics::{Differentiation, NoiseModel, SensorRows};
 use ferrocal_datasets::dynsim::study::{excitation_for, home_coordinates, record_platform, DynamicSetup};
 use ferrocal_datasets::dynsim::PlatformSim;
 

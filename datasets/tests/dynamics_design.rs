@@ -4,9 +4,9 @@
 
 use ferrocal_calib::design::criteria::Criterion;
 use ferrocal_calib::design::excitation::ExcitationSettings;
-use ferrocal_calib::linear::design::{check_trajectory, optimise_trajectory, reference_scale};
-use ferrocal_calib::linear::models::{SensorModel, SensorRegressor};
-use ferrocal_calib::linear::SensorRows;
+use ferrocal_calib::dynamics::design::{check_trajectory, optimise_trajectory, reference_scale};
+use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
+use ferrocal_calib::dynamics::SensorRows;
 use ferrocal_datasets::dynsim::study::{excitation_study, home_coordinates, reduction_study, DynamicSetup};
 use ferrocal_datasets::dynsim::{HexapodSim, PlatformSim, Sampling};
 use rand::SeedableRng;
@@ -84,9 +84,9 @@ fn a_trajectory_that_leaves_its_bounds_is_refused_with_the_coordinate_named() {
 /// acceleration bounds, usable for the identification of model 9.
 #[test]
 fn point_to_point_excitation_stays_in_bounds_and_identifies_model_9() {
-    use ferrocal_calib::linear::design::PointToPoint;
-    use ferrocal_calib::linear::dynamic::identify_from_streams;
-    use ferrocal_calib::linear::{Differentiation, NoiseModel};
+    use ferrocal_calib::dynamics::design::PointToPoint;
+    use ferrocal_calib::dynamics::identify::identify_from_streams;
+    use ferrocal_calib::dynamics::{Differentiation, NoiseModel};
     let sim = PlatformSim::preset();
     let home = home_coordinates(&sim.hexapod.home);
     let setup = DynamicSetup::default();

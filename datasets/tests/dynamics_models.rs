@@ -2,13 +2,13 @@
 //! (Friedrich & Ihlenfeldt 2021, Table 3), the refusal of model 3, and a control without
 //! deformation.
 
-use ferrocal_calib::linear::design::candidate_poses;
-use ferrocal_calib::linear::models::{SensorModel, SensorRegressor};
-use ferrocal_calib::linear::solve::{fit, FitOptions, Weighting};
+use ferrocal_calib::dynamics::design::candidate_poses;
+use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
 use ferrocal_datasets::dynsim::study::{
     home_coordinates, models_study, static_problem, DynamicSetup, ModelRow, ModelsStudy, STATIC_HALF_RANGE,
 };
 use ferrocal_datasets::dynsim::{Deformation, PlatformSim};
+use ferrocal_lsq::linear::{fit, LinearOptions, Weighting};
 use ferrocal_robot::dynamics::GRAVITY_M_S2;
 
 fn study(sim: &PlatformSim) -> ModelsStudy {
@@ -124,6 +124,6 @@ fn rank_deficient_regressor_names_the_parameters() {
     }
     let f = nalgebra::DMatrix::from_element(12, 6, 10.0);
     let (a, y) = static_problem(&reg, m, &poses, &f).unwrap();
-    let e = fit(&a, &y, &m.names(), &Weighting::Unit, &FitOptions::default()).unwrap_err().to_string();
+    let e = fit(&a, &y, &m.names(), &Weighting::Unit, &LinearOptions::default()).unwrap_err().to_string();
     assert!(e.contains("k0_N_m") && e.contains("no effect"), "{e}");
 }

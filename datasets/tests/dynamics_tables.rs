@@ -1,12 +1,13 @@
 //! Simulated dynamics tables through the file readers and both identifications (the flow of
 //! `ferrocal dynamics simulate` then `identify` and `identify-static`).
 
-use ferrocal_calib::linear::dynamic::identify_from_streams;
-use ferrocal_calib::linear::{fit, Differentiation, FitOptions, NoiseModel, SensorModel, SensorRows, Weighting};
+use ferrocal_calib::dynamics::identify::identify_from_streams;
+use ferrocal_calib::dynamics::{Differentiation, NoiseModel, SensorModel, SensorRows};
 use ferrocal_datasets::dynsim::study::static_problem;
 use ferrocal_datasets::dynsim::tables::{simulated_tables, Rig, TableSettings};
 use ferrocal_datasets::dynsim::PlatformSim;
 use ferrocal_datasets::formats::dynamics_tables::{read_static_table, read_stream, FORCE_COLUMNS, LEG_COLUMNS};
+use ferrocal_lsq::linear::{fit, LinearOptions, Weighting};
 
 #[test]
 fn simulated_tables_identify() {
@@ -41,7 +42,7 @@ fn simulated_tables_identify() {
     assert_eq!(poses.len(), 60);
     let m5 = SensorModel::new(5).unwrap();
     let (a, y) = static_problem(&reg, m5, &poses, &forces).unwrap();
-    let f = fit(&a, &y, &m5.names(), &Weighting::Unit, &FitOptions::default()).unwrap();
+    let f = fit(&a, &y, &m5.names(), &Weighting::Unit, &LinearOptions::default()).unwrap();
     let m = f.values[0];
     assert!((m - (33.78 + 19.93)).abs() < 0.02 * 53.71, "{m}");
 }

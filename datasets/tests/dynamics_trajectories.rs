@@ -3,9 +3,9 @@
 //! covariances from repeated periods, and streams that do not fit together.
 
 use ferrocal_calib::design::criteria::Criterion;
-use ferrocal_calib::linear::dynamic::identify_from_streams;
-use ferrocal_calib::linear::signals::{period_statistics, SampledSignal};
-use ferrocal_calib::linear::{Differentiation, NoiseModel};
+use ferrocal_calib::dynamics::identify::identify_from_streams;
+use ferrocal_calib::dynamics::signals::{period_statistics, SampledSignal};
+use ferrocal_calib::dynamics::{Differentiation, NoiseModel};
 use ferrocal_datasets::dynsim::study::{
     excitation_for, filtering_study, hexapod_study, ml_study, payload_study, record_hexapod, DynamicSetup,
 };

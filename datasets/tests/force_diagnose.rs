@@ -3,8 +3,8 @@
 //! out.
 
 use ferrocal_calib::diagnose::force::{diagnose_force_sensor, ForceDiagnoseOptions};
-use ferrocal_calib::linear::design::candidate_poses;
-use ferrocal_calib::linear::SensorRegressor;
+use ferrocal_calib::dynamics::design::candidate_poses;
+use ferrocal_calib::dynamics::SensorRegressor;
 use ferrocal_datasets::dynsim::study::{home_coordinates, STATIC_HALF_RANGE};
 use ferrocal_datasets::dynsim::{Deformation, PlatformSim, StaticRecord};
 use rand::SeedableRng;

@@ -3,7 +3,9 @@
 //! laser tracker's range, line of sight and noise.
 
 use ferrocal_robot::safety::ObstacleBox;
-use ferrocal_robot::workspace::{CameraRig, CameraView, MeasuringDevice, TargetShape, TrackerView, VisibilitySettings};
+use ferrocal_robot::workspace::{
+    CameraView, CameraVisibility, MeasuringDevice, TargetShape, TrackerView, VisibilitySettings,
+};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 /// A 2048 x 1536 pinhole camera at the origin of the base frame looking along +x (z up in the
@@ -21,14 +23,20 @@ fn tool(p: [f64; 3], turn_deg: f64) -> Isometry3<f64> {
     )
 }
 
-fn rig(cams: Vec<CameraView>, occluders: Vec<ObstacleBox>) -> CameraRig {
+fn rig(cams: Vec<CameraView>, occluders: Vec<ObstacleBox>) -> CameraVisibility {
     // Target normal (target z) along -x of the tool.
     let t_tool_target = Isometry3::from_parts(
         Translation3::identity(),
         UnitQuaternion::from_euler_angles(0.0, -std::f64::consts::FRAC_PI_2, 0.0),
     );
-    CameraRig::new(cams, TargetShape::plate(0.03, 0.015), t_tool_target, VisibilitySettings::default(), occluders)
-        .unwrap()
+    CameraVisibility::new(
+        cams,
+        TargetShape::plate(0.03, 0.015),
+        t_tool_target,
+        VisibilitySettings::default(),
+        occluders,
+    )
+    .unwrap()
 }
 
 #[test]

@@ -7,7 +7,7 @@ use ferrocal_robot::presets;
 use ferrocal_robot::program::{plan_path, verify_path, Approach, PathSettings, StepKind};
 use ferrocal_robot::safety::{ObstacleBox, SafetyBody, SafetyChecker, SafetyConfig};
 use ferrocal_robot::workspace::{
-    search, spread_grid, CameraRig, CameraView, GridSpace, TargetShape, VisibilitySettings, WorkspaceSettings,
+    search, spread_grid, CameraView, CameraVisibility, GridSpace, TargetShape, VisibilitySettings, WorkspaceSettings,
 };
 use ferrocal_robot::RobotModel;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
@@ -199,7 +199,7 @@ fn an_empty_workspace_names_the_constraint_that_empties_it() {
     // A camera that looks away from the workspace.
     let checker = SafetyChecker::new(&model, l1_checker_cfg()).unwrap();
     let t_cam = CameraView::look_at([2.6, 2.7, -0.5], [5.0, 2.7, -0.5], [0.0, 0.0, 1.0]).unwrap();
-    let rig = CameraRig::new(
+    let rig = CameraVisibility::new(
         vec![CameraView::pinhole("away", t_cam, 2000.0, 2000.0, 1000.0, 800.0, 2000, 1600)],
         TargetShape::plate(0.04, 0.02),
         Isometry3::from_parts(

@@ -87,14 +87,6 @@ pub enum VisionError {
         /// What is wrong and what to do about it.
         reason: String,
     },
-    /// A pattern string (e.g. `chessboard:9x6:25mm`) that cannot be parsed.
-    #[error("bad pattern '{text}': {reason}")]
-    PatternSpec {
-        /// The text given.
-        text: String,
-        /// What is wrong, with the accepted forms.
-        reason: String,
-    },
     /// Fewer usable views than the calibration needs.
     #[error("{usable} usable view(s), at least {needed} needed: {detail}")]
     TooFewViews {

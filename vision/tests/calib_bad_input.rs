@@ -5,7 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use ferrocal_vision::calib::corners::{chessboard_corners_opencv, detect_view_slots, detect_views, SubpixWindow};
-use ferrocal_vision::calib::{calibrate_camera, CalibrationOptions, Pattern};
+use ferrocal_vision::calib::{calibrate_camera, CalibrationOptions, PlanarTarget};
+use ferrocal_vision::detect::Pattern;
 use ferrocal_vision::VisionError;
 
 const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/opencv_stereo/");
@@ -42,7 +43,7 @@ fn bad_images(dir: &Path) -> Vec<PathBuf> {
 #[test]
 fn every_bad_image_is_reported_and_the_batch_goes_on() {
     let dir = tempfile::tempdir().unwrap();
-    let pattern = Pattern::parse("chessboard:9x6:25mm").unwrap();
+    let pattern = "chessboard:9x6:25mm".parse::<Pattern>().unwrap();
     let mut paths: Vec<PathBuf> = (1..=5).map(left).collect();
     paths.extend(bad_images(dir.path()));
     let (slots, skipped) = detect_view_slots(&paths, &pattern, SubpixWindow::OpenCv);
@@ -68,7 +69,7 @@ fn every_bad_image_is_reported_and_the_batch_goes_on() {
     // The batch goes on: the usable views calibrate.
     let views: Vec<_> = slots.into_iter().flatten().collect();
     let opts = CalibrationOptions { fix_aspect: true, ..Default::default() };
-    let cal = calibrate_camera(&views, &pattern.target(), &opts).unwrap();
+    let cal = calibrate_camera(&views, &PlanarTarget::of_pattern(&pattern).unwrap(), &opts).unwrap();
     assert!(cal.rms_px < 0.6, "rms {}", cal.rms_px);
     // The larger image alone is a fine view of the board.
     let c = chessboard_corners_opencv(&dir.path().join("big.png"), 9, 6).unwrap();
@@ -78,13 +79,14 @@ fn every_bad_image_is_reported_and_the_batch_goes_on() {
 #[test]
 fn too_few_usable_views_is_an_error_that_counts_them() {
     let dir = tempfile::tempdir().unwrap();
-    let pattern = Pattern::parse("chessboard:9x6:25mm").unwrap();
+    let pattern = "chessboard:9x6:25mm".parse::<Pattern>().unwrap();
     let mut paths = vec![left(1), left(3)];
     paths.extend(bad_images(dir.path()));
     let (views, skipped) = detect_views(&paths, &pattern, SubpixWindow::Adaptive);
     assert_eq!(views.len(), 2);
     assert_eq!(skipped.len(), 5);
-    let e = calibrate_camera(&views, &pattern.target(), &CalibrationOptions::default()).unwrap_err();
+    let e = calibrate_camera(&views, &PlanarTarget::of_pattern(&pattern).unwrap(), &CalibrationOptions::default())
+        .unwrap_err();
     assert!(matches!(e, VisionError::TooFewViews { usable: 2, needed: 3, .. }), "{e}");
     assert!(e.to_string().starts_with("2 usable view(s), at least 3 needed"), "{e}");
 }

@@ -6,32 +6,11 @@ use nalgebra::{DMatrix, DVector};
 use crate::{LsqError, Result};
 
 /// Covariance of the parameters from the Jacobian of whitened residuals: `s0^2 (J^T J)^-1` with
-/// `s0^2 = |r|^2 / (m - n)` (the a-posteriori variance factor; 1 when the noise model is right).
-/// Returns the covariance and `s0`.
+/// `s0^2 = |r|^2 / (m - n)` (the a-posteriori variance factor; 1 when the noise model is right),
+/// computed by the linear least-squares routine ([`crate::linear::jacobian_covariance`]: QR of
+/// the column-scaled Jacobian). Returns the covariance and `s0`.
 pub fn covariance(jacobian: &DMatrix<f64>, residuals: &DVector<f64>) -> Result<(DMatrix<f64>, f64)> {
-    let (m, n) = jacobian.shape();
-    if m <= n {
-        return Err(LsqError::TooFew(format!("{m} residuals cannot give the covariance of {n} parameters")));
-    }
-    let s0 = (residuals.norm_squared() / (m - n) as f64).sqrt();
-    // Scale columns for conditioning, invert, unscale.
-    let d: Vec<f64> = (0..n).map(|c| jacobian.column(c).norm().max(1e-300)).collect();
-    let mut js = jacobian.clone();
-    for (c, dc) in d.iter().enumerate() {
-        js.column_mut(c).scale_mut(1.0 / dc);
-    }
-    let jtj = js.transpose() * js;
-    let inv = jtj
-        .cholesky()
-        .ok_or_else(|| LsqError::Numeric("the normal matrix is singular: some parameters are not identifiable".into()))?
-        .inverse();
-    let mut cov = inv * (s0 * s0);
-    for i in 0..n {
-        for j in 0..n {
-            cov[(i, j)] /= d[i] * d[j];
-        }
-    }
-    Ok((cov, s0))
+    crate::linear::jacobian_covariance(jacobian, residuals)
 }
 
 /// Covariance of the *global* columns `0..n_global` of `J` with every other column marginalised,

@@ -10,6 +10,21 @@ pub enum LsqError {
     /// Too few residuals for what was asked (for instance a covariance with `m <= n`).
     #[error("{0}")]
     TooFew(String),
+    /// A linear least-squares problem does not determine every parameter and its rank policy
+    /// refuses it ([`crate::linear::RankPolicy::Refuse`]); the message names the parameters.
+    #[error("{message}")]
+    RankDeficient {
+        /// Numerical rank.
+        rank: usize,
+        /// Number of parameters.
+        n_params: usize,
+        /// Parameters without any effect on the measurements.
+        no_effect: Vec<String>,
+        /// Groups of parameters that trade against each other (only combinations are seen).
+        coupled: Vec<Vec<String>>,
+        /// The whole explanation.
+        message: String,
+    },
     /// The optimisation could not start or diverged.
     #[error("the fit diverged: {0}")]
     Diverged(String),

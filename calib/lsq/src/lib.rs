@@ -15,6 +15,12 @@
 //! Code that assembles one residual vector and Jacobian itself (the kinematic calibration)
 //! implements [`DenseProblem`] and calls [`dense::solve`]: the same solver, without blocks.
 //!
+//! Linear problems `y = A u` (force-sensor models, dynamics, compliance, the diagnose's
+//! linearised screen) go through [`linear::fit`]: weighting, column scaling, an explicit rank
+//! policy, `s0`, the covariance and the identifiability of the columns. Every covariance of the
+//! layer comes from the same QR routine ([`linear::jacobian_covariance`]); [`identifiability`]
+//! classifies parameters from the SVD and the pivoted QR of a scaled Jacobian.
+//!
 //! # Conventions
 //! Residuals are whitened (so `s0 = 1` when the noise model is right). Tangent steps are left
 //! increments; a pose step is `[t, r]`: translation first (metres), then rotation vector
@@ -26,6 +32,8 @@ pub mod check;
 mod covariance;
 pub mod dense;
 mod error;
+pub mod identifiability;
+pub mod linear;
 mod loss;
 pub mod manifold;
 mod problem;

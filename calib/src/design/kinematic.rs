@@ -221,9 +221,10 @@ pub struct Prediction {
     pub n_validation: usize,
 }
 
+/// The inverse of a symmetric positive definite information (or noise covariance) matrix: the
+/// least-squares layer's predicted covariance ([`ferrocal_lsq::linear::predicted_covariance`]).
 fn symmetric_inverse(m: &DMatrix<f64>) -> Result<DMatrix<f64>> {
-    Cholesky::new((m + m.transpose()) * 0.5)
-        .map(|c| c.inverse())
+    ferrocal_lsq::linear::predicted_covariance(&((m + m.transpose()) * 0.5))
         .ok_or_else(|| CalibError::TooFew("the pose set does not determine every parameter".into()))
 }
 

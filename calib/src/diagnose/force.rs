@@ -24,8 +24,9 @@ use super::engine::{
 };
 use super::report::{best_verdict, Decision, Finding, Unit};
 use super::stats::{binned_anova, bonferroni, quantile_groups};
+use crate::dynamics::{SensorModel, SensorRegressor};
 use crate::error::{CalibError, Result};
-use crate::linear::{fit, FitOptions, LinearFit, SensorModel, SensorRegressor, Weighting};
+use ferrocal_lsq::linear::{fit, LinearFit, LinearOptions, Weighting};
 
 /// Options of [`diagnose_force_sensor`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -195,7 +196,7 @@ fn cross_validate(
         let train: Vec<usize> = (0..n).filter(|i| i % k != f).collect();
         let test: Vec<usize> = (0..n).filter(|i| i % k == f).collect();
         let fitted =
-            fit(&rows_of(&a, &train), &vec_of(y, &train), &model.names(), &Weighting::Unit, &FitOptions::default())?;
+            fit(&rows_of(&a, &train), &vec_of(y, &train), &model.names(), &Weighting::Unit, &LinearOptions::default())?;
         let pred = fitted.predict(&rows_of(&a, &test))?;
         let yt = vec_of(y, &test);
         for (t, &i) in test.iter().enumerate() {
@@ -228,7 +229,7 @@ struct ForceFamily<'a> {
 
 impl ForceFamily<'_> {
     fn full_fit(&self, m: SensorModel) -> Result<LinearFit> {
-        fit(&regressor(self.reg, m, self.poses)?, &self.y, &m.names(), &Weighting::Unit, &FitOptions::default())
+        Ok(fit(&regressor(self.reg, m, self.poses)?, &self.y, &m.names(), &Weighting::Unit, &LinearOptions::default())?)
     }
 }
 
@@ -387,7 +388,7 @@ pub fn diagnose_force_sensor(
     }
     let y = DVector::from_iterator(6 * n, (0..n).flat_map(|k| (0..6).map(move |c| forces[(k, c)])));
     let nominal_fit =
-        fit(&regressor(reg, model0, poses)?, &y, &model0.names(), &Weighting::Unit, &FitOptions::default())?;
+        fit(&regressor(reg, model0, poses)?, &y, &model0.names(), &Weighting::Unit, &LinearOptions::default())?;
     let (m0, c0) = mass_cog(&nominal_fit);
     let (current_sse, current_res) = cross_validate(reg, model0, poses, &y, opts.folds)?;
     let k = opts.folds.clamp(2, n);

@@ -565,6 +565,49 @@ pub fn calibrate(
     })
 }
 
+/// The Jacobian of the predicted target positions (device frame, 3 rows per row, each divided
+/// by the row's `sigma_m`) with respect to every candidate of `cal`'s layout at the calibrated
+/// model: the calibration's own Jacobian (analytic for the frame, tool, joint offsets and serial
+/// corrections; central differences for effect parameters and parameters without an analytic
+/// form), with the increments re-based at the calibrated model (a left increment of the device
+/// frame, a right increment of the tool, additive offsets, model and effect parameters), where
+/// its analytic columns are exact. Positions only, scalar sigmas: what the diagnose's
+/// linearisation whitens with.
+pub(crate) fn prediction_jacobian(
+    cal: &KinematicCalibration,
+    rows: &[&PoseMeasurement],
+    sigma_m: &[f64],
+) -> Result<DMatrix<f64>> {
+    let cm = &cal.calibrated;
+    let layout = &cal.layout;
+    if sigma_m.len() != rows.len() {
+        return Err(CalibError::Data(format!("{} standard deviations for {} rows", sigma_m.len(), rows.len())));
+    }
+    let mut start = layout.start_values(&cm.model);
+    start[layout.offsets.clone()].copy_from_slice(&cm.joint_offsets);
+    for (r, (_, theta)) in layout.effects.iter().zip(&cm.effects) {
+        start[r.clone()].copy_from_slice(theta);
+    }
+    let problem = KinProblem {
+        base_model: cm.load_model.clone(),
+        rows,
+        layout,
+        f0: cm.device_frame,
+        tool0: cm.tool,
+        use_ori: false,
+        start: start.clone(),
+        free: (0..layout.len()).collect(),
+        sigma_pos: sigma_m.to_vec(),
+        sigma_ori: vec![1.0; rows.len()],
+        whiten: vec![None; rows.len()],
+        effects: cm.effects.iter().map(|(e, _)| e.clone()).collect(),
+        cost: Cost::ForwardKinematics,
+        n_legs: 0,
+    };
+    // The residual is measured minus predicted: its Jacobian is minus the prediction's.
+    Ok(-problem.full_jacobian(&start)?)
+}
+
 /// Identifiability over the columns `cols` of `a` (names taken from `names`). Where parameters
 /// are redundant, the pivoted QR keeps the robot model's own parameters first, then joint
 /// offsets, the tool offset and last the device frame (their columns are weighted 1, 0.8, 0.7

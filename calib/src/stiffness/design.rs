@@ -107,10 +107,12 @@ pub fn candidate_blocks(
 
 fn relative_std(pool: &InformationPool, set: &[usize], scale: &[f64], prior: &[f64]) -> Vec<f64> {
     let f = pool.information(set);
-    match f.clone().try_inverse() {
-        Some(inv) => (0..f.nrows())
-            .map(|i| {
-                let s = inv[(i, i)].max(0.0).sqrt() * scale[i];
+    match ferrocal_lsq::linear::predicted_std(&f) {
+        Some(sd) => sd
+            .iter()
+            .enumerate()
+            .map(|(i, sd)| {
+                let s = sd * scale[i];
                 if prior[i] != 0.0 {
                     s / prior[i].abs()
                 } else {

@@ -54,3 +54,9 @@ pub enum StiffnessIdError {
 
 /// Result alias of the elastostatic identification.
 pub type Result<T, E = StiffnessIdError> = std::result::Result<T, E>;
+
+impl From<ferrocal_lsq::LsqError> for StiffnessIdError {
+    fn from(e: ferrocal_lsq::LsqError) -> Self {
+        Self::Calib(e.into())
+    }
+}

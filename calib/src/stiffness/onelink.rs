@@ -7,7 +7,7 @@
 //! `W^T W = 2 n F^2 I`: with `F = 10` and `n = 50`, `10^4 I`, i.e. every entry of row `i` has the
 //! standard deviation `sigma_i / 100` the source's ratios assume.
 
-use ferrocal_robot::stiffness::{NoiseModel, ParamLayout};
+use ferrocal_robot::stiffness::{ComplianceLayout, NoiseModel};
 use nalgebra::{Matrix6, Vector6};
 use serde::{Deserialize, Serialize};
 
@@ -34,8 +34,8 @@ pub const SOURCE_NU: [(&str, f64); 10] = [
 pub const SOURCE_NOISE: NoiseModel = NoiseModel { sigma_position_m: 25e-6, sigma_orientation_rad: 0.25e-3 };
 
 /// The spring's layout (beam along x, the Orthoglide link's template).
-pub fn one_link_layout() -> ParamLayout {
-    ParamLayout::single_spring("link", Some(0))
+pub fn one_link_layout() -> ComplianceLayout {
+    ComplianceLayout::single_spring("link", Some(0))
 }
 
 /// `repeats` loads of `+force_n` and of `-force_n` along each force axis, and of `+-torque_nm`

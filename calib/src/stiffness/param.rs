@@ -2,7 +2,7 @@
 //! that are linear combinations of them (symmetric pairs share one value, aggregated
 //! compliances are carried by one representative).
 
-use ferrocal_robot::stiffness::ParamLayout;
+use ferrocal_robot::stiffness::ComplianceLayout;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -30,7 +30,7 @@ pub struct Parameterization {
 
 impl Parameterization {
     /// Every complete entry as its own parameter.
-    pub fn complete(layout: &ParamLayout) -> Self {
+    pub fn complete(layout: &ComplianceLayout) -> Self {
         let params = layout
             .params
             .iter()

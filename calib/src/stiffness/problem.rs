@@ -9,7 +9,7 @@
 
 use std::ops::Range;
 
-use ferrocal_robot::stiffness::{Loading, NoiseModel, ParamLayout, VjmModel, WrenchLimits};
+use ferrocal_robot::stiffness::{ComplianceLayout, Loading, NoiseModel, VjmModel, WrenchLimits};
 use nalgebra::{DMatrix, DVector, Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
@@ -58,7 +58,7 @@ pub struct Observation {
 #[derive(Clone, Debug, PartialEq)]
 pub struct LinearProblem {
     /// The complete parameter layout.
-    pub layout: ParamLayout,
+    pub layout: ComplianceLayout,
     /// Whitened regressor (rows x complete parameters).
     pub a: DMatrix<f64>,
     /// Whitened measurements.
@@ -166,7 +166,7 @@ impl LinearProblem {
     /// The one-link problem: a spring observed directly, `dt = k w`, one 6-row block per
     /// wrench (measured deflections `dts`, noise `noise`; `truth` the noise-free deflections).
     pub fn direct(
-        layout: ParamLayout,
+        layout: ComplianceLayout,
         wrenches: &[Vector6<f64>],
         dts: &[Vector6<f64>],
         truth: Option<&[Vector6<f64>]>,

@@ -20,7 +20,7 @@
 //! (CAD, beam models) when given, else zero.
 
 use faer::Mat;
-use ferrocal_robot::stiffness::{beam_template, ParamKind, ParamLayout};
+use ferrocal_robot::stiffness::{beam_template, ComplianceLayout, ParamKind};
 use nalgebra::{DMatrix, DVector, Matrix6};
 use serde::{Deserialize, Serialize};
 
@@ -138,7 +138,7 @@ impl Reduction {
 }
 
 /// M1: one parameter per symmetric pair of spring entries.
-pub fn symmetric(layout: &ParamLayout) -> Parameterization {
+pub fn symmetric(layout: &ComplianceLayout) -> Parameterization {
     let mut params = Vec::new();
     for (i, p) in layout.params.iter().enumerate() {
         match p.kind {
@@ -166,7 +166,7 @@ pub fn symmetric(layout: &ParamLayout) -> Parameterization {
 }
 
 /// M2: the parameters of `param` allowed by each spring's beam template, and those removed.
-pub fn sparsity(layout: &ParamLayout, param: &Parameterization) -> (Parameterization, Vec<ReducedParam>) {
+pub fn sparsity(layout: &ComplianceLayout, param: &Parameterization) -> (Parameterization, Vec<ReducedParam>) {
     let mut keep = Vec::new();
     let mut gone = Vec::new();
     for p in &param.params {
@@ -185,7 +185,7 @@ pub fn sparsity(layout: &ParamLayout, param: &Parameterization) -> (Parameteriza
 
 /// M3: every aggregated joint compliance is carried by its spring's diagonal entry. Returns the
 /// merged names.
-pub fn aggregate(layout: &ParamLayout, param: &Parameterization) -> (Parameterization, Vec<String>) {
+pub fn aggregate(layout: &ComplianceLayout, param: &Parameterization) -> (Parameterization, Vec<String>) {
     let mut out = param.clone();
     let mut merged = Vec::new();
     for g in &layout.aggregations {
@@ -541,7 +541,7 @@ pub fn reduce(
 
 /// Whether a reduced parameter is a compliance that must be positive: a joint's, or a diagonal
 /// entry of a spring (possibly carrying aggregated joints).
-pub fn must_be_positive(layout: &ParamLayout, p: &ReducedParam) -> bool {
+pub fn must_be_positive(layout: &ComplianceLayout, p: &ReducedParam) -> bool {
     p.basis.len() == 1
         && match layout.params[p.basis[0].0].kind {
             ParamKind::Joint { .. } => true,
@@ -599,7 +599,7 @@ fn choose_coupled_to_fix(
 /// The spring compliance matrices and joint compliances of complete values, checked: negative
 /// joint compliance or diagonal entry, asymmetric pairs, a symmetric part that is not positive
 /// semi-definite. Each problem comes with its owner (`joint2`, `link3`).
-pub fn physical_problems(layout: &ParamLayout, complete: &[f64]) -> Vec<(String, String)> {
+pub fn physical_problems(layout: &ComplianceLayout, complete: &[f64]) -> Vec<(String, String)> {
     let mut out = Vec::new();
     for j in 0..layout.n_joints {
         if let Some(i) = layout.joint_index(j) {

@@ -15,7 +15,7 @@
 //!   differently sampled force stream) for tests of the bad-input messages.
 //!
 //! # Independence from the identification
-//! The identification (`ferrocal_calib::linear`) builds regressors linear in the parameters.
+//! The identification (`ferrocal_calib::dynamics`) builds regressors linear in the parameters.
 //! This simulator computes the same physics in the direct way: the Newton-Euler wrench about the
 //! centre of gravity in the base frame, the sensor forces by solving `J_P^-T f = w` with a
 //! wrench matrix built here from the strut geometry, the passive joints' friction as the gradient
@@ -39,7 +39,7 @@ pub use hexapod::{HexapodFriction, HexapodSim};
 pub use platform::{Deformation, PlatformSim, StaticRecord};
 
 use ferrocal_calib::design::excitation::TrajectorySample;
-use ferrocal_calib::linear::signals::SampledSignal;
+use ferrocal_calib::dynamics::signals::SampledSignal;
 use ferrocal_robot::dynamics::{MotionState, RigidBody};
 use nalgebra::{DMatrix, Matrix3, Vector3, Vector6};
 use rand::Rng;

@@ -18,8 +18,8 @@
 //! (forces N, moments N m). `J_P^T` is applied by solving `J_P^-T f = w` with the wrench matrix
 //! of the strut geometry, built here.
 
-use ferrocal_calib::linear::models::{SensorRegressor, SensorTruth};
-use ferrocal_calib::linear::signals::SampledSignal;
+use ferrocal_calib::dynamics::force_sensor::{SensorRegressor, SensorTruth};
+use ferrocal_calib::dynamics::signals::SampledSignal;
 use ferrocal_robot::dynamics::{MotionState, RigidBody, SensorFrame, GRAVITY_M_S2};
 use ferrocal_robot::parallel::{presets, Hexapod};
 use ferrocal_robot::{Kinematics, Pose};
@@ -319,7 +319,7 @@ pub(crate) fn record(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ferrocal_calib::linear::models::{SensorModel, SensorRegressor};
+    use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
     use nalgebra::DVector;
 
     /// The simulator and the identification's regressor, written independently, agree on

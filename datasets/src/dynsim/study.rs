@@ -1,5 +1,5 @@
 //! The sources' experiments, run on the simulator: each function simulates the data, runs the
-//! identification of `ferrocal_calib::linear` and returns the numbers the sources report, so
+//! identification of `ferrocal_calib::dynamics` and returns the numbers the sources report, so
 //! that tests can assert them and `ferrocal dynamics study` can tabulate them.
 //!
 //! - [`models_study`]: models 0 to 9 on one quasi-static pose set and one trajectory
@@ -16,15 +16,15 @@
 
 use ferrocal_calib::design::criteria::Criterion;
 use ferrocal_calib::design::excitation::{ExcitationBounds, ExcitationSettings, FourierTrajectory};
-use ferrocal_calib::linear::design::{
+use ferrocal_calib::dynamics::design::{
     candidate_poses, optimise_trajectory, pose_pool, reduce_poses, reference_scale, Reduction,
 };
-use ferrocal_calib::linear::dynamic::{
+use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
+use ferrocal_calib::dynamics::identify::{
     identify, identify_from_streams, motion_states, poses_from_legs, regressor_of, DynamicFit, RowModel,
 };
-use ferrocal_calib::linear::models::{SensorModel, SensorRegressor};
-use ferrocal_calib::linear::solve::{analyse, fit, rank_message, FitOptions, LinearFit, Weighting};
-use ferrocal_calib::linear::{Differentiation, NoiseModel, SensorRows};
+use ferrocal_calib::dynamics::{Differentiation, NoiseModel, SensorRows};
+use ferrocal_lsq::linear::{fit, identifiability, rank_message, LinearFit, LinearOptions, Weighting};
 use ferrocal_robot::dynamics::{HexapodDynamics, MotionState};
 use ferrocal_robot::Pose;
 use nalgebra::{DMatrix, DVector};
@@ -36,6 +36,10 @@ use super::{DynamicRecord, HexapodSim, PlatformSim, Sampling};
 use crate::error::{DatasetError, Result};
 
 fn calib(what: &str) -> impl FnOnce(ferrocal_calib::CalibError) -> DatasetError + '_ {
+    move |e| DatasetError::Input(format!("{what}: {e}"))
+}
+
+fn lsq(what: &str) -> impl FnOnce(ferrocal_lsq::LsqError) -> DatasetError + '_ {
     move |e| DatasetError::Input(format!("{what}: {e}"))
 }
 
@@ -232,7 +236,7 @@ fn model_row(
     sim: &PlatformSim,
 ) -> Result<ModelRow> {
     let names = model.names();
-    let id = analyse(a, &names, w, 1e-9).map_err(calib("identifiability"))?;
+    let id = identifiability(a, &names, w, 1e-9).map_err(lsq("identifiability"))?;
     let base = ModelRow {
         model: model.id(),
         description: model.description().to_string(),
@@ -247,7 +251,7 @@ fn model_row(
         correlation: None,
         r_factor: None,
     };
-    match fit(a, y, &names, w, &FitOptions::default()) {
+    match fit(a, y, &names, w, &LinearOptions::default()) {
         Ok(f) => {
             let truth = reg.true_values(model, &sim.truth());
             Ok(ModelRow {
@@ -314,7 +318,7 @@ pub fn models_study(
     let poses_sig = poses_from_legs(&sim.hexapod, &drec.legs).map_err(calib("forward kinematics"))?;
     let states = motion_states(&poses_sig, &Differentiation::Frequency { cutoff_hz: setup.cutoff_hz })
         .map_err(calib("differentiation"))?;
-    let cov = ferrocal_calib::linear::signals::period_statistics(
+    let cov = ferrocal_calib::dynamics::signals::period_statistics(
         "sensor forces",
         &drec.forces.values,
         setup.samples_per_period(),
@@ -381,7 +385,7 @@ pub fn reduction_study(
         let ps: Vec<Pose> = idx.iter().map(|&k| poses[k]).collect();
         let f = DMatrix::from_fn(idx.len(), 6, |r, c| rec.forces_n[(idx[r], c)]);
         let (a, y) = static_problem(&reg, model, &ps, &f)?;
-        let lf = fit(&a, &y, &model.names(), &Weighting::Unit, &FitOptions::default()).map_err(calib("fit"))?;
+        let lf = fit(&a, &y, &model.names(), &Weighting::Unit, &LinearOptions::default()).map_err(lsq("fit"))?;
         Ok(lf.std[0])
     };
     let all: Vec<usize> = (0..poses.len()).collect();
@@ -604,7 +608,7 @@ pub fn payload_study(
         let rec = s.static_record(&poses, samples_per_pose, &mut rng)?;
         let (a, y) = static_problem(&reg, m5, &rec.poses, &rec.forces_n)?;
         let fs =
-            fit(&a, &y, &m5.names(), &Weighting::Unit, &FitOptions::default()).map_err(calib("quasi-static fit"))?;
+            fit(&a, &y, &m5.names(), &Weighting::Unit, &LinearOptions::default()).map_err(lsq("quasi-static fit"))?;
         let drec = record_platform(&s, &traj, setup, seed.wrapping_add(100 * k as u64 + 1))?;
         let fd = identify_from_streams(
             &s.hexapod,
@@ -667,7 +671,7 @@ pub fn refusal_of(sim: &PlatformSim, model: SensorModel, n_poses: usize) -> Resu
     let poses = candidate_poses(&sim.hexapod, n_poses, &home, &STATIC_HALF_RANGE, 0.005).map_err(calib("poses"))?;
     let states: Vec<MotionState> = poses.iter().map(|p| MotionState::at_rest(*p)).collect();
     let a = reg.regressor(model, &states).map_err(calib("regressor"))?;
-    let id = analyse(&a, &model.names(), &Weighting::Unit, 1e-9).map_err(calib("identifiability"))?;
+    let id = identifiability(&a, &model.names(), &Weighting::Unit, 1e-9).map_err(lsq("identifiability"))?;
     Ok((id.rank < model.n_params()).then(|| rank_message(&id)))
 }
 
@@ -695,13 +699,13 @@ pub fn ml_study(sim: &HexapodSim, setup: &DynamicSetup, leg_sigma_m: f64, seed: 
     let traj = excitation_for(&dynm, &sim.hexapod, &s, Criterion::D, sim.noise.sigma_n)?;
     let rec = record_hexapod(&sim, &traj, &s, seed)?;
     let poses = poses_from_legs(&sim.hexapod, &rec.legs).map_err(calib("forward kinematics"))?;
-    let settings = ferrocal_calib::linear::dynamic::MlSettings {
+    let settings = ferrocal_calib::dynamics::identify::MlSettings {
         samples_per_period: s.samples_per_period(),
         min_hz: 0.3,
         max_hz: 40.0_f64.min(0.45 * s.rate_hz),
         grid: 12,
     };
-    let r = ferrocal_calib::linear::dynamic::ml_cutoff(&dynm, &poses, &rec.forces, &settings)
+    let r = ferrocal_calib::dynamics::identify::ml_cutoff(&dynm, &poses, &rec.forces, &settings)
         .map_err(calib("maximum likelihood"))?;
     Ok(MlStudy {
         leg_sigma_m,
@@ -756,7 +760,7 @@ pub fn ptp_study(sim: &PlatformSim, setup: &DynamicSetup, seed: u64) -> Result<[
             })
         })
         .collect();
-    let ptp = ferrocal_calib::linear::design::PointToPoint::new(waypoints, &setup.limits.bounds(&home))
+    let ptp = ferrocal_calib::dynamics::design::PointToPoint::new(waypoints, &setup.limits.bounds(&home))
         .map_err(calib("point-to-point"))?;
     let samples = (2.0 * ptp.period_s() * setup.rate_hz).floor() as usize;
     let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(1));

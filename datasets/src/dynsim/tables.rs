@@ -3,8 +3,8 @@
 //! (`legs.csv`, `forces.csv`, `static.csv`, `truth.json`) the identification commands read.
 
 use ferrocal_calib::design::criteria::Criterion;
-use ferrocal_calib::linear::models::SensorModel;
-use ferrocal_calib::linear::SensorRows;
+use ferrocal_calib::dynamics::force_sensor::SensorModel;
+use ferrocal_calib::dynamics::SensorRows;
 use ferrocal_robot::dynamics::motion::coordinates_from_pose;
 use ferrocal_robot::dynamics::HexapodDynamics;
 use rand::SeedableRng;
@@ -69,7 +69,7 @@ pub fn simulated_tables(s: &TableSettings) -> Result<Vec<(&'static str, String)>
             files.push(("legs.csv", stream_csv(&LEG_COLUMNS, &rec.legs)));
             files.push(("forces.csv", stream_csv(&FORCE_COLUMNS, &rec.forces)));
             let home = coordinates_from_pose(&sim.hexapod.home);
-            let poses = ferrocal_calib::linear::design::candidate_poses(
+            let poses = ferrocal_calib::dynamics::design::candidate_poses(
                 &sim.hexapod,
                 s.poses,
                 &home,

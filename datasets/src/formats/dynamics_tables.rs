@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ferrocal_calib::linear::signals::SampledSignal;
+use ferrocal_calib::dynamics::signals::SampledSignal;
 use ferrocal_robot::dynamics::motion::{coordinates_from_pose, pose_from_coordinates};
 use ferrocal_robot::Pose;
 use nalgebra::DMatrix;

@@ -11,7 +11,7 @@ use ferrocal_calib::design::kinematic::IdentifySettings;
 use ferrocal_robot::program::{PathSettings, PathStep, PlannedPath, ProgramSettings, StepKind};
 use ferrocal_robot::safety::SafetyConfig;
 use ferrocal_robot::workspace::{
-    CameraRig, CameraView, MeasuringDevice, TargetShape, TrackerView, VisibilitySettings, WorkspaceSettings,
+    CameraView, CameraVisibility, MeasuringDevice, TargetShape, TrackerView, VisibilitySettings, WorkspaceSettings,
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::Deserialize;
@@ -234,7 +234,7 @@ pub fn device(plan: &PlanFile) -> Result<Box<dyn MeasuringDevice>> {
     let corners: Vec<Point3<f64>> = geo.corners.iter().map(|c| c.p_target_m).collect();
     let shape = TargetShape::new(&geo.outline_m, &geo.dark_m, &corners);
     let cams = plan.cameras.iter().map(camera_view).collect::<Result<Vec<_>>>()?;
-    let rig = CameraRig::new(
+    let rig = CameraVisibility::new(
         cams,
         shape,
         target.t_tool_target.isometry(),

@@ -116,7 +116,7 @@ impl ArmStudy {
 
 /// Parameters of a rigid-link / compliant-joint model within a complete layout: the joint
 /// compliances and the compensator terms.
-pub fn rigid_link_param(layout: &ferrocal_robot::stiffness::ParamLayout) -> Parameterization {
+pub fn rigid_link_param(layout: &ferrocal_robot::stiffness::ComplianceLayout) -> Parameterization {
     let complete = Parameterization::complete(layout);
     let keep: Vec<usize> =
         (0..layout.len()).filter(|&i| matches!(layout.params[i].kind, ParamKind::Spring { .. })).collect();

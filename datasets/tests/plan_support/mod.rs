@@ -15,7 +15,7 @@ pub use ferrocal_datasets::sim::DatasetsSimulator;
 use ferrocal_datasets::sim::{CameraSection, GeometricErrors, TargetSection};
 use ferrocal_robot::program::{PathSettings, ProgramSettings};
 use ferrocal_robot::safety::SafetyConfig;
-use ferrocal_robot::workspace::{CameraRig, TargetShape, VisibilitySettings, WorkspaceSettings};
+use ferrocal_robot::workspace::{CameraVisibility, TargetShape, VisibilitySettings, WorkspaceSettings};
 use ferrocal_robot::RobotModel;
 use nalgebra::Point3;
 
@@ -59,11 +59,11 @@ pub fn load_plan(path: &Path) -> PlanParts {
 }
 
 /// The camera rig of a plan (obstacles block the line of sight).
-pub fn camera_rig(parts: &PlanParts) -> CameraRig {
+pub fn camera_rig(parts: &PlanParts) -> CameraVisibility {
     let geo = parts.target.pattern.build().unwrap();
     let corners: Vec<Point3<f64>> = geo.corners.iter().map(|c| c.p_target_m).collect();
     let shape = TargetShape::new(&geo.outline_m, &geo.dark_m, &corners);
-    CameraRig::new(
+    CameraVisibility::new(
         parts.cameras.iter().map(|c| camera_view(c).unwrap()).collect(),
         shape,
         parts.target.t_tool_target.isometry(),

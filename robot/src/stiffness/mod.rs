@@ -32,5 +32,5 @@ pub use beam::{beam_template, BeamStiffness};
 pub use compensator::GravityCompensator;
 pub use error::StiffnessError;
 pub use model::{Aggregation, Deflections, Loading, Transmitted, VirtualSpring, VjmJacobians, VjmModel};
-pub use regressor::{ComplianceParam, NoiseModel, ParamKind, ParamLayout};
+pub use regressor::{ComplianceLayout, ComplianceParam, NoiseModel, ParamKind};
 pub use wrench::{Wrench, WrenchLimits, WrenchSpec};

@@ -1,7 +1,7 @@
 //! The identification equation: the tool's deflection is linear in the compliance entries,
 //! `dt_j = A(q_j, w_j) pi + eps_j`.
 //!
-//! The complete parameter vector `pi` ([`ParamLayout`]) holds, in this order:
+//! The complete parameter vector `pi` ([`ComplianceLayout`]) holds, in this order:
 //! 1. the compliance of every actuated joint (`joint<j>.k`);
 //! 2. all 36 entries of every spring's compliance matrix, row by row (`link<i>.k<r><c>`, 1-based
 //!    row and column as in the source: `k26` couples force y and rotation z);
@@ -60,9 +60,10 @@ pub struct ComplianceParam {
     pub unit: String,
 }
 
-/// The complete parameter vector of a model, with the structure the reduction needs.
+/// The layout of a VJM model's complete compliance parameter vector (names, kinds, springs,
+/// aggregations): the structure the reduction needs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ParamLayout {
+pub struct ComplianceLayout {
     /// Every parameter, in vector order.
     pub params: Vec<ComplianceParam>,
     /// Number of actuated joints.
@@ -84,7 +85,7 @@ fn entry_unit(r: usize, c: usize) -> &'static str {
     }
 }
 
-impl ParamLayout {
+impl ComplianceLayout {
     fn springs_part(names: &[String], first_spring: usize, params: &mut Vec<ComplianceParam>) {
         for (k, name) in names.iter().enumerate() {
             for r in 0..6 {
@@ -193,7 +194,7 @@ pub fn spring_block(j_s: &nalgebra::Matrix6<f64>, v: &nalgebra::Vector6<f64>) ->
 
 impl VjmModel {
     /// The complete parameter layout of this model.
-    pub fn layout(&self) -> Result<ParamLayout> {
+    pub fn layout(&self) -> Result<ComplianceLayout> {
         let mut params = Vec::new();
         for (j, joint) in self.chain.joints.iter().enumerate() {
             params.push(ComplianceParam {
@@ -206,7 +207,7 @@ impl VjmModel {
             });
         }
         let names: Vec<String> = self.springs.iter().map(|s| s.name.clone()).collect();
-        ParamLayout::springs_part(&names, 0, &mut params);
+        ComplianceLayout::springs_part(&names, 0, &mut params);
         if let Some(c) = &self.compensator {
             params.push(ComplianceParam {
                 name: format!("joint{}.gc_kks", c.joint),
@@ -219,7 +220,7 @@ impl VjmModel {
                 unit: "rad/m".into(),
             });
         }
-        Ok(ParamLayout {
+        Ok(ComplianceLayout {
             params,
             n_joints: self.dof(),
             spring_names: names,

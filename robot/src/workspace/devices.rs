@@ -244,9 +244,10 @@ impl Default for VisibilitySettings {
     }
 }
 
-/// One or more cameras photographing a target on the tool.
+/// What one or more cameras photographing a target on the tool can see, as planning needs it
+/// (the calibrated cameras themselves are `ferrocal_vision::pose::CameraRig`).
 #[derive(Clone, Debug)]
-pub struct CameraRig {
+pub struct CameraVisibility {
     /// The cameras; the first one's frame is the device frame.
     pub cameras: Vec<CameraView>,
     /// The target.
@@ -259,7 +260,7 @@ pub struct CameraRig {
     pub occluders: Vec<ObstacleBox>,
 }
 
-impl CameraRig {
+impl CameraVisibility {
     /// A rig; checks the settings.
     pub fn new(
         cameras: Vec<CameraView>,
@@ -409,7 +410,7 @@ impl CameraRig {
     }
 }
 
-impl MeasuringDevice for CameraRig {
+impl MeasuringDevice for CameraVisibility {
     fn name(&self) -> String {
         let names: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
         format!("camera{} {}", if names.len() > 1 { "s" } else { "" }, names.join(" + "))

@@ -14,7 +14,7 @@
 //!   `(volume / wanted)^(1/d)`, then the nodes that survive every check (the source: 100 wanted
 //!   poses, spacing 0.1367 m, 112 poses). The same function with a larger count gives the denser
 //!   pools that pose selection optimises over; [`sample_measurable`] draws random pools.
-//! - Measuring devices: a camera rig ([`CameraRig`]: the whole target inside every image with a
+//! - Measuring devices: what a camera rig sees ([`CameraVisibility`]: the whole target inside every image with a
 //!   border, a smallest projected feature side in pixels, a largest angle between the viewing ray
 //!   and the target normal, line of sight not blocked by an obstacle box; noise from the corner
 //!   noise through the pose estimation's Fisher information) and a laser tracker
@@ -38,7 +38,7 @@ mod devices;
 mod search;
 
 pub use devices::{
-    segment_hits_box, CameraRig, CameraView, MeasuringDevice, ProjectFn, TargetShape, TrackerView, Unmeasurable,
+    segment_hits_box, CameraView, CameraVisibility, MeasuringDevice, ProjectFn, TargetShape, TrackerView, Unmeasurable,
     VisibilitySettings,
 };
 pub use search::{

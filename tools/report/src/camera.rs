@@ -2,8 +2,9 @@
 //! `shared/spec/cli.md`, plus extras).
 
 use ferrocal_vision::calib::corners::SkippedImage;
-use ferrocal_vision::calib::{CameraCalibration, Pattern, StereoCalibration};
+use ferrocal_vision::calib::{CameraCalibration, StereoCalibration};
 use ferrocal_vision::camera::DistortionKind;
+use ferrocal_vision::detect::Pattern;
 use serde_json::{json, Value};
 
 /// The skipped images with their reasons.

@@ -509,7 +509,7 @@ pub fn cameras_vs_tracker(session: &Path, tick: Tick) -> Result<Section> {
 /// leaves out (methods.md section 5).
 pub fn force_diagnose(seed: u64) -> Result<Section> {
     use ferrocal_calib::diagnose::force::{diagnose_force_sensor, ForceDiagnoseOptions};
-    use ferrocal_calib::linear::design::candidate_poses;
+    use ferrocal_calib::dynamics::design::candidate_poses;
     use ferrocal_datasets::dynsim::study::{home_coordinates, STATIC_HALF_RANGE};
     use ferrocal_datasets::dynsim::PlatformSim;
     let mut s = Section::new("force-diagnose", "Diagnose: the force-sensing end-effector's concealed deformation");

@@ -6,14 +6,14 @@
 use anyhow::Result;
 use ferrocal_calib::check::Check;
 use ferrocal_calib::design::criteria::Criterion;
-use ferrocal_calib::linear::models::SensorModel;
-use ferrocal_calib::linear::solve::LinearFit;
+use ferrocal_calib::dynamics::force_sensor::SensorModel;
 use ferrocal_datasets::dynsim::checks;
 use ferrocal_datasets::dynsim::study::{
     excitation_study, filtering_study, hexapod_study, ml_study, models_study, payload_study, ptp_study,
     reduction_study, DynamicSetup, ExcitationRun, ModelsStudy, PayloadRow,
 };
 use ferrocal_datasets::dynsim::{HexapodSim, PlatformSim};
+use ferrocal_lsq::linear::LinearFit;
 use nalgebra::DMatrix;
 use serde_json::json;
 

@@ -14,9 +14,10 @@ use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
 use ferrocal_vision::calib::corners::{detect_view_slots, SkippedImage, SubpixWindow};
 use ferrocal_vision::calib::{
-    calibrate_camera, calibrate_stereo, CalibrationOptions, CameraCalibration, Pattern, RobustLoss, MIN_VIEWS,
+    calibrate_camera, calibrate_stereo, CalibrationOptions, CameraCalibration, PlanarTarget, RobustLoss, MIN_VIEWS,
 };
 use ferrocal_vision::camera::{io, DistortionKind};
+use ferrocal_vision::detect::Pattern;
 use serde_json::{json, Value};
 
 /// `ferrocal camera ...`.
@@ -97,8 +98,9 @@ impl WindowArg {
 }
 
 impl SolveArgs {
-    fn options(&self) -> Result<(Pattern, CalibrationOptions)> {
-        let pattern = Pattern::parse(&self.pattern)?;
+    fn options(&self) -> Result<(Pattern, PlanarTarget, CalibrationOptions)> {
+        let pattern: Pattern = self.pattern.parse()?;
+        let target = PlanarTarget::of_pattern(&pattern)?;
         let options = CalibrationOptions {
             model: self.model.kind(),
             fix_aspect: self.fix_aspect,
@@ -107,7 +109,7 @@ impl SolveArgs {
             ..CalibrationOptions::default()
         };
         options.validate()?;
-        Ok((pattern, options))
+        Ok((pattern, target, options))
     }
 }
 
@@ -212,7 +214,7 @@ fn print_camera(label: &str, cal: &CameraCalibration) {
 }
 
 fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
-    let (pattern, options) = a.solve.options()?;
+    let (pattern, target, options) = a.solve.options()?;
     let mut skipped = Vec::new();
     let paths = expand_image_specs(&a.images, &mut skipped);
     let (slots, detect_skipped) = detect_view_slots(&paths, &pattern, a.solve.subpix_window.window());
@@ -222,7 +224,6 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
     if views.len() < MIN_VIEWS {
         return Err(too_few("camera calibrate", views.len(), paths.len(), &skipped));
     }
-    let target = pattern.target();
     let cal = calibrate_camera(&views, &target, &options).map_err(|e| {
         anyhow::anyhow!("camera calibrate: {e} ({} usable views of {} images)", views.len(), paths.len())
     })?;
@@ -244,7 +245,7 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
 }
 
 fn stereo(a: &StereoArgs) -> Result<ExitCode> {
-    let (pattern, options) = a.solve.options()?;
+    let (pattern, target, options) = a.solve.options()?;
     let mut skipped = Vec::new();
     let left_paths = expand_image_specs(&a.left, &mut skipped);
     let right_paths = expand_image_specs(&a.right, &mut skipped);
@@ -273,7 +274,6 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
     if n_pairs == 0 {
         bail!("camera stereo: the pattern was never found in both images of a pair");
     }
-    let target = pattern.target();
     let st = calibrate_stereo(&left, &right, &target, &options).map_err(|e| anyhow::anyhow!("camera stereo: {e}"))?;
     print_camera("left", st.left());
     print_camera("right", st.right());

@@ -12,14 +12,14 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{anyhow, bail, Context, Result};
-use ferrocal_calib::linear::dynamic::{identify_from_streams, RowModel};
-use ferrocal_calib::linear::models::{SensorModel, SensorRegressor};
-use ferrocal_calib::linear::solve::{fit, FitOptions, LinearFit, Weighting};
-use ferrocal_calib::linear::{Differentiation, NoiseModel, SensorRows};
+use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
+use ferrocal_calib::dynamics::identify::{identify_from_streams, RowModel};
+use ferrocal_calib::dynamics::{Differentiation, NoiseModel, SensorRows};
 use ferrocal_datasets::dynsim::study::static_problem;
 use ferrocal_datasets::dynsim::tables::{simulated_tables, Rig, TableSettings};
 use ferrocal_datasets::dynsim::PlatformSim;
 use ferrocal_datasets::formats::dynamics_tables::{self, FORCE_COLUMNS, LEG_COLUMNS};
+use ferrocal_lsq::linear::{fit, LinearFit, LinearOptions, Weighting};
 use ferrocal_report::dynamics::{fit_json, study_report};
 use ferrocal_report::write_atomic;
 use ferrocal_robot::dynamics::HexapodDynamics;
@@ -220,7 +220,7 @@ fn run_identify_static(a: &IdentifyStaticArgs) -> Result<ExitCode> {
     let (poses, forces) = read_static_table(&a.poses)?;
     let reg = rig_sensor_regressor()?;
     let (am, y) = static_problem(&reg, m, &poses, &forces).map_err(|e| anyhow!("{}: {e}", a.poses.display()))?;
-    let f = fit(&am, &y, &m.names(), &Weighting::Unit, &FitOptions::default())
+    let f = fit(&am, &y, &m.names(), &Weighting::Unit, &LinearOptions::default())
         .with_context(|| format!("{m} from {} poses of {}", poses.len(), a.poses.display()))?;
     println!("{m}: {} from {} poses", m.description(), poses.len());
     print_fit(&f);

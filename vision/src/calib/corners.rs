@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Point2;
 
 use crate::camera::ImageSize;
+use crate::detect::Pattern;
 use crate::error::{Result, VisionError};
 
 /// The corners found in one image, row by row (OpenCV's order), pixel-centre convention.
@@ -166,15 +167,23 @@ impl std::fmt::Display for SkippedImage {
 /// Finds the pattern in every image, one slot per path (`None` where the image is unusable).
 /// A bad image (missing, empty, undecodable, pattern not found) never stops the batch: it is
 /// listed in the second result with the reason. Images whose size differs from the most common
-/// size (ties: the first seen) are left out too, with the sizes in the reason.
+/// size (ties: the first seen) are left out too, with the sizes in the reason. OpenCV's detector
+/// finds chessboards: any other pattern leaves every image out, saying so.
 pub fn detect_view_slots(
     paths: &[PathBuf],
-    pattern: &super::Pattern,
+    pattern: &Pattern,
     window: SubpixWindow,
 ) -> (Vec<Option<super::View>>, Vec<SkippedImage>) {
-    let super::Pattern::Chessboard { inner_cols, inner_rows, .. } = *pattern;
     let mut slots = Vec::with_capacity(paths.len());
     let mut skipped = Vec::new();
+    let Pattern::Chessboard { cols: inner_cols, rows: inner_rows, .. } = *pattern else {
+        for p in paths {
+            let reason = format!("pattern '{pattern}': camera calibration detects chessboards only");
+            skipped.push(SkippedImage { image: p.clone(), reason });
+            slots.push(None);
+        }
+        return (slots, skipped);
+    };
     for p in paths {
         match chessboard_corners_opencv_with(p, inner_cols, inner_rows, window) {
             Ok(c) => slots.push(Some(super::View::new(p.display().to_string(), c.image_size, c.corners_px))),
@@ -220,7 +229,7 @@ pub fn detect_view_slots(
 /// [`detect_view_slots`] without the empty slots.
 pub fn detect_views(
     paths: &[PathBuf],
-    pattern: &super::Pattern,
+    pattern: &Pattern,
     window: SubpixWindow,
 ) -> (Vec<super::View>, Vec<SkippedImage>) {
     let (slots, skipped) = detect_view_slots(paths, pattern, window);

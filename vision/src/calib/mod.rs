@@ -21,10 +21,10 @@
 //! extrinsics and one target pose per view (shared by the cameras that see it).
 //!
 //! Entry points: [`calibrate_camera`], [`calibrate_stereo`], [`calibrate_rig`]; the inputs
-//! [`PlanarTarget`], [`View`], [`CalibrationOptions`]; [`Pattern`] strings; OpenCV corners
-//! for real images in [`corners`]. The bundle adjustment itself, with a bent or mis-printed
-//! target, other lens models and a poses-only mode: [`adjust_bundle`] ([`BundleSpec`],
-//! [`BundleModel`], [`BundleFit`]).
+//! [`PlanarTarget`] (from a [`crate::detect::Pattern`] string: [`PlanarTarget::of_pattern`]),
+//! [`View`], [`CalibrationOptions`]; OpenCV corners for real images in [`corners`]. The bundle
+//! adjustment itself, with a bent or mis-printed target, other lens models and a poses-only
+//! mode: [`adjust_bundle`] ([`BundleSpec`], [`BundleModel`], [`BundleFit`]).
 //!
 //! # Conventions
 //! Pixel `(0, 0)` is the centre of the top-left pixel. Target points in metres in the target
@@ -37,7 +37,6 @@ mod adjust;
 mod bundle;
 pub mod corners;
 mod deform;
-mod pattern;
 mod stereo;
 mod zhang;
 
@@ -48,10 +47,10 @@ use nalgebra::{DMatrix, Isometry3, Point2, Point3};
 use serde::{Deserialize, Serialize};
 
 pub use adjust::{adjust_bundle, BundleFit, BundleMode, BundleModel, BundleSpec, PrintScale, TargetShape, ViewFit};
-pub use pattern::Pattern;
 pub use stereo::{calibrate_rig, calibrate_stereo, RigCalibration, StereoCalibration};
 
 use crate::camera::{CameraModel, Distortion, DistortionKind, ImageSize};
+use crate::detect::Pattern;
 use crate::error::{Result, VisionError};
 use crate::pose::{homography, plane_frame, LocalPose};
 use bundle::{Bundle, CameraLayout, Obs};
@@ -80,9 +79,26 @@ pub struct PlanarTarget {
 }
 
 impl PlanarTarget {
-    /// A chessboard's inner corners, `(col * square, row * square, 0)` row by row.
+    /// A chessboard's inner corners, OpenCV's object points `(col * square, row * square, 0)`,
+    /// row by row from the first detected corner.
     pub fn chessboard(inner_cols: u32, inner_rows: u32, square_m: f64) -> Self {
-        Pattern::Chessboard { inner_cols, inner_rows, square_m }.target()
+        let points_m = (0..inner_rows)
+            .flat_map(|r| (0..inner_cols).map(move |c| Point3::new(c as f64 * square_m, r as f64 * square_m, 0.0)))
+            .collect();
+        PlanarTarget { points_m, reversible: true }
+    }
+
+    /// The target of a pattern string's pattern; camera calibration detects chessboards only
+    /// (other patterns are refused, naming the pattern).
+    pub fn of_pattern(pattern: &Pattern) -> Result<Self> {
+        match *pattern {
+            Pattern::Chessboard { cols, rows, square_mm } => Ok(Self::chessboard(cols, rows, square_mm * 1e-3)),
+            _ => Err(VisionError::InvalidInput {
+                detail: format!(
+                    "pattern '{pattern}': camera calibration supports chessboards only (chessboard:<cols>x<rows>:<square>mm, inner corners); AprilTag boards and plates are not supported by it yet"
+                ),
+            }),
+        }
     }
 
     /// Checks that there are at least four finite points on a plane.

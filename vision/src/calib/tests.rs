@@ -217,30 +217,25 @@ fn zhang_recovers_an_exact_pinhole() {
 }
 
 #[test]
-fn pattern_strings() {
-    let p = Pattern::parse("chessboard:9x6:25mm").unwrap();
-    assert_eq!(p, Pattern::Chessboard { inner_cols: 9, inner_rows: 6, square_m: 0.025 });
+fn pattern_strings_give_the_chessboard_target() {
+    let p: Pattern = "chessboard:9x6:25mm".parse().unwrap();
     assert_eq!(p.to_string(), "chessboard:9x6:25mm");
-    assert_eq!(
-        Pattern::parse("chessboard:7X5:0.03m").unwrap(),
-        Pattern::Chessboard { inner_cols: 7, inner_rows: 5, square_m: 0.03 }
-    );
-    let t = p.target();
+    let t = PlanarTarget::of_pattern(&p).unwrap();
     assert_eq!(t.points_m.len(), 54);
     assert_eq!(t.points_m[10], Point3::new(0.025, 0.025, 0.0));
-    for bad in [
-        "chessboard:9x6",
-        "chessboard:9x6:25",
-        "chessboard:9:25mm",
-        "chessboard:1x6:25mm",
-        "chessboard:9x6:-2mm",
-        "circles:4x11:20mm",
-    ] {
-        let e = Pattern::parse(bad).unwrap_err();
-        assert!(matches!(e, VisionError::PatternSpec { .. }), "{bad}: {e}");
+    assert_eq!(t, PlanarTarget::chessboard(9, 6, 0.025));
+    let t = PlanarTarget::of_pattern(&"chessboard:7X5:3cm".parse().unwrap()).unwrap();
+    assert_eq!(t.points_m.len(), 35);
+    assert!((t.points_m[1].x - 0.03).abs() < 1e-15);
+    for bad in
+        ["chessboard:9x6", "chessboard:9x6:25", "chessboard:1x6:25mm", "chessboard:9x6:-2mm", "circles:4x11:20mm"]
+    {
+        let e = bad.parse::<Pattern>().unwrap_err();
+        assert!(matches!(e, VisionError::PatternSyntax { .. }), "{bad}: {e}");
         assert!(e.to_string().contains(bad), "{e}");
     }
-    assert!(Pattern::parse("apriltag:36h11").unwrap_err().to_string().contains("not supported"));
+    let e = PlanarTarget::of_pattern(&"apriltag:36h11".parse().unwrap()).unwrap_err().to_string();
+    assert!(e.contains("apriltag:tag36h11") && e.contains("not supported"), "{e}");
 }
 
 #[test]

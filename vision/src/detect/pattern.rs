@@ -156,15 +156,26 @@ fn syntax(pattern: &str, problem: impl Into<String>) -> VisionError {
     VisionError::PatternSyntax { pattern: pattern.to_string(), problem: problem.into(), expected: EXPECTED.to_string() }
 }
 
+/// A length with its unit (`mm`, `cm` or `m`), in millimetres.
 fn parse_mm(pattern: &str, what: &str, s: &str) -> Result<f64> {
-    let Some(num) = s.trim().strip_suffix("mm") else {
-        return Err(syntax(pattern, format!("the {what} '{s}' needs its unit, e.g. '25mm'")));
+    let t = s.trim();
+    let (num, to_mm) = if let Some(v) = t.strip_suffix("mm") {
+        (v, 1.0)
+    } else if let Some(v) = t.strip_suffix("cm") {
+        (v, 10.0)
+    } else if let Some(v) = t.strip_suffix('m') {
+        (v, 1e3)
+    } else {
+        return Err(syntax(pattern, format!("the {what} '{s}' needs its unit (mm, cm or m), e.g. '25mm'")));
     };
-    let v: f64 = num.trim().parse().map_err(|_| syntax(pattern, format!("the {what} '{s}' is not a number of mm")))?;
+    let v: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| syntax(pattern, format!("the {what} '{s}' is not a number of {}", &t[num.len()..])))?;
     if !(v.is_finite() && v > 0.0) {
         return Err(syntax(pattern, format!("the {what} must be positive, got '{s}'")));
     }
-    Ok(v)
+    Ok(v * to_mm)
 }
 
 fn parse_dims(pattern: &str, what: &str, s: &str, min: u32) -> Result<(u32, u32)> {
@@ -267,6 +278,12 @@ mod tests {
             "chessboard:9x6:24.5mm".parse::<Pattern>().unwrap(),
             Pattern::Chessboard { cols: 9, rows: 6, square_mm: 24.5 }
         );
+        // Lengths in cm or m are converted to millimetres.
+        assert_eq!(
+            "chessboard:7X5:3cm".parse::<Pattern>().unwrap(),
+            Pattern::Chessboard { cols: 7, rows: 5, square_mm: 30.0 }
+        );
+        assert_eq!("plate:0.05m".parse::<Pattern>().unwrap(), Pattern::Plate { square_mm: 50.0 });
         assert_eq!(
             "aprilboard:2x3:30mm:9mm".parse::<Pattern>().unwrap(),
             Pattern::AprilBoard { cols: 2, rows: 3, tag_mm: 30.0, spacing_mm: 9.0, first_id: 0 }

@@ -21,8 +21,7 @@ use ferrocal_robot::dynamics::MotionState;
 use ferrocal_robot::parallel::Hexapod;
 use ferrocal_robot::{Kinematics, Pose};
 
-use super::dynamic::RowModel;
-use super::solve::predicted_std;
+use super::identify::RowModel;
 use crate::design::criteria::Criterion;
 use crate::design::excitation::{
     check_bounds, optimise_excitation, ExcitationBounds, ExcitationResult, ExcitationSettings, FourierTrajectory,
@@ -31,6 +30,7 @@ use crate::design::excitation::{
 use crate::design::pool::InformationPool;
 use crate::design::selection::{greedy_deletion, DeletionHistory};
 use crate::error::{CalibError, Result};
+use ferrocal_lsq::linear::predicted_std;
 
 /// Names of the six pose coordinates, for messages.
 pub const POSE_COORDINATES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];

@@ -25,10 +25,10 @@ use ferrocal_robot::dynamics::{HexapodDynamics, MotionState};
 use ferrocal_robot::parallel::{Hexapod, ParallelRobot};
 use ferrocal_robot::Kinematics;
 
-use super::models::{SensorModel, SensorRegressor};
+use super::force_sensor::{SensorModel, SensorRegressor};
 use super::signals::{check_synchronised, period_statistics, time_domain, SampledSignal, Spectrum};
-use super::solve::{fit, FitOptions, LinearFit, Weighting};
 use crate::error::{CalibError, Result};
+use ferrocal_lsq::linear::{fit, LinearFit, LinearOptions, Weighting};
 
 /// A model whose measurements (six per sample) are linear in its parameters.
 pub trait RowModel {
@@ -269,7 +269,7 @@ pub fn identify(
         Some(c) => Weighting::Block(c.clone()),
         None => Weighting::Unit,
     };
-    let fit = fit(&a, &y, &model.names(), &w, &FitOptions::default())?;
+    let fit = fit(&a, &y, &model.names(), &w, &LinearOptions::default())?;
     Ok(DynamicFit { fit, force_covariance: cov, samples: states.len() })
 }
 
