@@ -4,6 +4,8 @@
 //! - [`measurement`]: the measured-pose row every calibration consumes;
 //! - [`check`]: named checks that pass, fail, are skipped or only reported;
 //! - [`lsq`]: dense Levenberg-Marquardt with scaling, robust losses and covariance;
+//! - [`handeye`]: hand-eye calibration (eye-in-hand, eye-to-hand) refined in pixels, with
+//!   OpenCV's closed forms as the baseline;
 //! - [`identifiability`]: structural (SVD, pivoted QR) and practical identifiability;
 //! - [`stiffness`]: elastostatic identification with model reduction to practically identifiable
 //!   parameters, experiment design and compliance compensation.
@@ -19,6 +21,7 @@ pub mod effects;
 pub mod error;
 pub mod file;
 pub mod frames;
+pub mod handeye;
 pub mod identifiability;
 pub mod kinematic;
 pub mod linear;
