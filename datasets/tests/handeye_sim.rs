@@ -37,6 +37,7 @@ fn options(config: &HandEyeSimConfig, truth: &HandEyeTruth, free: bool) -> HandE
         },
         robot_sigma_m: config.robot_sigma_m,
         robot_sigma_rad: config.robot_sigma_rad,
+        estimate_noise: false,
         ..HandEyeOptions::default()
     }
 }
@@ -160,4 +161,30 @@ fn small_monte_carlo_covers_the_truth() {
         assert!(r.translation_coverage_3sigma >= 0.9, "{r:?}");
         assert!(r.rotation_coverage_3sigma >= 0.9, "{r:?}");
     }
+}
+
+/// The noise levels estimated by variance components (the default) from one recording of 24
+/// training images: the robot's position and orientation sigmas within 35 % of the simulated
+/// ones, the corner variance factor within 25 % of 1 (the simulated corner noise is the
+/// covariance handed over), and X within 4.5 of its stated sigmas.
+#[test]
+fn noise_levels_are_estimated_by_variance_components() {
+    let mut config = HandEyeSimConfig::default_for(Mount::EyeToHand);
+    config.n_train = 24;
+    config.robot_sigma_m = 1e-4;
+    config.robot_sigma_rad = 0.01f64.to_radians();
+    let (data, truth) = simulate_hand_eye(&config, 5).unwrap();
+    let mut opts = options(&config, &truth, false);
+    opts.estimate_noise = true;
+    opts.robot_sigma_m = 1e-3;
+    opts.robot_sigma_rad = 1e-3;
+    let r = calibrate_hand_eye(&data, &opts).unwrap();
+    let n = r.noise;
+    println!("{n:?}");
+    assert!(n.estimated && n.iterations > 0);
+    assert!((n.robot_sigma_m / config.robot_sigma_m - 1.0).abs() < 0.35, "{n:?}");
+    assert!((n.robot_sigma_rad / config.robot_sigma_rad - 1.0).abs() < 0.35, "{n:?}");
+    assert!((n.corner_variance_factor - 1.0).abs() < 0.25, "{n:?}");
+    let worst = normalised_errors(&r, &truth).into_iter().fold(0.0, f64::max);
+    assert!(worst < 4.5, "{worst:.2} sigma");
 }

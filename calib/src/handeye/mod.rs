@@ -14,8 +14,11 @@
 //!    its image's robot pose, the two unknown transforms and the camera model ([`residual`]),
 //!    whitened by its covariance, first with plain least squares, then with a Huber loss at
 //!    [`HandEyeOptions::huber_sigmas`] robust standard deviations; optionally the target's print
-//!    scale, and the reported robot poses as measurements with their own noise
-//!    ([`HandEyeOptions::robot_sigma_m`]);
+//!    scale; the reported robot poses are measurements with their own noise
+//!    ([`HandEyeOptions::robot_sigma_m`]) unless taken as exact; the noise levels (a factor on
+//!    the detector's corner covariances, the robot's position and orientation sigmas) are
+//!    estimated from the data by variance components unless given
+//!    ([`HandEyeOptions::estimate_noise`]);
 //! 5. the covariance of both transforms (and of the camera and the scale when free) with the
 //!    robot-pose blocks marginalised, scaled by the a-posteriori variance factor `s0^2`;
 //! 6. the figures ([`evaluate`]): per-image chain RMS with the robot poses as reported, the
@@ -47,7 +50,7 @@ use ferrocal_vision::camera::{CameraModel, ImageSize};
 
 pub use closed::{ClosedForm, PosePair};
 pub use evaluate::{chain_figures, chain_residuals_px, Chain, ChainFigures, ViewFigures};
-pub use refine::{calibrate_hand_eye, MIN_TRAIN_VIEWS};
+pub use refine::{calibrate_hand_eye, MAX_NOISE_ITERATIONS, MIN_TRAIN_VIEWS, NOISE_TOLERANCE};
 
 use crate::measurement::Split;
 
@@ -167,13 +170,18 @@ pub struct HandEyeOptions {
     /// Fit an overall scale of the printed target (its spacing against the nominal one);
     /// visible only against metric robot poses. Off by default.
     pub fit_target_scale: bool,
-    /// Standard deviation of each coordinate of the reported flange positions, metres. With
+    /// Standard deviation of each coordinate of the reported flange positions, metres (the
+    /// starting value when [`HandEyeOptions::estimate_noise`] is on). With
     /// [`HandEyeOptions::robot_sigma_rad`] positive, every image's robot pose becomes a
     /// parameter with the reported pose as its measurement; both zero: poses taken as exact.
     pub robot_sigma_m: f64,
     /// Standard deviation of each rotation-vector coordinate of the reported flange
     /// orientations, radians.
     pub robot_sigma_rad: f64,
+    /// Estimate the noise levels from the data by variance components (Förstner): the corner
+    /// covariances' common factor and, when the robot poses are measurements, the robot's
+    /// position and orientation sigmas, each from its group's residuals and redundancy.
+    pub estimate_noise: bool,
     /// Standard deviation (px, isotropic) of corners that come without a covariance.
     pub fallback_corner_sigma_px: f64,
     /// The Huber threshold of the second solve, in robust standard deviations of the first
@@ -190,8 +198,9 @@ impl Default for HandEyeOptions {
         Self {
             intrinsics: IntrinsicsMode::Calibrate(CalibrationOptions::default()),
             fit_target_scale: false,
-            robot_sigma_m: 0.0,
-            robot_sigma_rad: 0.0,
+            robot_sigma_m: 1e-4,
+            robot_sigma_rad: 1e-4,
+            estimate_noise: true,
             fallback_corner_sigma_px: 0.1,
             huber_sigmas: 3.0,
             min_corners: 6,
@@ -222,10 +231,6 @@ impl HandEyeOptions {
             return bad(format!("min_corners must be at least 4, got {}", self.min_corners));
         }
         self.solver.validate().map_err(crate::CalibError::from)
-    }
-
-    pub(crate) fn robot_free(&self) -> bool {
-        self.robot_sigma_m > 0.0 && self.robot_sigma_rad > 0.0
     }
 
     pub(crate) fn second_loss(&self, robust_sigma: f64) -> Option<Loss> {
@@ -276,6 +281,21 @@ pub struct SkippedView {
     pub reason: String,
 }
 
+/// The noise levels of a solve.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NoiseLevels {
+    /// Factor on every corner covariance of the detector (1: as detected).
+    pub corner_variance_factor: f64,
+    /// Robot position sigma per coordinate, metres (0: poses exact).
+    pub robot_sigma_m: f64,
+    /// Robot orientation sigma per axis, radians (0: poses exact).
+    pub robot_sigma_rad: f64,
+    /// Whether they were estimated by variance components.
+    pub estimated: bool,
+    /// Variance-component iterations.
+    pub iterations: usize,
+}
+
 /// The result of [`calibrate_hand_eye`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct HandEyeResult {
@@ -301,6 +321,8 @@ pub struct HandEyeResult {
     pub starts: Vec<StartReport>,
     /// Images left out (too few corners, no PnP pose), with the reason.
     pub skipped: Vec<SkippedView>,
+    /// The noise levels the final solve used (estimated or as given).
+    pub noise: NoiseLevels,
     /// A-posteriori standard deviation of unit weight of the final solve.
     pub s0: f64,
     /// Solver iterations over both solves.

@@ -14,7 +14,7 @@ use super::closed::{self, ClosedForm, PosePair};
 use super::evaluate::{chain_figures, Chain};
 use super::residual::{whitening, ChainCorner, RobotPosePrior};
 use super::{
-    HandEyeData, HandEyeOptions, HandEyeResult, HandEyeView, IntrinsicsMode, SkippedView, StartReport,
+    HandEyeData, HandEyeOptions, HandEyeResult, HandEyeView, IntrinsicsMode, NoiseLevels, SkippedView, StartReport,
     TransformEstimate,
 };
 use crate::error::{CalibError, Result};
@@ -22,6 +22,16 @@ use crate::measurement::Split;
 
 /// Fewest training images the calibration accepts.
 pub const MIN_TRAIN_VIEWS: usize = 3;
+
+/// Variance-component iterations at most.
+pub const MAX_NOISE_ITERATIONS: usize = 20;
+
+/// Variance components count as converged when every group's factor is within this of 1.
+pub const NOISE_TOLERANCE: f64 = 0.01;
+
+/// Smallest robot sigmas the estimation goes down to (metres, radians): a robot that is exact
+/// to this level is exact for the fit.
+const MIN_ROBOT_SIGMA: f64 = 1e-8;
 
 fn data_error(m: String) -> CalibError {
     CalibError::Data(format!("hand-eye: {m}"))
@@ -155,6 +165,7 @@ struct Refined {
     iterations: usize,
     termination: String,
     n_downweighted: usize,
+    noise: NoiseLevels,
 }
 
 /// The blocks of a built problem.
@@ -166,15 +177,22 @@ struct Blocks {
 }
 
 /// Poses the refinement at `chain`, `camera` with one loss for every corner.
+/// What every build of the problem shares.
+struct Setup<'a> {
+    data: &'a HandEyeData,
+    views: &'a [HandEyeView],
+    options: &'a HandEyeOptions,
+    camera_free: bool,
+}
+
 fn build(
-    data: &HandEyeData,
-    views: &[HandEyeView],
+    setup: &Setup,
     camera: &CameraModel,
     chain: &Chain,
-    options: &HandEyeOptions,
-    camera_free: bool,
+    noise: &NoiseLevels,
     loss: Loss,
 ) -> Result<(Problem, Blocks)> {
+    let Setup { data, views, options, camera_free } = *setup;
     let mut p = Problem::new();
     let x = p.add_block("hand_eye", Se3::from_isometry(&chain.x).to_vec(), Arc::new(Se3))?;
     let w = p.add_block("world", Se3::from_isometry(&chain.w).to_vec(), Arc::new(Se3))?;
@@ -192,14 +210,16 @@ fn build(
         None
     };
     let fallback = Matrix2::identity() * options.fallback_corner_sigma_px.powi(2);
+    let corner_factor = noise.corner_variance_factor.sqrt();
+    let robot_free = noise.robot_sigma_m > 0.0 && noise.robot_sigma_rad > 0.0;
     for (i, v) in views.iter().enumerate().filter(|(_, v)| v.split == Split::Train) {
         let robot = p.add_block(&format!("robot{i}"), Se3::from_isometry(&v.t_base_flange).to_vec(), Arc::new(Se3))?;
         p.set_scales(robot, vec![1e-4; 6])?;
-        if options.robot_free() {
+        if robot_free {
             let prior = RobotPosePrior {
                 reported: v.t_base_flange,
-                sigma_m: options.robot_sigma_m,
-                sigma_rad: options.robot_sigma_rad,
+                sigma_m: noise.robot_sigma_m,
+                sigma_rad: noise.robot_sigma_rad,
             };
             p.add_residual(&format!("{}.robot", v.name), Box::new(prior), &[robot], Loss::Squared)?;
         } else {
@@ -208,7 +228,8 @@ fn build(
         let mut blocks = vec![x, w, robot, cam];
         blocks.extend(scale);
         for ((&id, px), cov) in v.point_ids.iter().zip(&v.corners_px).zip(&v.covariances_px2) {
-            let whiten = cov.and_then(|c| whitening(&c)).unwrap_or_else(|| whitening(&fallback).expect("positive"));
+            let whiten = cov.and_then(|c| whitening(&c)).unwrap_or_else(|| whitening(&fallback).expect("positive"))
+                / corner_factor;
             let r = ChainCorner {
                 mount: data.mount,
                 point_m: data.target_points_m[id],
@@ -259,21 +280,74 @@ fn median(v: &[f64]) -> f64 {
     }
 }
 
-fn refine(
-    data: &HandEyeData,
-    views: &[HandEyeView],
-    camera: &CameraModel,
-    start: &Chain,
-    options: &HandEyeOptions,
-    camera_free: bool,
-) -> Result<Refined> {
-    let (mut p, b) = build(data, views, camera, start, options, camera_free, Loss::Squared)?;
-    let first = p.solve(&options.solver)?;
-    let mut iterations = first.summary.iterations;
-    let mut summary = first.summary;
+/// The variance factors `r_g^T r_g / redundancy_g` of the corner, robot-position and
+/// robot-orientation groups at the current point (`None` for a group without redundancy).
+fn variance_factors(p: &Problem) -> Result<[Option<f64>; 3]> {
+    let (r, j) = p.linearize()?;
+    let n = j.ncols();
+    let d: Vec<f64> = (0..n).map(|c| j.column(c).norm().max(1e-300)).collect();
+    let mut js = j.clone();
+    for (c, dc) in d.iter().enumerate() {
+        js.column_mut(c).scale_mut(1.0 / dc);
+    }
+    let ninv = (js.transpose() * &js)
+        .cholesky()
+        .ok_or_else(|| CalibError::Numeric("hand-eye: the normal matrix is singular".into()))?
+        .inverse();
+    let jn = &js * ninv;
+    let mut red = [0.0; 3];
+    let mut ss = [0.0; 3];
+    for e in p.measurement_index().entries {
+        let robot = e.name.ends_with(".robot");
+        for k in 0..e.size {
+            let row = e.offset + k;
+            let g = if !robot {
+                0
+            } else if k < 3 {
+                1
+            } else {
+                2
+            };
+            red[g] += 1.0 - jn.row(row).dot(&js.row(row));
+            ss[g] += r[row] * r[row];
+        }
+    }
+    Ok([0, 1, 2].map(|g| (red[g] > 1.0).then(|| ss[g] / red[g])))
+}
+
+fn refine(setup: &Setup, camera: &CameraModel, start: &Chain) -> Result<Refined> {
+    let (options, camera_free) = (setup.options, setup.camera_free);
+    let mut noise = NoiseLevels {
+        corner_variance_factor: 1.0,
+        robot_sigma_m: options.robot_sigma_m,
+        robot_sigma_rad: options.robot_sigma_rad,
+        estimated: options.estimate_noise,
+        iterations: 0,
+    };
+    let (mut chain, mut cam) = (*start, *camera);
+    let mut iterations = 0;
+    let (mut p, b, mut summary) = loop {
+        let (mut p, b) = build(setup, &cam, &chain, &noise, Loss::Squared)?;
+        let sol = p.solve(&options.solver)?;
+        iterations += sol.summary.iterations;
+        (chain, cam) = read_back(&p, &b, camera)?;
+        if !options.estimate_noise || noise.iterations >= MAX_NOISE_ITERATIONS {
+            break (p, b, sol.summary);
+        }
+        let f = variance_factors(&p)?;
+        let converged = f.iter().flatten().all(|v| (v - 1.0).abs() < NOISE_TOLERANCE);
+        if converged {
+            break (p, b, sol.summary);
+        }
+        noise.iterations += 1;
+        noise.corner_variance_factor *= f[0].unwrap_or(1.0);
+        if noise.robot_sigma_m > 0.0 && noise.robot_sigma_rad > 0.0 {
+            noise.robot_sigma_m = (noise.robot_sigma_m * f[1].unwrap_or(1.0).sqrt()).max(MIN_ROBOT_SIGMA);
+            noise.robot_sigma_rad = (noise.robot_sigma_rad * f[2].unwrap_or(1.0).sqrt()).max(MIN_ROBOT_SIGMA);
+        }
+    };
     if let Some(loss) = options.second_loss(robust_sigma(&p)?) {
-        let (chain, cam) = read_back(&p, &b, camera)?;
-        let (p2, _) = build(data, views, &cam, &chain, options, camera_free, loss)?;
+        let (p2, _) = build(setup, &cam, &chain, &noise, loss)?;
         p = p2;
         let second = p.solve(&options.solver)?;
         iterations += second.summary.iterations;
@@ -309,6 +383,7 @@ fn refine(
         iterations,
         termination: summary.termination.clone(),
         n_downweighted: summary.downweighted_blocks,
+        noise,
     })
 }
 
@@ -360,7 +435,8 @@ pub fn calibrate_hand_eye(data: &HandEyeData, options: &HandEyeOptions) -> Resul
     };
     starts[k].chosen = true;
     let camera_free = matches!(options.intrinsics, IntrinsicsMode::Calibrate(_));
-    let r = refine(data, &views, &camera0, &start, options, camera_free)?;
+    let setup = Setup { data, views: &views, options, camera_free };
+    let r = refine(&setup, &camera0, &start)?;
     let pnp = pnp_poses(&r.camera, &data.target_points_m, &views, fallback);
     let figures = chain_figures(data.mount, &r.camera, &data.target_points_m, &views, &pnp, &r.chain);
     Ok(HandEyeResult {
@@ -374,6 +450,7 @@ pub fn calibrate_hand_eye(data: &HandEyeData, options: &HandEyeOptions) -> Resul
         figures,
         starts,
         skipped,
+        noise: r.noise,
         s0: r.s0,
         iterations: r.iterations,
         termination: r.termination,

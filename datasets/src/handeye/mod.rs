@@ -11,4 +11,7 @@ pub mod sim;
 pub use ic::{import_ic_handeye, read_ic_set, IcSet};
 pub use poses::{read_handeye_poses, PoseRow, PosesTable, RobotReading};
 pub use recording::{load_recording, read_camera_file, Skipped};
-pub use sim::{coverage_study, simulate_hand_eye, CoverageSummary, HandEyeSimConfig, HandEyeTruth};
+pub use sim::{
+    coverage_study, simulate_hand_eye, write_rendered_recording, CoverageSummary, HandEyeSimConfig, HandEyeTruth,
+    RenderedRecording,
+};

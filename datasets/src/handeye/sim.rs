@@ -50,6 +50,8 @@ pub struct HandEyeSimConfig {
     pub robot_sigma_rad: f64,
     /// The printed target's true spacing over the nominal one (1: printed exactly).
     pub print_scale: f64,
+    /// Keep only views that show every grid point (for rendered images of a whole chessboard).
+    pub full_view: bool,
 }
 
 impl HandEyeSimConfig {
@@ -72,12 +74,13 @@ impl HandEyeSimConfig {
             robot_sigma_m: 5e-5,
             robot_sigma_rad: 0.005f64.to_radians(),
             print_scale: 1.0,
+            full_view: false,
         }
     }
 }
 
 /// The truth of a simulated recording.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct HandEyeTruth {
     /// `X`.
     pub hand_eye: Isometry3<f64>,
@@ -85,6 +88,8 @@ pub struct HandEyeTruth {
     pub world: Isometry3<f64>,
     /// The camera.
     pub camera: CameraModel,
+    /// Every view's true `T_camera_target` (grid frame: origin at the first grid point).
+    pub t_camera_target: Vec<Isometry3<f64>>,
 }
 
 fn pose(t: [f64; 3], r: [f64; 3]) -> Isometry3<f64> {
@@ -142,6 +147,7 @@ pub fn simulate_hand_eye(config: &HandEyeSimConfig, seed: u64) -> Result<(HandEy
         Normal::new(0.0, config.robot_sigma_rad.max(1e-300)).map_err(|e| DatasetError::Input(e.to_string()))?;
     let cov = Matrix2::identity() * config.corner_sigma_px.powi(2);
     let mut views = Vec::new();
+    let mut true_poses = Vec::new();
     let n = config.n_train + config.n_test;
     let mut attempts = 0;
     while views.len() < n {
@@ -172,7 +178,7 @@ pub fn simulate_hand_eye(config: &HandEyeSimConfig, seed: u64) -> Result<(HandEy
                 ids.push(id);
             }
         }
-        if corners.len() < points.len() / 2 {
+        if corners.len() < points.len() / 2 || (config.full_view && corners.len() < points.len()) {
             continue;
         }
         let dt = Vector3::from_fn(|_, _| noise_t.sample(&mut rng)) * f64::from(u8::from(config.robot_sigma_m > 0.0));
@@ -182,6 +188,7 @@ pub fn simulate_hand_eye(config: &HandEyeSimConfig, seed: u64) -> Result<(HandEy
             UnitQuaternion::from_scaled_axis(dr) * t_base_flange.rotation,
         );
         let k = views.len();
+        true_poses.push(t_cam_target);
         views.push(HandEyeView {
             name: format!("sim{k:03}"),
             split: if k < config.n_train { Split::Train } else { Split::Test },
@@ -194,7 +201,7 @@ pub fn simulate_hand_eye(config: &HandEyeSimConfig, seed: u64) -> Result<(HandEy
     }
     Ok((
         HandEyeData { mount: config.mount, target_points_m: points, views },
-        HandEyeTruth { hand_eye: x, world: w, camera: config.camera },
+        HandEyeTruth { hand_eye: x, world: w, camera: config.camera, t_camera_target: true_poses },
     ))
 }
 
@@ -250,6 +257,7 @@ pub fn run_one(config: &HandEyeSimConfig, seed: u64, free_intrinsics: bool) -> R
         },
         robot_sigma_m: config.robot_sigma_m,
         robot_sigma_rad: config.robot_sigma_rad,
+        estimate_noise: false,
         huber_sigmas: 0.0,
         ..HandEyeOptions::default()
     };
@@ -323,4 +331,81 @@ fn summarise(mount: Mount, errs: &[HandEyeErrors], n_failed: usize) -> CoverageS
         rotation_rms_std_deg: rs.to_degrees(),
         mean_heldout_rms_px: errs.iter().map(|e| e.heldout_rms_px).sum::<f64>() / errs.len().max(1) as f64,
     }
+}
+
+/// What [`write_rendered_recording`] wrote, with the truth in the detector's target frame
+/// (origin at the chessboard's centre).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RenderedRecording {
+    /// The pattern string of the rendered chessboard (nominal spacing).
+    pub pattern: String,
+    /// `X` in the detector's target frame.
+    pub hand_eye: Isometry3<f64>,
+    /// `W` in the detector's target frame.
+    pub world: Isometry3<f64>,
+    /// The true camera.
+    pub camera: CameraModel,
+    /// Images written.
+    pub n_images: usize,
+}
+
+/// Simulates a recording (views that show the whole chessboard), renders every view with the
+/// project's renderer (blur, vignetting, sensor noise) and writes `images/simNNN.png`,
+/// `poses.csv` (flange poses with the split), `camera.yaml` (the true camera, OpenCV YAML) and
+/// `truth.json` into `dir` (created; an existing `poses.csv` there is an error).
+pub fn write_rendered_recording(
+    config: &HandEyeSimConfig,
+    dir: &std::path::Path,
+    seed: u64,
+) -> Result<RenderedRecording> {
+    use crate::render::{RenderConfig, Renderer, TargetConfig};
+    if dir.join("poses.csv").exists() {
+        return Err(DatasetError::Input(format!("{} already holds a recording (poses.csv)", dir.display())));
+    }
+    let mut config = config.clone();
+    config.full_view = true;
+    let (data, truth) = simulate_hand_eye(&config, seed)?;
+    let (cols, rows) = config.grid;
+    let target = TargetConfig::Chessboard {
+        inner_cols: cols,
+        inner_rows: rows,
+        square_m: config.spacing_m * config.print_scale,
+        margin_m: config.spacing_m,
+    };
+    let renderer = Renderer::new(config.camera, &target, RenderConfig::default())?;
+    // The renderer's target frame has its origin at the pattern's centre.
+    let centre =
+        Vector3::new((cols - 1) as f64, (rows - 1) as f64, 0.0) * (0.5 * config.spacing_m * config.print_scale);
+    let t_grid_render = Isometry3::from_parts(Translation3::from(centre), UnitQuaternion::identity());
+    let images = dir.join("images");
+    std::fs::create_dir_all(&images).map_err(|source| DatasetError::Write { path: images.clone(), source })?;
+    let mut rows_out = Vec::new();
+    for (k, (v, t)) in data.views.iter().zip(&truth.t_camera_target).enumerate() {
+        let img = renderer.render(&(t * t_grid_render), seed.wrapping_mul(1000).wrapping_add(k as u64))?;
+        let path = images.join(format!("{}.png", v.name));
+        img.image.save(&path).map_err(|e| DatasetError::Image { path: path.clone(), reason: e.to_string() })?;
+        rows_out.push((format!("{}.png", v.name), v.t_base_flange, v.split));
+    }
+    let comments = vec![format!("simulated {} recording, seed {seed}", config.mount.name())];
+    super::poses::write_atomic(
+        &dir.join("poses.csv"),
+        super::poses::flange_poses_to_string(&rows_out, &comments).as_bytes(),
+        &[],
+    )?;
+    let yaml = ferrocal_vision::camera::io::to_opencv_yaml(&config.camera)?;
+    super::poses::write_atomic(&dir.join("camera.yaml"), yaml.as_bytes(), &[])?;
+    let (hand_eye, world) = match config.mount {
+        Mount::EyeInHand => (truth.hand_eye, truth.world * t_grid_render),
+        Mount::EyeToHand => (truth.hand_eye * t_grid_render, truth.world),
+    };
+    let out = RenderedRecording {
+        pattern: format!("chessboard:{cols}x{rows}:{}mm", config.spacing_m * 1e3),
+        hand_eye,
+        world,
+        camera: config.camera,
+        n_images: rows_out.len(),
+    };
+    let json = serde_json::to_string_pretty(&out)?;
+    super::poses::write_atomic(&dir.join("truth.json"), json.as_bytes(), &[])?;
+    Ok(out)
 }

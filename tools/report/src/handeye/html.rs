@@ -78,6 +78,15 @@ pub fn handeye_sections(r: &HandEyeResult, baselines: &[BaselineReport], source:
         &["transform", "translation (mm)", "std (mm)", "rotation (w, x, y, z)", "std (deg)"],
         vec![transform_row(r.mount.hand_eye_name(), &r.hand_eye), transform_row(r.mount.world_name(), &r.world)],
     );
+    let n = &r.noise;
+    s.text(format!(
+        "Noise levels {}: corner covariances x {:.3} (the detector's, scaled), robot {:.4} mm and {:.5} deg per axis{}.",
+        if n.estimated { "estimated by variance components" } else { "as given" },
+        n.corner_variance_factor,
+        n.robot_sigma_m * 1e3,
+        n.robot_sigma_rad.to_degrees(),
+        if n.robot_sigma_m == 0.0 { " (robot poses taken as exact)" } else { "" }
+    ));
     if let Some((v, sd)) = r.target_scale {
         s.text(format!("Target print scale {v:.6} +- {sd:.6} (1 = nominal spacing)."));
     }

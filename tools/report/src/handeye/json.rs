@@ -131,6 +131,13 @@ pub fn handeye_json(r: &HandEyeResult, baselines: &[BaselineReport], skipped: Va
         "starts": r.starts,
         "opencv": baselines_json(baselines),
         "skipped": skipped,
+        "noise": {
+            "estimated": r.noise.estimated,
+            "corner_variance_factor": r.noise.corner_variance_factor,
+            "robot_sigma_mm": r.noise.robot_sigma_m * 1e3,
+            "robot_sigma_deg": r.noise.robot_sigma_rad.to_degrees(),
+            "iterations": r.noise.iterations,
+        },
         "solver": {
             "s0": r.s0, "iterations": r.iterations, "termination": r.termination,
             "downweighted_corners": r.n_downweighted,

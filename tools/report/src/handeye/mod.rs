@@ -68,13 +68,16 @@ pub struct HandeyeArgs {
     /// Fit the printed target's overall scale (visible only against metric robot poses).
     #[arg(long)]
     pub target_scale: bool,
-    /// Noise of the reported flange positions, mm per coordinate (0 with --robot-sigma-deg 0:
-    /// poses taken as exact).
-    #[arg(long, default_value_t = 0.0)]
-    pub robot_sigma_mm: f64,
+    /// Noise of the reported flange positions, mm per coordinate; with --robot-sigma-deg it
+    /// fixes the robot's noise (by default both are estimated from the data).
+    #[arg(long, requires = "robot_sigma_deg")]
+    pub robot_sigma_mm: Option<f64>,
     /// Noise of the reported flange orientations, degrees per axis.
-    #[arg(long, default_value_t = 0.0)]
-    pub robot_sigma_deg: f64,
+    #[arg(long, requires = "robot_sigma_mm")]
+    pub robot_sigma_deg: Option<f64>,
+    /// Take the reported flange poses as exact (no robot-pose noise).
+    #[arg(long, conflicts_with = "robot_sigma_mm")]
+    pub exact_robot_poses: bool,
     /// Huber threshold in robust standard deviations (0: plain least squares).
     #[arg(long, default_value_t = 3.0)]
     pub huber: f64,
@@ -86,6 +89,29 @@ pub enum HandeyeCommand {
     /// Monte Carlo check of the hand-eye covariance on simulated recordings with known truth
     /// (both mounts): the 3-sigma coverage of the hand-eye translation and rotation.
     Study(StudyArgs),
+    /// Write a simulated recording with rendered chessboard images, the poses CSV, the true
+    /// camera (camera.yaml) and the truth (truth.json), to try the command on.
+    Simulate(SimulateArgs),
+}
+
+/// `ferrocal handeye simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// Where the camera is.
+    #[arg(long, value_enum)]
+    pub mount: MountArg,
+    /// Folder to write (images/, poses.csv, camera.yaml, truth.json).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Training images.
+    #[arg(long, default_value_t = 10)]
+    pub train: usize,
+    /// Held-out images.
+    #[arg(long, default_value_t = 6)]
+    pub test: usize,
 }
 
 /// `ferrocal handeye study`.
@@ -112,16 +138,15 @@ fn write_json(path: &Path, v: &Value) -> Result<()> {
 
 /// Runs `ferrocal handeye` (or its study).
 pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
-    if let Some(HandeyeCommand::Study(s)) = &a.command {
-        return run_study(s);
+    match &a.command {
+        Some(HandeyeCommand::Study(s)) => return run_study(s),
+        Some(HandeyeCommand::Simulate(s)) => return run_simulate(s),
+        None => {}
     }
     let (Some(poses_path), Some(pattern_text), Some(mount)) = (&a.poses, &a.pattern, a.mount) else {
         bail!("handeye: --poses, --pattern and --mount are required");
     };
-    let mount = match mount {
-        MountArg::EyeInHand => Mount::EyeInHand,
-        MountArg::EyeToHand => Mount::EyeToHand,
-    };
+    let mount = mount_of(mount);
     let pattern: ferrocal_vision::detect::Pattern = pattern_text.parse()?;
     let table = read_handeye_poses(poses_path)?;
     let robot = a.robot.as_deref().map(RobotModel::load).transpose()?;
@@ -139,14 +164,18 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
         Some(p) => IntrinsicsMode::Fixed(read_camera_file(p)?),
         None => IntrinsicsMode::Calibrate(CalibrationOptions::default()),
     };
-    let options = HandEyeOptions {
+    let mut options = HandEyeOptions {
         intrinsics,
         fit_target_scale: a.target_scale,
-        robot_sigma_m: a.robot_sigma_mm * 1e-3,
-        robot_sigma_rad: a.robot_sigma_deg.to_radians(),
         huber_sigmas: a.huber,
         ..HandEyeOptions::default()
     };
+    if let (Some(mm), Some(deg)) = (a.robot_sigma_mm, a.robot_sigma_deg) {
+        (options.robot_sigma_m, options.robot_sigma_rad, options.estimate_noise) = (mm * 1e-3, deg.to_radians(), false);
+    }
+    if a.exact_robot_poses {
+        (options.robot_sigma_m, options.robot_sigma_rad) = (0.0, 0.0);
+    }
     let result = calibrate_hand_eye(&data, &options)
         .with_context(|| format!("handeye: {} usable image(s) of {}", data.views.len(), paths.len()))?;
     let opencv_camera = result.initial_camera.as_ref().map_or(result.camera, |c| c.camera);
@@ -213,6 +242,22 @@ fn print_summary(
     if let Some(src) = source {
         println!("data: {src}");
     }
+}
+
+fn mount_of(m: MountArg) -> Mount {
+    match m {
+        MountArg::EyeInHand => Mount::EyeInHand,
+        MountArg::EyeToHand => Mount::EyeToHand,
+    }
+}
+
+fn run_simulate(s: &SimulateArgs) -> Result<ExitCode> {
+    let mut config = ferrocal_datasets::handeye::HandEyeSimConfig::default_for(mount_of(s.mount));
+    config.n_train = s.train;
+    config.n_test = s.test;
+    let r = ferrocal_datasets::handeye::write_rendered_recording(&config, &s.out, s.seed)?;
+    eprintln!("{} images written to {} (pattern {})", r.n_images, s.out.display(), r.pattern);
+    Ok(ExitCode::SUCCESS)
 }
 
 fn run_study(s: &StudyArgs) -> Result<ExitCode> {
