@@ -88,7 +88,7 @@ pub struct IcSet {
 }
 
 fn yaml_error(path: &Path, e: &serde_norway::Error) -> DatasetError {
-    let (line, column) = e.location().map_or((1, None), |l| (l.line() as u64, Some(format!("column {}", l.column()))));
+    let (line, column) = e.location().map_or((1, None), |l| (l.line() as u64, Some(l.column().to_string())));
     DatasetError::Invalid {
         location: Location { file: path.to_path_buf(), line, column },
         message: e.to_string().split(" at line ").next().unwrap_or_default().to_string(),
