@@ -11,7 +11,7 @@ use ferrocal_calib::handeye::{
     calibrate_hand_eye, chain_figures, Chain, ChainFigures, HandEyeData, HandEyeOptions, HandEyeResult, IntrinsicsMode,
     Mount,
 };
-use ferrocal_datasets::handeye::sim::{coverage_study, simulate_hand_eye, HandEyeSimConfig, HandEyeTruth};
+use ferrocal_datasets::handeye::sim::{coverage_study, simulate_hand_eye, HandEyeSimConfig, HandEyeTruth, StudyMode};
 use ferrocal_vision::calib::CalibrationOptions;
 
 /// `|error| / std` of every coordinate of X and W (translation and rotation).
@@ -151,10 +151,12 @@ fn target_print_scale_is_found_against_metric_robot_poses() {
 
 /// A small seeded Monte Carlo (the full one is `ferrocal handeye study --simulations 200`): the
 /// 3-sigma coverage of X's translation and rotation coordinates over 25 simulations per mount is
-/// at least 90 % (expected 99.7 %; 75 draws per figure) and no run fails.
+/// at least 90 % (expected 99.7 %; 75 draws per figure) and no run fails, with the noise levels
+/// given and with them estimated by variance components (10 simulations per mount).
 #[test]
 fn small_monte_carlo_covers_the_truth() {
-    let rows = coverage_study(25, 100, false, &|_, _| {});
+    let mut rows = coverage_study(25, 100, StudyMode::default(), &|_, _| {});
+    rows.extend(coverage_study(10, 200, StudyMode { estimate_noise: true, ..StudyMode::default() }, &|_, _| {}));
     for r in &rows {
         println!("{r:?}");
         assert_eq!(r.n_failed, 0);

@@ -13,5 +13,5 @@ pub use poses::{read_handeye_poses, PoseRow, PosesTable, RobotReading};
 pub use recording::{load_recording, read_camera_file, Skipped};
 pub use sim::{
     coverage_study, simulate_hand_eye, write_rendered_recording, CoverageSummary, HandEyeSimConfig, HandEyeTruth,
-    RenderedRecording,
+    RenderedRecording, StudyMode,
 };

@@ -245,19 +245,29 @@ pub struct CoverageSummary {
     pub mean_heldout_rms_px: f64,
 }
 
-/// Calibrates one simulated recording with the true noise levels (intrinsics fixed to the truth
-/// or calibrated) and returns its errors.
-pub fn run_one(config: &HandEyeSimConfig, seed: u64, free_intrinsics: bool) -> Result<HandEyeErrors> {
+/// How the study calibrates each recording.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct StudyMode {
+    /// Calibrate the intrinsics from the training images (else held at the truth).
+    pub free_intrinsics: bool,
+    /// Estimate the noise levels by variance components, starting from twice the true robot
+    /// sigmas (else the true sigmas are given).
+    pub estimate_noise: bool,
+}
+
+/// Calibrates one simulated recording (intrinsics fixed to the truth or calibrated; noise
+/// levels given or estimated) and returns its errors.
+pub fn run_one(config: &HandEyeSimConfig, seed: u64, mode: StudyMode) -> Result<HandEyeErrors> {
     let (data, truth) = simulate_hand_eye(config, seed)?;
     let options = HandEyeOptions {
-        intrinsics: if free_intrinsics {
+        intrinsics: if mode.free_intrinsics {
             IntrinsicsMode::Calibrate(CalibrationOptions::default())
         } else {
             IntrinsicsMode::Fixed(truth.camera)
         },
-        robot_sigma_m: config.robot_sigma_m,
-        robot_sigma_rad: config.robot_sigma_rad,
-        estimate_noise: false,
+        robot_sigma_m: config.robot_sigma_m * if mode.estimate_noise { 2.0 } else { 1.0 },
+        robot_sigma_rad: config.robot_sigma_rad * if mode.estimate_noise { 2.0 } else { 1.0 },
+        estimate_noise: mode.estimate_noise,
         huber_sigmas: 0.0,
         ..HandEyeOptions::default()
     };
@@ -278,12 +288,7 @@ pub fn run_one(config: &HandEyeSimConfig, seed: u64, free_intrinsics: bool) -> R
 /// The Monte Carlo study: `n` simulations per mount (seeds `seed`, `seed + 1`, ...), the
 /// 3-sigma coverage of the hand-eye translation and rotation. `progress(k, total)` is called
 /// after each run.
-pub fn coverage_study(
-    n: usize,
-    seed: u64,
-    free_intrinsics: bool,
-    progress: &dyn Fn(usize, usize),
-) -> Vec<CoverageSummary> {
+pub fn coverage_study(n: usize, seed: u64, mode: StudyMode, progress: &dyn Fn(usize, usize)) -> Vec<CoverageSummary> {
     let mounts = [Mount::EyeInHand, Mount::EyeToHand];
     let mut out = Vec::new();
     for (m, mount) in mounts.iter().enumerate() {
@@ -291,7 +296,7 @@ pub fn coverage_study(
         let mut errs = Vec::new();
         let mut failed = 0;
         for k in 0..n {
-            match run_one(&config, seed.wrapping_add(k as u64), free_intrinsics) {
+            match run_one(&config, seed.wrapping_add(k as u64), mode) {
                 Ok(e) => errs.push(e),
                 Err(_) => failed += 1,
             }

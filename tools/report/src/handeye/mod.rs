@@ -126,6 +126,9 @@ pub struct StudyArgs {
     /// Calibrate the intrinsics from the training images (else held at the truth).
     #[arg(long)]
     pub free_intrinsics: bool,
+    /// Estimate the noise levels by variance components (else the true ones are given).
+    #[arg(long)]
+    pub estimate_noise: bool,
     /// Write the summary as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -264,7 +267,9 @@ fn run_study(s: &StudyArgs) -> Result<ExitCode> {
     if s.simulations == 0 {
         bail!("handeye study: --simulations must be at least 1");
     }
-    let rows = coverage_study(s.simulations, s.seed, s.free_intrinsics, &|k, n| {
+    let mode =
+        ferrocal_datasets::handeye::StudyMode { free_intrinsics: s.free_intrinsics, estimate_noise: s.estimate_noise };
+    let rows = coverage_study(s.simulations, s.seed, mode, &|k, n| {
         if k % 20 == 0 || k == n {
             eprintln!("handeye study: {k}/{n} simulations");
         }
@@ -286,10 +291,7 @@ fn run_study(s: &StudyArgs) -> Result<ExitCode> {
         );
     }
     if let Some(p) = &s.json {
-        write_json(
-            p,
-            &json!({"simulations": s.simulations, "seed": s.seed, "free_intrinsics": s.free_intrinsics, "mounts": rows}),
-        )?;
+        write_json(p, &json!({"simulations": s.simulations, "seed": s.seed, "mode": mode, "mounts": rows}))?;
     }
     Ok(ExitCode::SUCCESS)
 }
