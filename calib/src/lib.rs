@@ -17,6 +17,7 @@
 pub mod check;
 pub mod design;
 pub mod diagnose;
+pub mod effect_list;
 pub mod effects;
 pub mod error;
 pub mod file;

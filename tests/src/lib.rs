@@ -1,1 +1,54 @@
-//! End-to-end tests live in tests/.
+//! The end-to-end tests' harness: the `ferrocal` binary that `cargo test --workspace` builds,
+//! the shared recordings, and small helpers. The tests themselves live in `tests/`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The built `ferrocal` binary (beside the test executable's folder).
+pub fn ferrocal() -> Command {
+    // target/<profile>/deps/cli-xxxx -> target/<profile>/ferrocal
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().unwrap().parent().unwrap();
+    let bin = dir.join(format!("ferrocal{}", std::env::consts::EXE_SUFFIX));
+    assert!(bin.exists(), "{} not built: run `cargo build -p ferrocal` or `cargo test --workspace`", bin.display());
+    Command::new(bin)
+}
+
+/// A file or folder of `../shared/data`; CI always has it, so a missing one fails the test by name.
+pub fn data(rel: &str) -> PathBuf {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(rel);
+    assert!(p.exists(), "{} is missing: ../shared/data must be beside the checkout", p.display());
+    p
+}
+
+/// Runs a command; prints its output when it fails.
+pub fn run(cmd: &mut Command) -> Output {
+    let out = cmd.output().unwrap();
+    if !out.status.success() {
+        eprintln!("stdout: {}\nstderr: {}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    }
+    out
+}
+
+/// A JSON file.
+pub fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Runs a command that must succeed.
+pub fn ok(cmd: &mut Command) -> Output {
+    let out = run(cmd);
+    assert!(out.status.success(), "{cmd:?} failed");
+    out
+}
+
+/// The real UR5 recording imported as a measurement table `dir/ur5.csv`.
+pub fn import_ur5(dir: &Path) -> PathBuf {
+    let table = dir.join("ur5.csv");
+    ok(ferrocal()
+        .args(["import", "ur5", "--input"])
+        .arg(data("ur5_tracker/ur5_grid_train.csv"))
+        .arg("--out")
+        .arg(&table));
+    table
+}

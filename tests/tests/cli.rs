@@ -2,46 +2,13 @@
 //! and on bad input. The binary is the one `cargo test --workspace` builds beside this test.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn ferrocal() -> Command {
-    // target/<profile>/deps/cli-xxxx -> target/<profile>/ferrocal
-    let exe = std::env::current_exe().unwrap();
-    let dir = exe.parent().unwrap().parent().unwrap();
-    let bin = dir.join(format!("ferrocal{}", std::env::consts::EXE_SUFFIX));
-    assert!(bin.exists(), "{} not built: run `cargo build -p ferrocal` or `cargo test --workspace`", bin.display());
-    Command::new(bin)
-}
-
-/// A file or folder of `../shared/data`; CI always has it, so a missing one fails the test by name.
-fn data(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(rel);
-    assert!(p.exists(), "{} is missing: ../shared/data must be beside the checkout", p.display());
-    p
-}
-
-fn run(cmd: &mut Command) -> Output {
-    let out = cmd.output().unwrap();
-    if !out.status.success() {
-        eprintln!("stdout: {}\nstderr: {}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
-    }
-    out
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+use ferrocal_tests::{data, ferrocal, import_ur5, json, run};
 
 #[test]
 fn ur5_calibrate_and_evaluate_through_the_binary() {
     let tmp = tempfile::tempdir().unwrap();
-    let table = tmp.path().join("ur5.csv");
-    let out = run(ferrocal()
-        .args(["import", "ur5", "--input"])
-        .arg(data("ur5_tracker/ur5_grid_train.csv"))
-        .arg("--out")
-        .arg(&table));
-    assert!(out.status.success());
+    let table = import_ur5(tmp.path());
     let cal = tmp.path().join("cal.json");
     let rep = tmp.path().join("rep.json");
     let html = tmp.path().join("rep.html");

@@ -7,8 +7,8 @@ mod cli;
 mod commands;
 mod progress;
 
-// The report modules under their old paths (`crate::report`, `crate::plot`).
-use ferrocal_report::{plot, report};
+// The report module under its old path (`crate::report`).
+use ferrocal_report::report;
 
 use std::process::ExitCode;
 

@@ -30,6 +30,7 @@ mod loss;
 pub mod manifold;
 mod problem;
 mod residual;
+pub mod so3;
 
 pub use covariance::{covariance, schur_covariance};
 pub use dense::{DenseProblem, LmOptions, LmResult, LmSummary, Summary, Termination};

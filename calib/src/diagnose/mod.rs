@@ -21,7 +21,7 @@ pub mod report;
 pub mod stats;
 
 pub use kinematic::{
-    diagnose, Bounds, CandidateScore, DiagnoseOptions, DiagnoseReport, FinalFit, Finding, InputStructure, NominalFit,
-    Step, Unexplained, Untestable,
+    compensated_calibration, diagnose, Bounds, CandidateScore, DiagnoseOptions, DiagnoseReport, FinalFit, Finding,
+    InputStructure, NominalFit, Step, Unexplained, Untestable,
 };
 pub use report::Evidence;

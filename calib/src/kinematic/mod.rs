@@ -34,6 +34,7 @@ use crate::measurement::PoseMeasurement;
 
 mod model;
 mod problem;
+mod refit;
 mod split;
 #[cfg(test)]
 mod tests;
@@ -41,6 +42,7 @@ mod tests;
 use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
 use problem::{whitening_matrices, KinProblem};
+pub use refit::{refit_frame, FrameRefit};
 pub use split::{split_rows, split_rows_by_plane, SplitPlane};
 
 /// Which of the model's own parameters are free.
@@ -322,6 +324,33 @@ pub struct KinematicCalibration {
     pub used_orientation: bool,
     /// Advice for parameters the data cannot identify.
     pub advice: Vec<String>,
+}
+
+impl KinematicCalibration {
+    /// Why this calibration should not be delivered as converged, if it should not: the solver
+    /// stopped at its iteration limit or without a convergence test passing.
+    pub fn convergence_problem(&self) -> Option<String> {
+        (!self.summary.converged).then(|| {
+            format!(
+                "the solver did not converge ({} after {} iterations; cost {:.4e} -> {:.4e})",
+                self.summary.termination, self.summary.iterations, self.summary.initial_cost, self.summary.final_cost
+            )
+        })
+    }
+
+    /// A warning when the a-posteriori standard deviation of unit weight `s0` is far from 1
+    /// (outside 1/3 to 3): the standard deviations the rows were weighted with do not describe
+    /// their scatter, so the reported parameter standard deviations (scaled by `s0`) rest on
+    /// the residuals alone. Not an error: the fit itself is unaffected by a common scale of the
+    /// weights.
+    pub fn noise_warning(&self) -> Option<String> {
+        let s0 = self.s0;
+        (s0.is_finite() && !(1.0 / 3.0..=3.0).contains(&s0)).then(|| {
+            format!(
+                "the residuals are {s0:.2} times the assumed measurement noise (s0 = {s0:.2}); set the rows' sigma (or --sigma-mm / --sigma-deg) to the device's real noise; standard deviations are scaled by s0"
+            )
+        })
+    }
 }
 
 /// Calibrates `model` from `rows` (the training rows).

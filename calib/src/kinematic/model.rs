@@ -77,6 +77,21 @@ pub struct CalibratedModel {
 }
 
 impl CalibratedModel {
+    /// The nominal model as it is: identity device frame and tool, zero joint offsets, no
+    /// effects.
+    pub fn nominal(model: RobotModel) -> Self {
+        let n = model.dof();
+        Self {
+            load_model: model.clone(),
+            model,
+            device_frame: Isometry3::identity(),
+            tool: Isometry3::identity(),
+            joint_offsets: vec![0.0; n],
+            orientation_calibrated: false,
+            effects: Vec::new(),
+        }
+    }
+
     /// Effective joint values and length scale of `row` under the joint offsets and effects.
     pub fn effective(&self, row: &PoseMeasurement) -> Result<(Vec<f64>, f64)> {
         if row.q.len() != self.joint_offsets.len() {

@@ -10,6 +10,7 @@ use crate::error::{CalibError, Result};
 use crate::frames::exp6;
 use crate::lsq::Problem;
 use crate::measurement::PoseMeasurement;
+use ferrocal_lsq::so3;
 
 pub(super) struct KinProblem<'a> {
     pub(super) base_model: RobotModel,
@@ -200,7 +201,6 @@ impl KinProblem<'_> {
         let n_cand = self.layout.len();
         let mut jac = DMatrix::zeros(self.rows.len() * b, n_cand);
         let rf = cm.device_frame.rotation;
-        let kinds = cm.model.joint_kinds();
         // Analytic columns: frame, tool, offsets, serial corrections.
         let serial = match &cm.model {
             RobotModel::Serial(c) => Some(c),
@@ -224,16 +224,54 @@ impl KinProblem<'_> {
             None => Vec::new(),
         };
         let params = self.base_model.parameters();
+        let frame_t = Vector3::new(
+            full[self.layout.frame.start],
+            full[self.layout.frame.start + 1],
+            full[self.layout.frame.start + 2],
+        );
+        let frame_jl = so3::left_jacobian(&Vector3::new(
+            full[self.layout.frame.start + 3],
+            full[self.layout.frame.start + 4],
+            full[self.layout.frame.start + 5],
+        ));
+        let tool_jr = (self.layout.tool.len() == 6).then(|| {
+            let r = &full[self.layout.tool.start + 3..self.layout.tool.start + 6];
+            so3::right_jacobian(&Vector3::new(r[0], r[1], r[2]))
+        });
+        // Per corrected joint, `J_l` of its correction rotation and the rotation itself.
+        let corr_rot: Vec<(nalgebra::Matrix3<f64>, UnitQuaternion<f64>)> = match serial {
+            Some(chain) => chain
+                .joints
+                .iter()
+                .map(|j| {
+                    let c = Vector3::new(j.correction[3], j.correction[4], j.correction[5]);
+                    (so3::left_jacobian(&c), UnitQuaternion::from_scaled_axis(c))
+                })
+                .collect(),
+            None => Vec::new(),
+        };
         for (k, row) in self.rows.iter().enumerate() {
-            let (qq, _) = cm.effective(row).map_err(|e| row_error(row, e))?;
+            let (qq, scale) = cm.effective(row).map_err(|e| row_error(row, e))?;
             let t_base_flange = cm.model.forward(&qq).map_err(|e| row_error(row, e))?;
+            // The flange-side geometry before the effects' pose corrections and length scale
+            // (levers of the joint and correction columns), and the prediction itself.
             let t_dev_tool = cm.device_frame * t_base_flange * cm.tool;
             let p = t_dev_tool.translation.vector;
+            let t_pred = cm.predict_row(row).map_err(|e| row_error(row, e))?;
             let sp = self.sigma_pos[k];
             let so = self.sigma_ori[k];
             let whiten = self.whiten[k].as_ref();
+            // The orientation residual `log(R_meas R_pred^-1)` moves by `-J_r(e)^-1 dw` under a
+            // left rotation `dw` of the prediction.
+            let jr_inv = if self.use_ori {
+                let qm = row.orientation.expect("checked");
+                so3::right_jacobian_inverse(&(qm * t_pred.rotation.inverse()).scaled_axis())
+            } else {
+                nalgebra::Matrix3::identity()
+            };
             // d(prediction) columns: (dp, dw) in the device frame; residual = -d(prediction).
             let mut put = |col: usize, dp: Vector3<f64>, dw: Vector3<f64>| {
+                let dw = jr_inv * dw;
                 if let Some(w) = whiten {
                     let mut d = DVector::zeros(b);
                     d.fixed_rows_mut::<3>(0).copy_from(&dp);
@@ -248,20 +286,27 @@ impl KinProblem<'_> {
                     jac.fixed_view_mut::<3, 1>(k * b + 3, col).copy_from(&(-dw / so));
                 }
             };
-            // Device frame (left increment): dp = dt + dr x p.
+            // Device frame `exp6(x) f0` (left increment of the translation `x_t` and rotation
+            // `x_r`): dp = dt + (J_l(x_r) dr) x (p - x_t), dw = J_l(x_r) dr.
+            let lever_frame = t_pred.translation.vector - frame_t;
             for a in 0..3 {
                 put(self.layout.frame.start + a, Vector3::ith(a, 1.0), Vector3::zeros());
-                let w = Vector3::ith(a, 1.0);
-                put(self.layout.frame.start + 3 + a, w.cross(&p), w);
+                let w = frame_jl.column(a).into_owned();
+                put(self.layout.frame.start + 3 + a, w.cross(&lever_frame), w);
             }
-            // Tool (right increment in the tool frame).
+            // Tool `tool0 exp6(x)` (translation in the tool0 frame; rotation on the right, so
+            // dw = R_pred J_r(x_r) dr, and the rotation does not move the target point).
             let t_dev_tool0 = cm.device_frame * t_base_flange * self.tool0;
             for a in 0..self.layout.tool.len().min(3) {
-                put(self.layout.tool.start + a, t_dev_tool0.rotation * Vector3::ith(a, 1.0), Vector3::zeros());
+                put(
+                    self.layout.tool.start + a,
+                    scale * (t_dev_tool0.rotation * Vector3::ith(a, 1.0)),
+                    Vector3::zeros(),
+                );
             }
-            if self.layout.tool.len() == 6 {
+            if let Some(jr) = &tool_jr {
                 for a in 0..3 {
-                    let w = t_dev_tool.rotation * Vector3::ith(a, 1.0);
+                    let w = t_dev_tool.rotation * jr.column(a).into_owned();
                     put(self.layout.tool.start + 3 + a, Vector3::zeros(), w);
                 }
             }
@@ -271,24 +316,27 @@ impl KinProblem<'_> {
             for i in 0..cm.model.dof() {
                 let v = rf * Vector3::new(jg[(0, i)], jg[(1, i)], jg[(2, i)]);
                 let w = rf * Vector3::new(jg[(3, i)], jg[(4, i)], jg[(5, i)]);
-                put(self.layout.offsets.start + i, v + w.cross(&lever), w);
+                put(self.layout.offsets.start + i, scale * (v + w.cross(&lever)), w);
             }
-            // Serial corrections (right increment of each corrected link frame).
+            // Serial corrections: link `A Exp(c)` with `A` the uncorrected link frame and
+            // `Exp(c) = (c_t, exp(c_r))`: dp = R_A dc_t; for the rotation, w = R_A J_l(c_r) dc_r,
+            // dp = w x (p - o_link), dw = w.
             if let Some(chain) = serial {
                 if !corr_cols.is_empty() {
                     let fr = chain.frames(&qq).map_err(|e| row_error(row, e))?;
                     for &(col, j, comp) in &corr_cols {
                         let link = cm.device_frame * fr.links[j];
-                        let e = link.rotation * Vector3::ith(comp % 3, 1.0);
+                        let (jl, r_c) = &corr_rot[j];
+                        let r_a = link.rotation * r_c.inverse();
                         if comp < 3 {
-                            put(col, e, Vector3::zeros());
+                            put(col, scale * (r_a * Vector3::ith(comp, 1.0)), Vector3::zeros());
                         } else {
-                            put(col, e.cross(&(p - link.translation.vector)), e);
+                            let w = r_a * jl.column(comp - 3).into_owned();
+                            put(col, scale * w.cross(&(p - link.translation.vector)), w);
                         }
                     }
                 }
             }
-            let _ = kinds.len();
         }
         // Numeric columns: effect parameters.
         for r in &self.layout.effects {

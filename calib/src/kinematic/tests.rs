@@ -3,11 +3,12 @@
 //! transforms) and numeric ones (effects, other model parameters) against central differences of
 //! the residuals, with scalar sigmas and with full 6 x 6 covariances, positions only and full poses.
 //!
-//! The analytic columns are exact where the solver linearises first, at zero increments of the
-//! device frame, the tool and the corrections (the registration `f0` may be any pose); the
-//! orientation rows are first order in the residual rotation (the inverse right Jacobian of the
-//! residual is taken as identity), hence their looser tolerance. Away from zero increments the
-//! frame, tool and correction columns are first-order (see the second test).
+//! The analytic columns are exact at any increment of the device frame, the tool and the
+//! corrections (left and right Jacobians of the rotation vectors, the inverse right Jacobian of
+//! the orientation residual, the effects' length scale), so the checker's tolerance is the same
+//! at the start, near it and far from it (0.3 of each candidate's scale). What is not in the
+//! analytic columns is the dependence of a link-compliance effect's pose correction on the other
+//! parameters (second order in the compliance, 1e-5 rad per N m and less).
 
 use nalgebra::{Isometry3, Matrix6, UnitQuaternion, Vector3};
 
@@ -35,6 +36,7 @@ fn rows(model: &RobotModel, n: usize, covariance: bool) -> Vec<PoseMeasurement> 
             let p = t.translation.vector + Vector3::new(wave(3 * i), wave(3 * i + 1), wave(3 * i + 2)) * 2e-3;
             let mut row = PoseMeasurement::new(format!("p{i}"), q, p);
             row.orientation = Some(UnitQuaternion::from_scaled_axis(Vector3::new(1e-3, -2e-3, 5e-4)) * t.rotation);
+            row.temp_c = Some(20.0 + 5.0 * wave(11 * i));
             if covariance {
                 let a = Matrix6::from_fn(|r, c| wave(36 * i + 6 * r + c) * 1e-4);
                 let si = a * a.transpose() + Matrix6::from_diagonal(&nalgebra::Vector6::repeat(1e-9));
@@ -44,6 +46,13 @@ fn rows(model: &RobotModel, n: usize, covariance: bool) -> Vec<PoseMeasurement> 
         })
         .collect()
 }
+
+/// The largest Jacobian error the checker accepts, relative to the column's largest entry. With
+/// orientations the worst error measured is about 1e-9; positions alone reach about 3e-6, in the
+/// columns of the last joints' rotation corrections, which barely move a target that sits near
+/// the flange axis (nearly zero columns, where central differences lose digits). The first-order
+/// columns this replaced were off by 4e-3 at 0.003 and 9e-2 at 0.3 of the scales.
+const TOLERANCE: f64 = 1e-5;
 
 /// The worst relative Jacobian error at the start (`offset = 0`) or at increments of `offset`
 /// times each candidate's scale.
@@ -76,43 +85,55 @@ fn check(model: &RobotModel, use_ori: bool, covariance: bool, effects: Vec<Effec
         start.iter().zip(&layout.scales).enumerate().map(|(k, (v, s))| v + offset * s * wave(k)).collect();
     let report = check_jacobian(&problem, &x, 1e-3).unwrap();
     assert!(report.entries > 1000, "{} entries", report.entries);
-    if offset == 0.0 {
-        let tolerance = if use_ori { 3e-3 } else { 1e-6 };
-        report
-            .assert_below(tolerance, &format!("{}: orientation {use_ori}, covariance {covariance}", model.name()))
-            .unwrap();
-    }
-    if offset > 0.0 {
-        let (_, row, col) = report.worst;
-        eprintln!("offset {offset}: worst {:.2e} at row {row}, candidate {}", report.max_error, layout.names[col]);
-    }
+    let (_, row, col) = report.worst;
+    eprintln!(
+        "{} orientation {use_ori} covariance {covariance} offset {offset}: worst {:.2e} at row {row}, candidate {}",
+        model.name(),
+        report.max_error,
+        layout.names[col]
+    );
+    report
+        .assert_below(
+            TOLERANCE,
+            &format!("{}: orientation {use_ori}, covariance {covariance}, offset {offset}", model.name()),
+        )
+        .unwrap();
     report.max_error
 }
 
 #[test]
 fn kinematic_residual_passes_the_gradient_checker() {
     let ur5 = ferrocal_robot::presets::preset("ur5").unwrap();
-    for (use_ori, covariance) in [(false, false), (true, false), (false, true), (true, true)] {
-        check(&ur5, use_ori, covariance, Vec::new(), 0.0);
+    for offset in [0.0, 0.003, 0.3] {
+        for (use_ori, covariance) in [(false, false), (true, false), (false, true), (true, true)] {
+            check(&ur5, use_ori, covariance, Vec::new(), offset);
+        }
     }
+}
+
+/// Another arm (from a URDF, not a UR geometry).
+#[test]
+fn kinematic_residual_of_other_robots_passes_the_gradient_checker() {
+    let text = include_str!("../../../robot/models/example_arm6.urdf");
+    let arm = RobotModel::Serial(
+        ferrocal_robot::serial::parse_urdf_str(text, &Default::default()).expect("example_arm6.urdf"),
+    );
+    for offset in [0.0, 0.3] {
+        check(&arm, true, true, Vec::new(), offset);
+        check(&arm, false, false, Vec::new(), offset);
+    }
+}
+
+#[test]
+fn kinematic_residual_with_effects_passes_the_gradient_checker() {
+    let ur5 = ferrocal_robot::presets::preset("ur5").unwrap();
     let effects = vec![
         EffectSpec::JointScaleError { joint: 2 },
         EffectSpec::PeriodicJointError { joint: 3, period_si: std::f64::consts::PI },
+        EffectSpec::ThermalExpansion { reference_temp_c: 20.0 },
     ];
-    check(&ur5, false, false, effects.clone(), 0.0);
-    check(&ur5, true, true, effects, 0.0);
-}
-
-/// What the checker finds away from zero increments: the frame, tool and correction columns are
-/// linearisations at zero increment, so their error grows with the increments (this records the
-/// size; the solver re-linearises at every iterate, and with equal weights the device frame's
-/// translation columns make the frame-rotation error term vanish at the optimum).
-#[test]
-fn kinematic_jacobian_away_from_zero_increments_is_first_order() {
-    let ur5 = ferrocal_robot::presets::preset("ur5").unwrap();
-    let small = check(&ur5, false, false, Vec::new(), 0.003);
-    let large = check(&ur5, false, false, Vec::new(), 0.3);
-    eprintln!("kinematic Jacobian away from zero increments: {small:.2e} at 0.003 scales, {large:.2e} at 0.3 scales");
-    assert!(small < large, "small {small:.2e} large {large:.2e}");
-    assert!(large > 1e-6, "{large:.2e}: the columns became exact; tighten the first test and drop this one");
+    for offset in [0.0, 0.3] {
+        check(&ur5, false, false, effects.clone(), offset);
+        check(&ur5, true, true, effects.clone(), offset);
+    }
 }

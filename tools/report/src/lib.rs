@@ -18,6 +18,7 @@ pub mod calibrate;
 pub mod camera;
 pub mod corner_study;
 pub mod demo;
+pub mod diagnose;
 pub mod dynamics;
 pub mod handeye;
 pub mod plan;

@@ -60,6 +60,18 @@ pub struct CalibrateArgs {
     /// leg-length errors at the measured pose; converges from poor start models).
     #[arg(long, default_value = "fk")]
     pub cost: String,
+    /// Largest number of solver iterations.
+    #[arg(long, default_value_t = 200)]
+    pub max_iterations: usize,
+    /// Deliver a calibration whose solver did not converge (with a warning) instead of exiting
+    /// with an error.
+    #[arg(long)]
+    pub accept_unconverged: bool,
+    /// Physical effects to identify with the geometry: a `diagnose --json` report (its
+    /// findings), a calibration file, or a list such as
+    /// `joint_compliance:2,periodic_joint_error:3:180deg,backlash:1` (docs/diagnose.md).
+    #[arg(long)]
+    pub effects: Option<String>,
 }
 
 /// `ferrocal evaluate`.
@@ -77,6 +89,15 @@ pub struct EvaluateArgs {
     /// Write `{"n", "mean_mm", "rms_mm", "max_mm", ...}` here.
     #[arg(long)]
     pub json: PathBuf,
+    /// First refit only the device frame and the measured point on the tool on this table, so
+    /// that a model calibrated in one device's frame (a camera) is scored against another's (a
+    /// tracker); the robot's parameters, joint offsets and effects stay as calibrated.
+    #[arg(long)]
+    pub refit_frame: bool,
+    /// Position standard deviation of rows without a sigma column, mm (weights of
+    /// `--refit-frame`).
+    #[arg(long, default_value_t = 0.02)]
+    pub sigma_mm: f64,
 }
 
 /// Loads a model and a measurement table and checks that they agree.
@@ -130,6 +151,9 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
     if !positive(args.sigma_mm) || !positive(args.sigma_deg) {
         bail!("--sigma-mm and --sigma-deg must be positive");
     }
+    if args.max_iterations == 0 {
+        bail!("--max-iterations must be at least 1");
+    }
     Ok(KinematicOptions {
         model_params: parse_params(&args.params),
         use_orientation: !args.positions_only,
@@ -137,11 +161,16 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
         sigma_orientation_rad: args.sigma_deg.to_radians(),
         loss: parse_loss(&args.loss)?,
         practical_threshold: args.practical_threshold,
+        effects: match &args.effects {
+            Some(e) => ferrocal_calib::effect_list::effects_from_argument(e).context("--effects")?,
+            None => Vec::new(),
+        },
         cost: match args.cost.as_str() {
             "fk" => ferrocal_calib::kinematic::Cost::ForwardKinematics,
             "closure" => ferrocal_calib::kinematic::Cost::Closure,
             other => bail!("--cost {other}: use fk or closure"),
         },
+        lm: ferrocal_calib::lsq::LmOptions { max_iterations: args.max_iterations, ..KinematicOptions::default().lm },
         ..KinematicOptions::default()
     })
 }
@@ -153,6 +182,18 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
     let run = calibrate_table(&model, &rows, &opts, !args.no_validation, &|| progress.inc(1))?;
     progress.finish_and_clear();
     let CalibrationRun { cal, validation, final_rows, fixed_split, heldout_spatial } = &run;
+    let fits = std::iter::once(("calibration", cal)).chain(validation.iter().map(|(v, _, _)| ("validation fit", v)));
+    for (what, fit) in fits {
+        if let Some(problem) = fit.convergence_problem() {
+            if !args.accept_unconverged {
+                bail!("{what}: {problem}; nothing was written (raise --max-iterations, check the data, or accept it with --accept-unconverged)");
+            }
+            eprintln!("warning: {what}: {problem}; delivered because of --accept-unconverged");
+        }
+    }
+    if let Some(w) = cal.noise_warning() {
+        eprintln!("note: {w}");
+    }
     let file = CalibrationFile::new(&args.robot, &cal.calibrated);
     write_atomic(&args.out, serde_json::to_string_pretty(&file)?.as_bytes())?;
     let mut summary = report_json(cal, validation, final_rows.len(), *fixed_split);
@@ -188,8 +229,22 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
 pub fn run_evaluate(args: &EvaluateArgs) -> Result<ExitCode> {
     let (model, rows) = load_model_and_rows(&args.robot, &args.measurements)?;
     let file = CalibrationFile::read(&args.calibration)?;
-    let cm = file.apply(&model).with_context(|| format!("applying {}", args.calibration.display()))?;
-    let (out, stats) = evaluate_json(&cm, &rows)?;
+    let mut cm = file.apply(&model).with_context(|| format!("applying {}", args.calibration.display()))?;
+    let mut refit = None;
+    if args.refit_frame {
+        if !(args.sigma_mm.is_finite() && args.sigma_mm > 0.0) {
+            bail!("--sigma-mm must be positive");
+        }
+        let refs: Vec<&PoseMeasurement> = rows.iter().collect();
+        let (m, record) =
+            ferrocal_calib::kinematic::refit_frame(&cm, &refs, args.sigma_mm * 1e-3).context("--refit-frame")?;
+        cm = m;
+        refit = Some(record);
+    }
+    let (mut out, stats) = evaluate_json(&cm, &rows)?;
+    if let Some(record) = &refit {
+        out["refit_frame"] = serde_json::to_value(record)?;
+    }
     write_atomic(&args.json, serde_json::to_string_pretty(&out)?.as_bytes())?;
     eprintln!(
         "{} poses: mean {:.4} mm, RMS {:.4} mm, max {:.4} mm",

@@ -176,7 +176,7 @@ fn sections_diagnose(args: &DemoArgs) -> Result<Vec<Section>> {
     let pb = progress::bar(1, "diagnosing the UR5");
     let rep = diagnose(&model, &set.rows, &DiagnoseOptions::default())?;
     pb.finish_and_clear();
-    let mut out = crate::commands::diagnose::sections(&rep, Some(demo::UR5_ATTRIBUTION));
+    let mut out = ferrocal_report::diagnose::sections(&rep, Some(demo::UR5_ATTRIBUTION));
     for s in &mut out {
         s.id = format!("ur5-{}", s.id);
         s.title = format!("UR5 diagnose: {}", s.title.to_lowercase());

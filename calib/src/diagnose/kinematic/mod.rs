@@ -59,7 +59,8 @@ use crate::diagnose::engine::{select, Correction, Improvement, Policy, Selection
 use crate::diagnose::report::{fmt_p, sig, CandidateRow, Diagnosis, Evidence, Verdict};
 use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
-use crate::kinematic::{calibrate, ModelParams};
+use crate::kinematic::{calibrate, KinematicOptions, ModelParams};
+use crate::lsq::LmOptions;
 use crate::measurement::{PoseMeasurement, Split};
 use candidates::{enumerate_candidates, period_grids};
 use family::{Ctx, KinematicFamily};
@@ -486,6 +487,27 @@ pub fn diagnose(model: &RobotModel, rows: &[PoseMeasurement], opts: &DiagnoseOpt
     finish(&mut report, &family, diagnosis, opts);
     report.elapsed_s = t0.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// The calibration with the physics in it (`diagnose --out`): the geometric model and the
+/// accepted effects of `report` refitted together on every row of the recording that is not
+/// marked `test` (the analysis and the validation rows), with the options the diagnosis used.
+/// Without findings it is the geometric calibration. `evaluate` then predicts with the effects.
+pub fn compensated_calibration(
+    model: &RobotModel,
+    rows: &[PoseMeasurement],
+    report: &DiagnoseReport,
+) -> Result<crate::kinematic::KinematicCalibration> {
+    let train: Vec<&PoseMeasurement> = rows.iter().filter(|r| r.split != Some(Split::Test)).collect();
+    let opts = KinematicOptions {
+        model_params: report.settings.model_params.clone(),
+        use_orientation: false,
+        sigma_position_m: report.settings.sigma_position_m,
+        effects: report.findings.iter().map(|f| f.spec.clone()).collect(),
+        lm: LmOptions { max_iterations: 100, ..LmOptions::default() },
+        ..KinematicOptions::default()
+    };
+    calibrate(model, &train, &opts)
 }
 
 /// The kinematic verdict of a candidate row in words (`m`: candidates of the step).

@@ -1,0 +1,179 @@
+//! The calibration with the physics in it leaves the tool: `diagnose --out` writes it,
+//! `evaluate` predicts with it, `calibrate --effects` fits the same model from scratch, and
+//! `evaluate --refit-frame` scores a model against another device's table (shared/spec/cli.md).
+//! On the real UR5 recording (UR5 tracker data of the shared set; see its README for source and
+//! licence).
+
+use std::path::{Path, PathBuf};
+
+use ferrocal_tests::{ferrocal, import_ur5, json, ok};
+
+/// The UR5 table with a split column that is not interleaved: blocks of 50 consecutive poses,
+/// every fourth block held out (`test`).
+fn ur5_blocks(dir: &Path) -> PathBuf {
+    let table = import_ur5(dir);
+    let text = std::fs::read_to_string(&table).unwrap();
+    let mut csv = String::new();
+    let mut row = 0usize;
+    for line in text.lines() {
+        if line.starts_with('#') {
+            continue;
+        }
+        if line.starts_with("pose_id") {
+            csv.push_str(&format!("{line},split\n"));
+            continue;
+        }
+        let split = if (row / 50) % 4 == 3 { "test" } else { "train" };
+        csv.push_str(&format!("{line},{split}\n"));
+        row += 1;
+    }
+    assert_eq!(row, 1000);
+    let p = dir.join("ur5_blocks.csv");
+    std::fs::write(&p, csv).unwrap();
+    p
+}
+
+/// The test rows alone (a table `evaluate` scores).
+fn test_rows(table: &Path, dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(table).unwrap();
+    let mut lines = text.lines();
+    let mut out = format!("{}\n", lines.next().unwrap());
+    for l in lines.filter(|l| l.ends_with(",test")) {
+        out.push_str(l);
+        out.push('\n');
+    }
+    let p = dir.join("ur5_test.csv");
+    std::fs::write(&p, out).unwrap();
+    p
+}
+
+fn evaluate(cal: &Path, table: &Path, json_out: &Path, refit: bool) -> serde_json::Value {
+    let mut cmd = ferrocal();
+    cmd.args(["evaluate", "--robot", "ur5", "--calibration"])
+        .arg(cal)
+        .arg("--measurements")
+        .arg(table)
+        .arg("--json")
+        .arg(json_out);
+    if refit {
+        cmd.arg("--refit-frame");
+    }
+    ok(&mut cmd);
+    json(json_out)
+}
+
+/// Tolerance: the compensated model must lower the held-out mean of the geometric calibration
+/// (measured in the stop that added this test: 0.1030 -> 0.0709 mm on these blocks; the test
+/// asks for at least 5 %).
+#[test]
+fn diagnose_out_compensates_held_out_blocks_of_the_ur5() {
+    let tmp = tempfile::tempdir().unwrap();
+    let table = ur5_blocks(tmp.path());
+    let test = test_rows(&table, tmp.path());
+    let geo = tmp.path().join("geo.json");
+    ok(ferrocal().args(["calibrate", "--robot", "ur5", "--measurements"]).arg(&table).arg("--out").arg(&geo));
+    let comp = tmp.path().join("comp.json");
+    let diag = tmp.path().join("diag.json");
+    ok(ferrocal()
+        .args(["diagnose", "--robot", "ur5", "--measurements"])
+        .arg(&table)
+        .arg("--json")
+        .arg(&diag)
+        .arg("--out")
+        .arg(&comp));
+    let findings = json(&diag)["findings"].as_array().unwrap().len();
+    let c = json(&comp);
+    assert_eq!(c["effects"].as_array().unwrap().len(), findings, "every accepted effect is in the calibration");
+    assert!(findings >= 1, "the UR5 recording shows periodic joint errors");
+
+    let e_geo = evaluate(&geo, &test, &tmp.path().join("e_geo.json"), false);
+    let e_comp = evaluate(&comp, &test, &tmp.path().join("e_comp.json"), false);
+    let (g, k) = (e_geo["mean_mm"].as_f64().unwrap(), e_comp["mean_mm"].as_f64().unwrap());
+    eprintln!("UR5 held-out blocks ({} poses): geometric {g:.4} mm, with the diagnosed effects {k:.4} mm", e_geo["n"]);
+    assert_eq!(e_geo["n"].as_u64(), Some(250));
+    assert!(k < 0.95 * g, "compensated {k:.4} mm vs geometric {g:.4} mm");
+
+    // The same model fitted from scratch by `calibrate --effects <diagnose json>`.
+    let again = tmp.path().join("again.json");
+    ok(ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--measurements"])
+        .arg(&table)
+        .arg("--out")
+        .arg(&again)
+        .arg("--no-validation")
+        .arg("--effects")
+        .arg(&diag));
+    let e_again = evaluate(&again, &test, &tmp.path().join("e_again.json"), false);
+    let a = e_again["mean_mm"].as_f64().unwrap();
+    assert!((a - k).abs() < 0.002, "calibrate --effects {a:.4} mm vs diagnose --out {k:.4} mm");
+}
+
+/// A table seen from another device frame: without the refit the errors are the frame change;
+/// with `--refit-frame` the model scores as it did in its own frame.
+#[test]
+fn evaluate_refit_frame_scores_a_model_in_another_devices_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let table = import_ur5(tmp.path());
+    let cal = tmp.path().join("cal.json");
+    ok(ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--no-validation", "--measurements"])
+        .arg(&table)
+        .arg("--out")
+        .arg(&cal));
+    // Move every measured point by a rigid transform: 30 deg about z, then (1500, -200, 300) mm.
+    let text = std::fs::read_to_string(&table).unwrap();
+    let mut moved = String::new();
+    let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+    for line in text.lines().filter(|l| !l.starts_with('#')) {
+        if line.starts_with("pose_id") {
+            moved.push_str(line);
+            moved.push('\n');
+            continue;
+        }
+        let mut f: Vec<String> = line.split(',').map(String::from).collect();
+        let v: Vec<f64> = f[7..10].iter().map(|x| x.parse().unwrap()).collect();
+        let p = [c * v[0] - s * v[1] + 1500.0, s * v[0] + c * v[1] - 200.0, v[2] + 300.0];
+        for (k, x) in p.iter().enumerate() {
+            f[7 + k] = format!("{x:.6}");
+        }
+        moved.push_str(&f.join(","));
+        moved.push('\n');
+    }
+    let moved_path = tmp.path().join("moved.csv");
+    std::fs::write(&moved_path, moved).unwrap();
+    let own = evaluate(&cal, &table, &tmp.path().join("own.json"), false);
+    let plain = evaluate(&cal, &moved_path, &tmp.path().join("plain.json"), false);
+    let refit = evaluate(&cal, &moved_path, &tmp.path().join("refit.json"), true);
+    let (o, p, r) =
+        (own["mean_mm"].as_f64().unwrap(), plain["mean_mm"].as_f64().unwrap(), refit["mean_mm"].as_f64().unwrap());
+    eprintln!("own frame {o:.4} mm, moved without refit {p:.1} mm, moved with --refit-frame {r:.4} mm");
+    assert!(p > 100.0, "{p}");
+    assert!((r - o).abs() < 1e-3, "refit {r} vs own {o}");
+    let t = &refit["refit_frame"]["device_frame_after"][0];
+    assert!(t.as_array().unwrap().iter().all(|x| x.as_f64().unwrap().is_finite()));
+}
+
+/// A calibration that stops at its iteration limit is not delivered as a success.
+#[test]
+fn an_unconverged_calibration_exits_non_zero_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let table = import_ur5(tmp.path());
+    let cal = tmp.path().join("cal.json");
+    let out = ferrocal_tests::run(
+        ferrocal()
+            .args(["calibrate", "--robot", "ur5", "--max-iterations", "1", "--measurements"])
+            .arg(&table)
+            .arg("--out")
+            .arg(&cal),
+    );
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("did not converge") && err.contains("--accept-unconverged"), "{err}");
+    assert!(!cal.exists(), "an unconverged calibration was written");
+    ok(ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--max-iterations", "1", "--accept-unconverged", "--measurements"])
+        .arg(&table)
+        .arg("--out")
+        .arg(&cal));
+    assert!(cal.exists());
+}
