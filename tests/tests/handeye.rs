@@ -5,34 +5,7 @@
 //! `shared/spec/cli.md`, the importer on the ROS-Industrial industrial_calibration example data
 //! (Apache-2.0), and bad input.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn ferrocal() -> Command {
-    let exe = std::env::current_exe().unwrap();
-    let dir = exe.parent().unwrap().parent().unwrap();
-    let bin = dir.join(format!("ferrocal{}", std::env::consts::EXE_SUFFIX));
-    assert!(bin.exists(), "{} not built: run `cargo test --workspace`", bin.display());
-    Command::new(bin)
-}
-
-fn data(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(rel);
-    assert!(p.exists(), "{} is missing: ../shared/data must be beside the checkout", p.display());
-    p
-}
-
-fn run(cmd: &mut Command) -> Output {
-    let out = cmd.output().unwrap();
-    if !out.status.success() {
-        eprintln!("stdout: {}\nstderr: {}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
-    }
-    out
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+use ferrocal_tests::{data, ferrocal, json, run};
 
 fn vec3(v: &serde_json::Value) -> [f64; 3] {
     [0, 1, 2].map(|i| v[i].as_f64().unwrap())

@@ -74,7 +74,7 @@ fn least_squares(a: &DMatrix<f64>, b: &DVector<f64>, what: &str) -> Result<DVect
     let svd = a.clone().svd(true, true);
     let smax = svd.singular_values.max();
     let smin = svd.singular_values.min();
-    if !(smax > 0.0) || smin < 1e-10 * smax {
+    if smax.is_nan() || smax <= 0.0 || smin < 1e-10 * smax {
         return Err(CalibError::Numeric(format!(
             "hand-eye closed form: the {what} is not determined by these poses (rotations about one axis only?)"
         )));

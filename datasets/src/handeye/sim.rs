@@ -125,7 +125,7 @@ fn random_view(rng: &mut ChaCha8Rng, mount: Mount, c: Vector3<f64>) -> Isometry3
 
 /// Simulates one recording (see the module documentation); deterministic for a seed.
 pub fn simulate_hand_eye(config: &HandEyeSimConfig, seed: u64) -> Result<(HandEyeData, HandEyeTruth)> {
-    if config.n_train < 3 || !(config.corner_sigma_px > 0.0) {
+    if config.n_train < 3 || config.corner_sigma_px.is_nan() || config.corner_sigma_px <= 0.0 {
         return Err(DatasetError::Input(
             "hand-eye simulation: at least 3 training images and a corner sigma > 0".into(),
         ));
@@ -308,7 +308,8 @@ pub fn coverage_study(n: usize, seed: u64, mode: StudyMode, progress: &dyn Fn(us
 }
 
 fn summarise(mount: Mount, errs: &[HandEyeErrors], n_failed: usize) -> CoverageSummary {
-    let cover = |f: &dyn Fn(&HandEyeErrors) -> ([f64; 3], [f64; 3])| {
+    type Pick<'a> = &'a dyn Fn(&HandEyeErrors) -> ([f64; 3], [f64; 3]);
+    let cover = |f: Pick| {
         let (mut inside, mut total, mut e2, mut s2) = (0usize, 0usize, 0.0, 0.0);
         for e in errs {
             let (v, s) = f(e);
