@@ -234,6 +234,20 @@ pub fn force_diagnose(found: bool, mass_kg: f64, true_mass_kg: f64) -> Check {
     )
 }
 
+/// Least relative reduction of the held-out mean that the diagnose-compensated UR5 model must
+/// reach against the geometric calibration on blocks of poses no fit has seen.
+pub const UR5_COMPENSATION_GAIN: f64 = 0.05;
+
+/// The UR5 compensated with the effects `diagnose` found: held-out mean at least
+/// [`UR5_COMPENSATION_GAIN`] below the geometric calibration's, on the same held-out blocks.
+pub fn ur5_compensation(geometric: &ErrorStats, compensated: &ErrorStats) -> Check {
+    Check::from_bool(
+        "UR5 compensated with the diagnosed effects",
+        compensated.mean_mm < (1.0 - UR5_COMPENSATION_GAIN) * geometric.mean_mm,
+        format!("held-out blocks: {:.4} mm geometric, {:.4} mm compensated", geometric.mean_mm, compensated.mean_mm),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -68,6 +68,9 @@ pub enum RobotError {
         /// What is wrong.
         message: String,
     },
+    /// A request the model cannot serve, in words.
+    #[error("{0}")]
+    Invalid(String),
     /// A joint vector of the wrong length.
     #[error("expected {expected} joint values, got {got}")]
     JointCount {

@@ -7,19 +7,30 @@
 //! - `target_nonflatness`: the target is bent: its points move out of plane by
 //!   `z = b (u^2 + v^2) + s (u^2 - v^2) + t u v`, with `(u, v)` the in-plane position divided by
 //!   the target's half-size, so `b`, `s`, `t` are the sags (metres) at the target's edge of a bowl,
-//!   a saddle and a twist, the same for every view (one physical target).
+//!   a saddle and a twist, the same for every view (one physical target);
+//! - `target_print_scale`: the printed spacing along the target's x axis differs from the one
+//!   along its y axis by the factor `1 + e` (`scale_x_minus_y` = `e`; printers scale x and y
+//!   differently). Only this anisotropic part shows in images: an overall scale trades with the
+//!   views' distances, so the y spacing is taken as nominal. It also trades with the camera's
+//!   `fy / fx` unless the board is turned in its plane between views (e.g. by 90 deg).
 //!
-//! A family of the diagnose engine ([`super::engine`]). Held-out figures come from whole views
-//! held out (K-fold over views): the model is fitted on the other views, then only the held-out
-//! view's pose is fitted to its corners (intrinsics, distortion and target shape fixed) and its
+//! Every fit is vision's bundle adjustment ([`ferrocal_vision::calib::adjust_bundle`]: Ceres,
+//! analytic Jacobians, the target's shape and print scale as blocks shared by all views) on the
+//! target centred on its centroid. A family of the diagnose engine ([`super::engine`]). Held-out
+//! figures come from whole views held out (K-fold over views): the model is fitted on the other
+//! views, then only the held-out view's pose is fitted to its corners (intrinsics, distortion,
+//! target shape and print scale held: [`ferrocal_vision::calib::BundleMode::PosesOnly`]) and its
 //! reprojection RMS is the score. The engine examines the candidate with the smallest corrected
 //! p-value (the smaller of a sign test and a t test over the held-out views, Bonferroni over both
 //! tests and the candidates) and accepts it when significant, at least `min_improvement` of the
 //! held-out RMS, and physically plausible; then the search repeats from the enlarged model.
 
-use ferrocal_vision::calib::{calibrate_camera, CalibrationOptions, PlanarTarget, View};
-use ferrocal_vision::camera::{CameraModel, Distortion, DistortionKind};
-use nalgebra::{DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use ferrocal_vision::calib::{
+    adjust_bundle, calibrate_camera, BundleMode, BundleModel, BundleSpec, CalibrationOptions, PlanarTarget, PrintScale,
+    TargetShape, View,
+};
+use ferrocal_vision::camera::DistortionKind;
+use nalgebra::{DVector, Isometry3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::engine::{
@@ -28,7 +39,6 @@ use super::engine::{
 use super::report::{best_verdict, Decision, Finding, Unit};
 use super::stats::{bonferroni, paired_test};
 use crate::error::{CalibError, Result};
-use crate::lsq::{solve, LmOptions, Problem};
 
 /// Options of [`diagnose_camera`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -43,18 +53,32 @@ pub struct CameraDiagnoseOptions {
     pub max_sag_m: f64,
     /// Largest plausible size of a rational coefficient.
     pub max_rational: f64,
+    /// Largest plausible relative difference of the printed x and y spacings (0.02: 2 %).
+    #[serde(default = "default_max_print_scale")]
+    pub max_print_scale: f64,
+}
+
+fn default_max_print_scale() -> f64 {
+    0.02
 }
 
 impl Default for CameraDiagnoseOptions {
     fn default() -> Self {
-        Self { folds: 5, alpha: 0.01, min_improvement: 0.02, max_sag_m: 0.01, max_rational: 50.0 }
+        Self {
+            folds: 5,
+            alpha: 0.01,
+            min_improvement: 0.02,
+            max_sag_m: 0.01,
+            max_rational: 50.0,
+            max_print_scale: default_max_print_scale(),
+        }
     }
 }
 
 /// One accepted effect.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CameraFinding {
-    /// `lens_distortion` or `target_nonflatness`.
+    /// `lens_distortion`, `target_nonflatness` or `target_print_scale`.
     pub effect: String,
     /// Always empty for a camera (no joints).
     pub joints: Vec<usize>,
@@ -141,12 +165,16 @@ pub struct CameraDiagnoseReport {
     pub n_views: usize,
 }
 
-/// A model variant: lens model and whether the target may bend.
+/// A model variant: lens model, whether the target may bend, whether its print may be scaled.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Variant {
     lens: Lens,
     bent: bool,
+    scaled: bool,
 }
+
+/// The default model: 5-coefficient Brown, a flat and nominally printed target.
+const NOMINAL: Variant = Variant { lens: Lens::Brown5, bent: false, scaled: false };
 
 /// Lens model of a variant.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -156,211 +184,93 @@ enum Lens {
     KannalaBrandt,
 }
 
+impl Lens {
+    fn kind(self) -> DistortionKind {
+        match self {
+            Lens::Brown5 => DistortionKind::Brown5,
+            Lens::Rational8 => DistortionKind::Rational8,
+            Lens::KannalaBrandt => DistortionKind::KannalaBrandt,
+        }
+    }
+}
+
 /// A fitted variant.
 #[derive(Clone, Debug)]
 struct Fit {
-    camera: CameraModel,
-    bend: [f64; 3],
+    model: BundleModel,
     poses: Vec<Isometry3<f64>>,
     rms_px: f64,
+    /// Standard deviations of the free parameters by name, when the fit computed them.
+    std: std::collections::BTreeMap<String, f64>,
 }
 
-fn bent_points(points: &[Point3<f64>], bend: &[f64; 3], half: f64) -> Vec<Point3<f64>> {
-    points
-        .iter()
-        .map(|p| {
-            let (u, v) = (p.x / half, p.y / half);
-            Point3::new(p.x, p.y, p.z + bend[0] * (u * u + v * v) + bend[1] * (u * u - v * v) + bend[2] * u * v)
-        })
-        .collect()
-}
-
-/// Target centred on its centroid (so the bending terms do not trade with the pose).
-fn centred(target: &PlanarTarget) -> (Vec<Point3<f64>>, f64) {
+/// Target centred on its centroid (so the bending and scale terms do not trade with the pose).
+fn centred(target: &PlanarTarget) -> PlanarTarget {
     let n = target.points_m.len() as f64;
     let c = target.points_m.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
-    let pts: Vec<Point3<f64>> = target.points_m.iter().map(|p| Point3::from(p.coords - c)).collect();
-    let half = pts.iter().map(|p| p.x.abs().max(p.y.abs())).fold(1e-9, f64::max);
-    (pts, half)
-}
-
-struct BundleProblem<'a> {
-    views: &'a [&'a View],
-    points: &'a [Point3<f64>],
-    half: f64,
-    base_camera: CameraModel,
-    n_cam: usize,
-    bent: bool,
-    poses0: Vec<Isometry3<f64>>,
-    /// Fixed camera and bend (pose-only problem) when set.
-    fixed: Option<(CameraModel, [f64; 3])>,
-}
-
-impl BundleProblem<'_> {
-    fn n_shape(&self) -> usize {
-        if self.fixed.is_some() {
-            0
-        } else {
-            self.n_cam + if self.bent { 3 } else { 0 }
-        }
-    }
-
-    fn unpack(&self, x: &[f64]) -> Result<(CameraModel, [f64; 3], Vec<Isometry3<f64>>)> {
-        let (camera, bend) = match &self.fixed {
-            Some((c, b)) => (*c, *b),
-            None => {
-                let mut c = self.base_camera;
-                c.set_parameter_values(&x[..self.n_cam]).map_err(|e| CalibError::Numeric(e.to_string()))?;
-                let b = if self.bent { [x[self.n_cam], x[self.n_cam + 1], x[self.n_cam + 2]] } else { [0.0; 3] };
-                (c, b)
-            }
-        };
-        let s = self.n_shape();
-        let poses = self
-            .poses0
-            .iter()
-            .enumerate()
-            .map(|(k, p0)| {
-                let d = &x[s + 6 * k..s + 6 * k + 6];
-                Isometry3::from_parts(
-                    Translation3::new(d[3], d[4], d[5]),
-                    UnitQuaternion::from_scaled_axis(Vector3::new(d[0], d[1], d[2])),
-                ) * p0
-            })
-            .collect();
-        Ok((camera, bend, poses))
+    PlanarTarget {
+        points_m: target.points_m.iter().map(|p| Point3::from(p.coords - c)).collect(),
+        reversible: target.reversible,
     }
 }
 
-impl Problem for BundleProblem<'_> {
-    fn n_params(&self) -> usize {
-        self.n_shape() + 6 * self.views.len()
-    }
-    fn n_residuals(&self) -> usize {
-        self.views.iter().map(|v| 2 * v.corners_px.len()).sum()
-    }
-    fn block_size(&self) -> usize {
-        2
-    }
-    fn residuals(&self, x: &[f64]) -> Result<DVector<f64>> {
-        let (camera, bend, poses) = self.unpack(x)?;
-        let pts = bent_points(self.points, &bend, self.half);
-        let mut r = DVector::zeros(self.n_residuals());
-        let mut k = 0;
-        for (v, pose) in self.views.iter().zip(&poses) {
-            for (id, obs) in v.point_ids.iter().zip(&v.corners_px) {
-                let p = camera.project(&(pose * pts[*id])).map_err(|e| CalibError::Numeric(e.to_string()))?;
-                r[k] = p.x - obs.x;
-                r[k + 1] = p.y - obs.y;
-                k += 2;
-            }
-        }
-        Ok(r)
-    }
-    fn scales(&self) -> Vec<f64> {
-        let mut s = Vec::with_capacity(self.n_params());
-        if self.fixed.is_none() {
-            for p in self.base_camera.parameters() {
-                s.push(match p.name {
-                    "fx_px" | "fy_px" | "cx_px" | "cy_px" => 1.0,
-                    _ => 1e-3,
-                });
-            }
-            if self.bent {
-                s.extend([1e-4; 3]);
-            }
-        }
-        for _ in self.views {
-            s.extend([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3]);
-        }
-        s
-    }
+fn vision_error(what: &str) -> impl Fn(ferrocal_vision::VisionError) -> CalibError + '_ {
+    move |e| CalibError::Data(format!("{what}: {e}"))
 }
 
-fn lm() -> LmOptions {
-    LmOptions { max_iterations: 100, ..LmOptions::default() }
-}
-
-/// Fits a variant on `views`, starting from a default-model calibration.
-fn fit_variant(views: &[&View], target: &PlanarTarget, variant: Variant, start: Option<&Fit>) -> Result<Fit> {
-    let (points, half) = centred(target);
-    let (camera0, poses0) = match start {
-        Some(f) => (f.camera, f.poses.clone()),
+/// Fits a variant on `views` of the centred target with vision's bundle adjustment, starting
+/// from `start` or, without one, from a default-model calibration. With `covariance` the fit
+/// carries the standard deviations of its parameters.
+fn fit_variant(
+    views: &[View],
+    target: &PlanarTarget,
+    variant: Variant,
+    start: Option<&Fit>,
+    covariance: bool,
+) -> Result<Fit> {
+    let (mut model, poses) = match start {
+        Some(f) => (f.model, f.poses.clone()),
         None => {
-            let owned: Vec<View> = views.iter().map(|v| (*v).clone()).collect();
-            let centred_target = PlanarTarget { points_m: points.clone(), reversible: target.reversible };
-            let cal = calibrate_camera(&owned, &centred_target, &CalibrationOptions::default())
-                .map_err(|e| CalibError::Data(format!("camera calibration: {e}")))?;
-            (cal.camera, cal.views.iter().map(|v| v.t_cam_target).collect())
+            let cal = calibrate_camera(views, target, &CalibrationOptions::default())
+                .map_err(vision_error("camera calibration"))?;
+            (BundleModel::new(cal.camera), cal.views.iter().map(|v| v.t_cam_target).collect())
         }
     };
-    let mut camera = camera0;
-    let to_numeric = |e: ferrocal_vision::VisionError| CalibError::Numeric(e.to_string());
-    match (variant.lens, camera.distortion.kind()) {
-        (Lens::Rational8, DistortionKind::Brown5) => {
-            let c = camera.distortion.coefficients();
-            camera.distortion = Distortion::from_coefficients(
-                DistortionKind::Rational8,
-                &[c[0], c[1], c[2], c[3], c[4], 0.0, 0.0, 0.0],
-            )
-            .map_err(to_numeric)?;
-        }
-        (Lens::KannalaBrandt, DistortionKind::Brown5) => {
-            camera.distortion =
-                Distortion::from_coefficients(DistortionKind::KannalaBrandt, &[0.0; 4]).map_err(to_numeric)?;
-        }
-        _ => {}
+    // A variant without a block starts (and stays) without it.
+    if !variant.bent {
+        model.shape = TargetShape::default();
     }
-    let n_cam = camera.n_parameters();
-    let problem = BundleProblem {
-        views,
-        points: &points,
-        half,
-        base_camera: camera,
-        n_cam,
-        bent: variant.bent,
-        poses0,
-        fixed: None,
+    if !variant.scaled {
+        model.print_scale = PrintScale::default();
+    }
+    let spec = BundleSpec {
+        lens: Some(variant.lens.kind()),
+        estimate_shape: variant.bent,
+        estimate_print_scale: variant.scaled,
+        mode: BundleMode::Full,
+        max_iterations: 100,
+        covariance,
+        ..BundleSpec::default()
     };
-    let mut x0 = camera.parameter_values();
-    if variant.bent {
-        x0.extend(start.map_or([0.0; 3], |f| f.bend));
-    }
-    x0.extend(std::iter::repeat_n(0.0, 6 * views.len()));
-    let res = solve(&problem, &x0, &lm())?;
-    let (camera, bend, poses) = problem.unpack(&res.x)?;
-    let rms_px = (res.residuals.norm_squared() / (res.residuals.len() / 2).max(1) as f64).sqrt();
-    Ok(Fit { camera, bend, poses, rms_px })
+    let fit = adjust_bundle(views, target, &model, Some(&poses), &spec).map_err(vision_error("bundle adjustment"))?;
+    Ok(Fit {
+        model: fit.model,
+        poses: fit.views.iter().map(|v| v.t_cam_target).collect(),
+        rms_px: fit.rms_px,
+        std: fit.parameter_names.iter().cloned().zip(fit.std.iter().copied()).collect(),
+    })
 }
 
 /// Reprojection residuals (projected - observed, x and y per corner) of a held-out view with its
-/// pose alone fitted; `None` when the model cannot place the view.
-fn heldout_residuals(view: &View, target: &PlanarTarget, fit: &Fit) -> Result<Option<DVector<f64>>> {
-    let (points, half) = centred(target);
-    let flat = PlanarTarget { points_m: points.clone(), reversible: false };
-    let pts_flat: Vec<Point3<f64>> = flat.points_m.clone();
-    // A model that cannot even place the held-out view predicts it infinitely badly.
-    let Ok(est) = ferrocal_vision::pose::estimate_pose(
-        &fit.camera,
-        &pts_flat,
-        &view.point_ids,
-        &view.corners_px,
-        &ferrocal_vision::pose::CornerNoise::Isotropic { sigma_px: 0.1 },
-    ) else {
-        return Ok(None);
-    };
-    let views = [view];
-    let problem = BundleProblem {
-        views: &views,
-        points: &points,
-        half,
-        base_camera: fit.camera,
-        n_cam: 0,
-        bent: false,
-        poses0: vec![est.t_cam_target],
-        fixed: Some((fit.camera, fit.bend)),
-    };
-    Ok(solve(&problem, &[0.0; 6], &lm()).ok().map(|res| res.residuals))
+/// pose alone fitted (camera, shape and print scale held); `None` when the model cannot place
+/// the view (no closed-form start, or the refit fails).
+fn heldout_residuals(view: &View, target: &PlanarTarget, fit: &Fit) -> Option<DVector<f64>> {
+    let spec = BundleSpec { mode: BundleMode::PosesOnly, max_iterations: 100, ..BundleSpec::default() };
+    let placed = adjust_bundle(std::slice::from_ref(view), target, &fit.model, None, &spec).ok()?;
+    Some(DVector::from_iterator(
+        2 * view.corners_px.len(),
+        placed.views[0].residuals_px.iter().flat_map(|r| [r.x, r.y]),
+    ))
 }
 
 /// One cross-validation of a variant over views (each view held out once).
@@ -380,15 +290,11 @@ fn cross_validate(views: &[View], target: &PlanarTarget, variant: Variant, folds
     let mut errors = vec![(0.0, 0); n];
     let mut residuals = vec![None; n];
     for f in 0..k {
-        let train: Vec<&View> = views.iter().enumerate().filter(|(i, _)| i % k != f).map(|(_, v)| v).collect();
-        let base = fit_variant(&train, target, Variant { lens: Lens::Brown5, bent: false }, None)?;
-        let fit = if variant == (Variant { lens: Lens::Brown5, bent: false }) {
-            base
-        } else {
-            fit_variant(&train, target, variant, Some(&base))?
-        };
+        let train: Vec<View> = views.iter().enumerate().filter(|(i, _)| i % k != f).map(|(_, v)| v.clone()).collect();
+        let base = fit_variant(&train, target, NOMINAL, None, false)?;
+        let fit = if variant == NOMINAL { base } else { fit_variant(&train, target, variant, Some(&base), false)? };
         for (i, v) in views.iter().enumerate().filter(|(i, _)| i % k == f) {
-            let r = heldout_residuals(v, target, &fit)?;
+            let r = heldout_residuals(v, target, &fit);
             errors[i] = (r.as_ref().map_or(f64::INFINITY, |r| r.norm_squared()), v.corners_px.len());
             residuals[i] = r;
         }
@@ -519,10 +425,28 @@ fn rms(sq: &[(f64, usize)]) -> f64 {
 /// A candidate: its label and the model variant it leads to.
 type CameraCandidate = (&'static str, Variant);
 
+/// Which effect a variant adds to the current one.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Added {
+    Lens,
+    Shape,
+    PrintScale,
+}
+
+fn added(current: Variant, variant: Variant) -> Added {
+    if variant.bent && !current.bent {
+        Added::Shape
+    } else if variant.scaled && !current.scaled {
+        Added::PrintScale
+    } else {
+        Added::Lens
+    }
+}
+
 /// The camera's model variants as a candidate family of the diagnose engine.
 struct CameraFamily<'a> {
     views: &'a [View],
-    all: Vec<&'a View>,
+    /// The centred target.
     target: &'a PlanarTarget,
     opts: &'a CameraDiagnoseOptions,
     current: Variant,
@@ -555,20 +479,20 @@ impl Family for CameraFamily<'_> {
         if !current.bent {
             cands.push(("target_nonflatness (bowl, saddle, twist)", Variant { bent: true, ..current }));
         }
+        if !current.scaled {
+            cands.push(("target_print_scale (x spacing against y)", Variant { scaled: true, ..current }));
+        }
         cands
     }
 
     fn describe(&self, (label, variant): &CameraCandidate) -> Describe {
-        let bends = variant.bent && !self.current.bent;
-        Describe {
-            label: label.to_string(),
-            effect: if bends { "target_nonflatness" } else { "lens_distortion" }.into(),
-            joints: Vec::new(),
-            n_params: match (bends, variant.lens) {
-                (false, Lens::KannalaBrandt) => 4,
-                _ => 3,
-            },
-        }
+        let (effect, n_params) = match (added(self.current, *variant), variant.lens) {
+            (Added::Shape, _) => ("target_nonflatness", 3),
+            (Added::PrintScale, _) => ("target_print_scale", 1),
+            (Added::Lens, Lens::KannalaBrandt) => ("lens_distortion", 4),
+            (Added::Lens, _) => ("lens_distortion", 3),
+        };
+        Describe { label: label.to_string(), effect: effect.into(), joints: Vec::new(), n_params }
     }
 
     fn screen(&mut self, (_, variant): &CameraCandidate) -> Result<Screened<CrossValidation>> {
@@ -602,27 +526,38 @@ impl Family for CameraFamily<'_> {
         (_, variant): &CameraCandidate,
         _cv: &CrossValidation,
     ) -> Result<Option<AllFit<Variant, Fit>>> {
-        let fit = fit_variant(&self.all, self.target, *variant, Some(&self.current_fit))?;
+        let fit = fit_variant(self.views, self.target, *variant, Some(&self.current_fit), true)?;
         let mut parameters = std::collections::BTreeMap::new();
-        if variant.bent && !self.current.bent {
-            for (k, name) in ["bowl_sag_m", "saddle_sag_m", "twist_sag_m"].iter().enumerate() {
-                parameters.insert(name.to_string(), fit.bend[k]);
+        match added(self.current, *variant) {
+            Added::Shape => {
+                let s = fit.model.shape;
+                for (name, v) in
+                    ["bowl_sag_m", "saddle_sag_m", "twist_sag_m"].iter().zip([s.bowl_m, s.saddle_m, s.twist_m])
+                {
+                    parameters.insert(name.to_string(), v);
+                }
             }
-        } else {
-            let c = fit.camera.distortion.coefficients();
-            let names = fit.camera.distortion.kind().coefficient_names();
-            for (name, v) in names.iter().zip(&c) {
-                parameters.insert(name.to_string(), *v);
+            Added::PrintScale => {
+                parameters.insert("scale_x_minus_y".to_string(), fit.model.print_scale.x);
+            }
+            Added::Lens => {
+                let d = fit.model.camera.distortion;
+                for (name, v) in d.kind().coefficient_names().iter().zip(&d.coefficients()) {
+                    parameters.insert(name.to_string(), *v);
+                }
             }
         }
         Ok(Some(AllFit { effect: *variant, parameters, overlap_sine: None, data: fit }))
     }
 
     fn plausible(&self, fit: &AllFit<Variant, Fit>) -> std::result::Result<(), String> {
-        let ok = if fit.effect.bent && !self.current.bent {
-            fit.data.bend.iter().all(|b| b.abs() <= self.opts.max_sag_m)
-        } else {
-            fit.data.camera.distortion.coefficients().iter().all(|c| c.abs() <= self.opts.max_rational)
+        let m = &fit.data.model;
+        let ok = match added(self.current, fit.effect) {
+            Added::Shape => {
+                [m.shape.bowl_m, m.shape.saddle_m, m.shape.twist_m].iter().all(|b| b.abs() <= self.opts.max_sag_m)
+            }
+            Added::PrintScale => m.print_scale.x.abs() <= self.opts.max_print_scale,
+            Added::Lens => m.camera.distortion.coefficients().iter().all(|c| c.abs() <= self.opts.max_rational),
         };
         if ok {
             Ok(())
@@ -640,30 +575,63 @@ impl Family for CameraFamily<'_> {
         let (variant, parameters, fit) = (fit.effect, fit.parameters, fit.data);
         let (before, after, p, m) =
             (decision.heldout_before, decision.heldout_after, decision.p_corrected, decision.candidates_tried);
-        let statement;
-        let effect;
-        if variant.bent && !self.current.bent {
-            effect = "target_nonflatness";
-            statement = format!(
-                "the target is not flat: its edge stands {:.2} mm out of plane as a bowl, {:.2} mm as a saddle and {:.2} mm as a twist; modelling it lowers the held-out reprojection RMS from {:.3} to {:.3} px (p = {:.1e} after correcting for {m} candidates)",
-                fit.bend[0] * 1e3, fit.bend[1] * 1e3, fit.bend[2] * 1e3, before, after, p
-            );
-        } else {
-            effect = "lens_distortion";
-            let c = fit.camera.distortion.coefficients();
-            let model = match variant.lens {
-                Lens::KannalaBrandt => "the Kannala-Brandt (fisheye) model".to_string(),
-                _ => format!("the rational radial terms (k4 = {:.3}, k5 = {:.3}, k6 = {:.3})", c[5], c[6], c[7]),
-            };
-            statement = format!(
-                "the 5-coefficient lens model leaves systematic image residuals: {model}: the held-out reprojection RMS drops from {before:.3} to {after:.3} px (p = {p:.1e} after correcting for {m} candidates)"
-            );
-        }
+        let kind = added(self.current, variant);
+        let mut main_std = None;
+        let (effect, statement) = match kind {
+            Added::Shape => {
+                let s = fit.model.shape;
+                ("target_nonflatness", format!(
+                    "the target is not flat: its edge stands {:.2} mm out of plane as a bowl, {:.2} mm as a saddle and {:.2} mm as a twist; modelling it lowers the held-out reprojection RMS from {:.3} to {:.3} px (p = {:.1e} after correcting for {m} candidates)",
+                    s.bowl_m * 1e3, s.saddle_m * 1e3, s.twist_m * 1e3, before, after, p
+                ))
+            }
+            Added::PrintScale => {
+                let e = fit.model.print_scale.x;
+                let std = fit.std.get("print_scale_x").copied().unwrap_or(f64::NAN);
+                main_std = Some(std);
+                ("target_print_scale", print_scale_statement(e, std, board_width_m(self.target), (before, after, p, m)))
+            }
+            Added::Lens => {
+                let c = fit.model.camera.distortion.coefficients();
+                let model = match variant.lens {
+                    Lens::KannalaBrandt => "the Kannala-Brandt (fisheye) model".to_string(),
+                    _ => format!("the rational radial terms (k4 = {:.3}, k5 = {:.3}, k6 = {:.3})", c[5], c[6], c[7]),
+                };
+                ("lens_distortion", format!(
+                    "the 5-coefficient lens model leaves systematic image residuals: {model}: the held-out reprojection RMS drops from {before:.3} to {after:.3} px (p = {p:.1e} after correcting for {m} candidates)"
+                ))
+            }
+        };
         self.current = variant;
         self.current_cv = CrossValidation { errors: cv.errors.clone(), residuals: cv.residuals.clone() };
         self.current_fit = fit;
-        Ok(Finding::without_evidence(variant, effect, parameters, (before, after), statement, decision.clone()))
+        let mut finding =
+            Finding::without_evidence(variant, effect, parameters, (before, after), statement, decision.clone());
+        finding.std_from_covariance = main_std;
+        Ok(finding)
     }
+}
+
+/// Extent of the target's points along its x axis, metres.
+fn board_width_m(target: &PlanarTarget) -> f64 {
+    let (lo, hi) =
+        target.points_m.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.x), b.max(p.x)));
+    hi - lo
+}
+
+/// The print-scale finding in words: which axis, how large (ppm, and millimetres over the
+/// board's width), how sure.
+fn print_scale_statement(e: f64, std: f64, width_m: f64, (before, after, p, m): (f64, f64, f64, usize)) -> String {
+    let (ppm, std_ppm) = (e * 1e6, std * 1e6);
+    let sense = if e >= 0.0 { "longer" } else { "shorter" };
+    format!(
+        "the printed pattern is not to scale: its spacing along the target's x axis is {:.0} ppm ({:.3} %) {sense} than along its y axis (+- {:.0} ppm, 1 sigma), {:.2} mm over the board's {:.0} mm; modelling it lowers the held-out reprojection RMS from {before:.3} to {after:.3} px (p = {p:.1e} after correcting for {m} candidates); the overall scale is not visible in images alone",
+        ppm.abs(),
+        (e * 100.0).abs(),
+        std_ppm,
+        (e * width_m * 1e3).abs(),
+        width_m * 1e3
+    )
 }
 
 /// Runs the analysis on detected views of a planar target.
@@ -687,9 +655,9 @@ pub fn diagnose_camera(
             n_views: n,
         });
     }
-    let all: Vec<&View> = views.iter().collect();
-    let current = Variant { lens: Lens::Brown5, bent: false };
-    let nominal_fit = fit_variant(&all, target, current, None)?;
+    let target = &centred(target);
+    let current = NOMINAL;
+    let nominal_fit = fit_variant(views, target, current, None, false)?;
     let current_cv = cross_validate(views, target, current, opts.folds)?;
     let nominal = CameraFit {
         n_train: n - n.div_ceil(opts.folds.clamp(2, n)),
@@ -697,7 +665,7 @@ pub fn diagnose_camera(
         train_rms_px: nominal_fit.rms_px,
         heldout_rms_px: rms(&current_cv.errors),
     };
-    let mut family = CameraFamily { views, all, target, opts, current, current_cv, current_fit: nominal_fit };
+    let mut family = CameraFamily { views, target, opts, current, current_cv, current_fit: nominal_fit };
     let policy = Policy {
         alpha: opts.alpha,
         min_improvement: opts.min_improvement,

@@ -43,7 +43,7 @@ use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
 use problem::{whitening_matrices, KinProblem};
 pub use refit::{refit_frame, FrameRefit};
-pub use split::{split_rows, split_rows_by_plane, SplitPlane};
+pub use split::{split_rows, split_rows_by_plane, split_rows_in_blocks, SplitPlane};
 
 /// Which of the model's own parameters are free.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

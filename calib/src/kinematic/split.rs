@@ -25,6 +25,25 @@ pub fn split_rows(
     }
 }
 
+/// A split that is not interleaved: blocks of `block` consecutive rows, every `every`-th block
+/// (the last of each group of `every`) held out. Consecutive poses of a recording lie close
+/// together in time and space; holding out whole blocks measures how a model does away from its
+/// training poses, which every second pose of a grid does not. `None` when `block` or `every` is
+/// zero or `every` is 1.
+pub fn split_rows_in_blocks(
+    rows: &[PoseMeasurement],
+    block: usize,
+    every: usize,
+) -> Option<(Vec<&PoseMeasurement>, Vec<&PoseMeasurement>)> {
+    if block == 0 || every < 2 {
+        return None;
+    }
+    let held = |k: usize| (k / block) % every == every - 1;
+    let train = rows.iter().enumerate().filter(|(k, _)| !held(*k)).map(|(_, r)| r).collect();
+    let test = rows.iter().enumerate().filter(|(k, _)| held(*k)).map(|(_, r)| r).collect();
+    Some((train, test))
+}
+
 /// The plane of a spatially separated split: rows with `normal . (p - point_m) > 0` are held out.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SplitPlane {

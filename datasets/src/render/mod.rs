@@ -3,7 +3,8 @@
 //!
 //! Entry points:
 //! - [`TargetConfig`] (plate, chessboard, AprilTag board) and its [`TargetGeometry`];
-//! - [`Renderer`]: [`Renderer::render`] (8-bit image and [`GroundTruth`]),
+//! - [`Renderer`] (of a [`TargetConfig`], or of any [`TargetGeometry`], e.g. one printed to a
+//!   wrong scale by [`TargetGeometry::printed`]): [`Renderer::render`] (8-bit image and [`GroundTruth`]),
 //!   [`Renderer::render_expected`] (noise-free expected charge per pixel),
 //!   [`Renderer::ground_truth`];
 //! - configuration: [`RenderConfig`] = [`SceneConfig`] + [`OpticsConfig`] + [`SensorConfig`],
@@ -229,6 +230,12 @@ pub struct Renderer {
 impl Renderer {
     /// Validates the inputs and prepares the lens clipping region.
     pub fn new(camera: CameraModel, target: &TargetConfig, config: RenderConfig) -> Result<Self> {
+        Self::with_geometry(camera, target.build()?, config)
+    }
+
+    /// A renderer of a target geometry built elsewhere, e.g. a pattern printed to a wrong scale
+    /// ([`TargetGeometry::printed`]).
+    pub fn with_geometry(camera: CameraModel, target: TargetGeometry, config: RenderConfig) -> Result<Self> {
         camera.validate()?;
         config.validate()?;
         let pixels = u64::from(camera.image_size.width_px) * u64::from(camera.image_size.height_px);
@@ -239,7 +246,6 @@ impl Renderer {
                 "the renderer handles at most 256 megapixels",
             ));
         }
-        let target = target.build()?;
         let raster = raster::LensRaster::new(&camera, config.edge_tolerance_px)?;
         Ok(Self { camera, target, config, raster })
     }

@@ -87,6 +87,40 @@ pub struct TargetGeometry {
     pub corners: Vec<TargetCorner>,
 }
 
+impl TargetGeometry {
+    /// The geometry as printed by a printer whose scale is off by `scale_x` and `scale_y`
+    /// (relative, e.g. `0.005` for 0.5 %) along the target's x and y axes: every outline vertex,
+    /// black polygon and corner moves from `(x, y)` to `((1 + scale_x) x, (1 + scale_y) y)`
+    /// about the pattern's centre (the target frame's origin). The corners of the result are
+    /// where the printed pattern really has them (the renderer's ground truth); the nominal
+    /// geometry is what a calibration assumes.
+    pub fn printed(&self, scale_x: f64, scale_y: f64) -> Result<TargetGeometry> {
+        for (field, v) in [("print_scale_x", scale_x), ("print_scale_y", scale_y)] {
+            if !(v.is_finite() && v.abs() < 0.5) {
+                return Err(DatasetError::RenderConfig {
+                    field: format!("target.{field}"),
+                    value: v.to_string(),
+                    reason: "must be finite and within +-0.5 (a relative scale error)".into(),
+                });
+            }
+        }
+        let (fx, fy) = (1.0 + scale_x, 1.0 + scale_y);
+        let map = |p: &Point2<f64>| Point2::new(fx * p.x, fy * p.y);
+        Ok(TargetGeometry {
+            outline_m: self.outline_m.iter().map(map).collect(),
+            dark_m: self.dark_m.iter().map(|poly| poly.iter().map(map).collect()).collect(),
+            corners: self
+                .corners
+                .iter()
+                .map(|c| TargetCorner {
+                    p_target_m: Point3::new(fx * c.p_target_m.x, fy * c.p_target_m.y, c.p_target_m.z),
+                    ..*c
+                })
+                .collect(),
+        })
+    }
+}
+
 fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<Point2<f64>> {
     vec![Point2::new(x0, y0), Point2::new(x1, y0), Point2::new(x1, y1), Point2::new(x0, y1)]
 }
@@ -353,6 +387,22 @@ mod tests {
         assert!(too_high.build().is_err());
         assert!(TargetConfig::Plate { square_m: -1.0, margin_m: 0.0 }.build().is_err());
         assert!(TargetConfig::Plate { square_m: f64::NAN, margin_m: 0.0 }.build().is_err());
+    }
+
+    #[test]
+    fn a_printed_geometry_is_scaled_per_axis_about_the_centre() {
+        let nominal =
+            TargetConfig::Chessboard { inner_cols: 9, inner_rows: 6, square_m: 0.025, margin_m: 0.01 }.build().unwrap();
+        let printed = nominal.printed(0.005, -0.001).unwrap();
+        // Corner spacing along x and y.
+        let dx = printed.corners[1].p_target_m.x - printed.corners[0].p_target_m.x;
+        let dy = printed.corners[0].p_target_m.y - printed.corners[9].p_target_m.y;
+        assert!((dx - 0.025 * 1.005).abs() < 1e-15 && (dy - 0.025 * 0.999).abs() < 1e-15);
+        // Areas scale by the product; orientation and order are kept.
+        let ratio = area(&printed.dark_m[3]) / area(&nominal.dark_m[3]);
+        assert!((ratio - 1.005 * 0.999).abs() < 1e-12);
+        assert_eq!(printed.corners.len(), nominal.corners.len());
+        assert!(nominal.printed(f64::NAN, 0.0).is_err() && nominal.printed(0.0, 0.7).is_err());
     }
 
     #[test]

@@ -1,8 +1,10 @@
 //! Serial chains: DH, modified DH and URDF joints behind one type.
 
 mod urdf;
+mod urdf_write;
 
 pub use urdf::{parse_urdf, parse_urdf_str, UrdfOptions};
+pub use urdf_write::{to_urdf, UrdfFrames};
 
 use nalgebra::{DMatrix, Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};

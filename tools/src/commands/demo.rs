@@ -52,6 +52,7 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     s.extend(sections_real_camera(args)?);
     s.push(section_plan(args)?);
     s.extend(sections_diagnose(args)?);
+    s.push(ferrocal_report::compensate::demo_section(&ur5_csv, demo::UR5_ATTRIBUTION, &tick)?);
     s.push(ferrocal_report::dynamics::demo_section(args.seed, args.quick)?);
     s.push(demo::force_diagnose(args.seed)?);
     s.push(ferrocal_report::stiffness::demo_section(args.seed, args.quick)?);

@@ -8,15 +8,22 @@
 //! 1. one block per camera: its *free* parameters, `fx fy cx cy k...` in
 //!    [`crate::camera::CameraModel::parameters`] order, or `f cx cy k...` with a fixed aspect ratio
 //!    (`fx = f`, `fy = a f`);
-//! 2. one block per camera 1.. : `[w, t]` of `T_cam_cam0` (left increment, radians; metres);
-//! 3. one block per view: `[w, t]` of `T_cam0_target`.
+//! 2. one block per camera 1.. : `[t, w]` of `T_cam_cam0` (metres; left increment, radians);
+//! 3. when the target's shape is estimated, one block `[b, s, t]` (metres), and when its print
+//!    scale is, one block `[e_x]` ([`super::deform`]);
+//! 4. one block per view: `[t, w]` of `T_cam0_target`.
 //!
-//! [`Bundle::global_index`] gives the offset of a camera's or an extrinsic's block in the
-//! global covariance. Measurements: one residual block per corner and camera, `projected -
+//! Pose blocks follow the project's 6-vector order (translation, then rotation;
+//! docs/conventions.md).
+//!
+//! With [`Bundle::fixed_globals`] blocks 1 to 3 are held constant (only the views' poses move).
+//! `Bundle::global_index_*` give the offset of a camera's, an extrinsic's or the target's block
+//! in the global covariance. Measurements: one residual block per corner and camera, `projected -
 //! observed` in pixels (two rows), with the robust loss applied to its squared length.
 
-use nalgebra::{DMatrix, Matrix2xX, Matrix6, Point2, Point3, Rotation3, Vector2};
+use nalgebra::{DMatrix, Matrix2x3, Matrix2xX, Matrix6, Point2, Point3, Rotation3, Vector2};
 
+use super::deform::TargetDeformation;
 use super::RobustLoss;
 use crate::camera::{CameraModel, Distortion, DistortionKind, ImageSize, Intrinsics};
 use crate::error::{Result, VisionError};
@@ -101,15 +108,20 @@ impl CameraLayout {
 }
 
 /// The bundle's residual block: one corner seen by one camera, `projected - observed` in pixels,
-/// over the blocks `[camera free parameters, [w, t] of T_cam_cam0 (cameras 1..), [w, t] of
+/// over the blocks `[camera free parameters, [t, w] of T_cam_cam0 (cameras 1..), [b, s, t] of
+/// the target's shape (when free), [e_x] of its print scale (when free), [t, w] of
 /// T_cam0_target]`, the pose blocks being charts around their reference rotations. Its Jacobians
-/// are those of [`observe`], checked by the least-squares layer's gradient checker in the tests.
+/// are those of [`observe`] and, for the target's blocks, `d r / d p0 R_view d point / d block`;
+/// all are checked by the least-squares layer's gradient checker in the tests.
 pub(crate) struct CornerResidual {
     pub layout: CameraLayout,
     pub ext_ref: Option<Rotation3<f64>>,
     pub view_ref: Rotation3<f64>,
+    /// The nominal target point.
     pub point: Point3<f64>,
     pub pixel: Point2<f64>,
+    /// The target's deformation: held values, and which of its blocks are free.
+    pub deform: Option<TargetDeformation>,
 }
 
 impl ferrocal_lsq::Residual for CornerResidual {
@@ -127,29 +139,52 @@ impl ferrocal_lsq::Residual for CornerResidual {
             LocalPose { r_ref, w: Default::default(), t: Default::default() }.with_block(b)
         };
         let camera = self.layout.model(p[0]).map_err(ferrocal_lsq::LsqError::model)?;
+        let mut next = 1;
         let ext = self.ext_ref.map(|r| chart(r, p[1]));
-        let view = chart(self.view_ref, p[if ext.is_some() { 2 } else { 1 }]);
-        let ob =
-            observe(&camera, ext.as_ref(), &view, &self.point, &self.pixel).map_err(ferrocal_lsq::LsqError::model)?;
+        let ext_slot = ext.is_some().then(|| {
+            next += 1;
+            next - 1
+        });
+        let shape_slot = self.deform.filter(|d| d.shape_free).map(|_| {
+            next += 1;
+            next - 1
+        });
+        let scale_slot = self.deform.filter(|d| d.scale_free).map(|_| {
+            next += 1;
+            next - 1
+        });
+        let view = chart(self.view_ref, p[next]);
+        let deformed = self.deform.map(|d| {
+            let shape = shape_slot.map_or(&d.shape_m[..], |s| p[s]);
+            d.apply(&self.point, shape, scale_slot.map_or(d.scale[0], |s| p[s][0]))
+        });
+        let point = deformed.map_or(self.point, |d| d.point);
+        let ob = observe(&camera, ext.as_ref(), &view, &point, &self.pixel).map_err(ferrocal_lsq::LsqError::model)?;
         if !(ob.residual.x.is_finite() && ob.residual.y.is_finite()) {
             return Err(ferrocal_lsq::LsqError::Numeric("a corner projected to a non-finite pixel".into()));
         }
         out[0] = ob.residual.x;
         out[1] = ob.residual.y;
         if let Some(jac) = jacobians {
-            let mut slot = 0;
-            if let Some(d) = &mut jac[slot] {
+            if let Some(d) = &mut jac[0] {
                 let jf = self.layout.free_jacobian(&ob.d_model);
                 d.copy_from(&DMatrix::from_fn(2, jf.ncols(), |r, c| jf[(r, c)]));
             }
-            slot += 1;
-            if ext.is_some() {
-                if let Some(d) = &mut jac[slot] {
-                    d.copy_from(&DMatrix::from_fn(2, 6, |r, c| ob.d_ext[(r, c)]));
-                }
-                slot += 1;
+            if let Some(d) = ext_slot.and_then(|s| jac[s].as_mut()) {
+                d.copy_from(&DMatrix::from_fn(2, 6, |r, c| ob.d_ext[(r, c)]));
             }
-            if let Some(d) = &mut jac[slot] {
+            if let Some(def) = deformed {
+                let d_target = d_residual_d_target_point(&ob.d_view, &view);
+                if let Some(d) = shape_slot.and_then(|s| jac[s].as_mut()) {
+                    let m = d_target * def.d_shape;
+                    d.copy_from(&DMatrix::from_fn(2, 3, |r, c| m[(r, c)]));
+                }
+                if let Some(d) = scale_slot.and_then(|s| jac[s].as_mut()) {
+                    let m = d_target * def.d_scale_x;
+                    d.copy_from(&DMatrix::from_fn(2, 1, |r, _| m[r]));
+                }
+            }
+            if let Some(d) = &mut jac[next] {
                 d.copy_from(&DMatrix::from_fn(2, 6, |r, c| ob.d_view[(r, c)]));
             }
         }
@@ -159,6 +194,13 @@ impl ferrocal_lsq::Residual for CornerResidual {
     fn row_names(&self) -> Vec<String> {
         vec!["x_px".into(), "y_px".into()]
     }
+}
+
+/// `d residual / d (point in the target frame)`: the view block's translation columns (the
+/// first three) are `d residual / d p0` (`p0 = R_view x + t_view`), so this is those columns
+/// times `R_view`.
+fn d_residual_d_target_point(d_view: &nalgebra::Matrix2x6<f64>, view: &LocalPose) -> Matrix2x3<f64> {
+    d_view.fixed_view::<2, 3>(0, 0) * view.rotation().matrix()
 }
 
 /// One corner seen by one camera in one view.
@@ -184,6 +226,10 @@ pub(crate) struct Bundle {
     pub views: Vec<LocalPose>,
     pub obs: Vec<Obs>,
     pub loss: RobustLoss,
+    /// The target's deformation (one camera's bundles; `None`: the nominal target).
+    pub deform: Option<TargetDeformation>,
+    /// Hold the cameras, extrinsics and target blocks constant: only the views' poses move.
+    pub fixed_globals: bool,
 }
 
 /// The marginal covariance of the global parameters.
@@ -218,7 +264,17 @@ fn solver_failed(detail: impl Into<String>) -> VisionError {
 
 impl Bundle {
     pub fn n_global(&self) -> usize {
+        self.global_index_deform() + self.deform.map_or(0, |d| d.n_free())
+    }
+
+    /// Offset of the target's free blocks (shape, then print scale) in the global vector.
+    pub fn global_index_deform(&self) -> usize {
         self.layouts.iter().map(CameraLayout::n_free).sum::<usize>() + 6 * self.extrinsics.len()
+    }
+
+    /// The target point an observation sees (deformed when the bundle has a deformation).
+    fn target_point(&self, o: &Obs) -> Point3<f64> {
+        self.deform.map_or(o.point, |d| d.point(&o.point))
     }
 
     /// Offset of camera `k`'s free parameters in the global vector.
@@ -253,7 +309,7 @@ impl Bundle {
     }
 
     /// One solve through the least-squares layer's Ceres back end: the camera blocks and the
-    /// `[w, t]` charts of the extrinsics and views around their reference rotations are
+    /// `[t, w]` charts of the extrinsics and views around their reference rotations are
     /// Euclidean blocks, one [`CornerResidual`] per observation.
     fn solve_once(&mut self, max_iterations: usize) -> Result<(String, usize, f64)> {
         let nc = self.cameras.len();
@@ -273,6 +329,25 @@ impl Bundle {
         for (k, v) in self.views.iter().enumerate() {
             ids.push(problem.add_euclidean(&format!("t_cam0_view{k}"), v.block().to_vec()).map_err(lsq_failed)?);
         }
+        if self.fixed_globals {
+            for id in &ids[..nc + ne] {
+                problem.set_constant(*id, true).map_err(lsq_failed)?;
+            }
+        }
+        // The target's free blocks (never free with fixed globals: see `Bundle::fixed_globals`).
+        let deform = self.deform.map(|mut d| {
+            d.shape_free &= !self.fixed_globals;
+            d.scale_free &= !self.fixed_globals;
+            d
+        });
+        let shape_id = match deform.filter(|d| d.shape_free) {
+            Some(d) => Some(problem.add_euclidean("target_shape", d.shape_m.to_vec()).map_err(lsq_failed)?),
+            None => None,
+        };
+        let scale_id = match deform.filter(|d| d.scale_free) {
+            Some(d) => Some(problem.add_euclidean("target_print_scale", vec![d.scale[0]]).map_err(lsq_failed)?),
+            None => None,
+        };
         let loss = match self.loss {
             RobustLoss::None => ferrocal_lsq::Loss::Squared,
             RobustLoss::Huber { scale_px } => ferrocal_lsq::Loss::Huber { delta: scale_px },
@@ -283,6 +358,8 @@ impl Bundle {
             if o.cam > 0 {
                 blocks.push(ids[nc + o.cam - 1]);
             }
+            blocks.extend(shape_id);
+            blocks.extend(scale_id);
             blocks.push(ids[nc + ne + o.view]);
             let residual = CornerResidual {
                 layout: self.layouts[o.cam],
@@ -290,6 +367,7 @@ impl Bundle {
                 view_ref: self.views[o.view].r_ref,
                 point: o.point,
                 pixel: o.pixel,
+                deform,
             };
             let name = format!("view{}.point{}.cam{}", o.view, o.point_id, o.cam);
             problem.add_residual(&name, Box::new(residual), &blocks, loss).map_err(lsq_failed)?;
@@ -318,6 +396,14 @@ impl Bundle {
             max_w = max_w.max(v.w.norm());
             v.rebase();
         }
+        if let Some(d) = &mut self.deform {
+            if let Some(id) = shape_id {
+                d.shape_m.copy_from_slice(&problem.block(id).values);
+            }
+            if let Some(id) = scale_id {
+                d.scale[0] = problem.block(id).values[0];
+            }
+        }
         Ok((solution.summary.termination, solution.summary.iterations, max_w))
     }
 
@@ -334,15 +420,15 @@ impl Bundle {
             .iter()
             .map(|o| {
                 let ext = (o.cam > 0).then(|| self.extrinsics[o.cam - 1]);
-                observe(&models[o.cam], ext.as_ref(), &self.views[o.view], &o.point, &o.pixel)
+                observe(&models[o.cam], ext.as_ref(), &self.views[o.view], &self.target_point(o), &o.pixel)
                     .ok()
                     .map(|ob| ob.residual)
             })
             .collect())
     }
 
-    /// The covariance of the global parameters (cameras' free parameters, then extrinsics),
-    /// the view poses marginalised: `s0^2 (N_gg - sum_v N_gv N_vv^-1 N_vg)^-1` with the
+    /// The covariance of the global parameters (cameras' free parameters, then extrinsics, then
+    /// the target's free blocks), the view poses marginalised: `s0^2 (N_gg - sum_v N_gv N_vv^-1 N_vg)^-1` with the
     /// robust loss as weights `rho'(|r|^2)` and `s0^2 = sum w |r|^2 / (m - n)`.
     pub fn global_covariance(&self) -> Result<GlobalCovariance> {
         let ng = self.n_global();
@@ -356,7 +442,9 @@ impl Bundle {
         let mut m = 0usize;
         for o in &self.obs {
             let ext = (o.cam > 0).then(|| self.extrinsics[o.cam - 1]);
-            let ob = observe(&models[o.cam], ext.as_ref(), &self.views[o.view], &o.point, &o.pixel)?;
+            let deformed = self.deform.map(|d| d.apply(&o.point, &d.shape_m, d.scale[0]));
+            let point = deformed.map_or(o.point, |d| d.point);
+            let ob = observe(&models[o.cam], ext.as_ref(), &self.views[o.view], &point, &o.pixel)?;
             let s = ob.residual.norm_squared();
             let w = loss_weight(self.loss, s);
             sum_wr2 += w * s;
@@ -369,6 +457,17 @@ impl Bundle {
             if o.cam > 0 {
                 let off = self.global_index_extrinsic(o.cam);
                 jg.view_mut((0, off), (2, 6)).copy_from(&ob.d_ext);
+            }
+            if let (Some(d), Some(def)) = (self.deform, deformed) {
+                let d_target = d_residual_d_target_point(&ob.d_view, &self.views[o.view]);
+                let mut off = self.global_index_deform();
+                if d.shape_free {
+                    jg.view_mut((0, off), (2, 3)).copy_from(&(d_target * def.d_shape));
+                    off += 3;
+                }
+                if d.scale_free {
+                    jg.view_mut((0, off), (2, 1)).copy_from(&(d_target * def.d_scale_x));
+                }
             }
             let jgt = jg.transpose();
             n_gg += w * &jgt * &jg;

@@ -22,7 +22,9 @@
 //!
 //! Entry points: [`calibrate_camera`], [`calibrate_stereo`], [`calibrate_rig`]; the inputs
 //! [`PlanarTarget`], [`View`], [`CalibrationOptions`]; [`Pattern`] strings; OpenCV corners
-//! for real images in [`corners`].
+//! for real images in [`corners`]. The bundle adjustment itself, with a bent or mis-printed
+//! target, other lens models and a poses-only mode: [`adjust_bundle`] ([`BundleSpec`],
+//! [`BundleModel`], [`BundleFit`]).
 //!
 //! # Conventions
 //! Pixel `(0, 0)` is the centre of the top-left pixel. Target points in metres in the target
@@ -31,8 +33,10 @@
 //! `stereoCalibrate`: `p_right = R p_left + T`). RMS values are the root mean square of the
 //! corners' 2D reprojection error lengths, as OpenCV reports them.
 
+mod adjust;
 mod bundle;
 pub mod corners;
+mod deform;
 mod pattern;
 mod stereo;
 mod zhang;
@@ -43,6 +47,7 @@ mod tests;
 use nalgebra::{DMatrix, Isometry3, Point2, Point3};
 use serde::{Deserialize, Serialize};
 
+pub use adjust::{adjust_bundle, BundleFit, BundleMode, BundleModel, BundleSpec, PrintScale, TargetShape, ViewFit};
 pub use pattern::Pattern;
 pub use stereo::{calibrate_rig, calibrate_stereo, RigCalibration, StereoCalibration};
 
@@ -459,6 +464,8 @@ pub fn calibrate_camera(
         views: view_poses,
         obs,
         loss: options.loss,
+        deform: None,
+        fixed_globals: false,
     };
     let (mut report, mut iterations) = bundle.solve(options.max_iterations)?;
     let mut flags = flag_outliers(&bundle, &all_obs, options)?;

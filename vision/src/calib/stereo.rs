@@ -110,12 +110,13 @@ pub fn calibrate_stereo(
     let cal = calibrate_rig(&[left.to_vec(), right.to_vec()], target, options)?;
     let t = cal.t_cam_cam0[1];
     let theta = so3::log(&t.rotation.to_rotation_matrix());
-    // Covariance of the left increment -> covariance of the rotation vector.
+    // The extrinsic block is [t, dtheta]. Covariance of the left increment -> covariance of the
+    // rotation vector.
     let off = cal.covariance.nrows() - 6;
-    let cov_d = cal.covariance.fixed_view::<3, 3>(off, off).into_owned();
+    let cov_t = cal.covariance.fixed_view::<3, 3>(off, off).into_owned();
+    let cov_d = cal.covariance.fixed_view::<3, 3>(off + 3, off + 3).into_owned();
     let jinv = so3::left_jacobian(&theta).try_inverse().unwrap_or_else(nalgebra::Matrix3::identity);
     let cov_theta = jinv * cov_d * jinv.transpose();
-    let cov_t = cal.covariance.fixed_view::<3, 3>(off + 3, off + 3).into_owned();
     let tv = t.translation.vector;
     let baseline = tv.norm();
     let dir = if baseline > 0.0 { tv / baseline } else { Vector3::x() };
@@ -318,6 +319,8 @@ pub fn calibrate_rig(
         views: poses,
         obs,
         loss: options.loss,
+        deform: None,
+        fixed_globals: false,
     };
     let (report, iterations) = bundle.solve(options.max_iterations)?;
     let (cov_global, s0_px, normal_condition) = match bundle.global_covariance() {

@@ -3,6 +3,7 @@
 //! strings.
 
 use super::bundle::{CameraLayout, CornerResidual};
+use super::deform::TargetDeformation;
 use super::*;
 use crate::camera::{Distortion, DistortionKind, ImageSize, Intrinsics};
 use crate::pose::LocalPose;
@@ -40,10 +41,10 @@ fn residual_jacobians_match_finite_differences() {
         Vector3::new(-0.3, 0.02, 0.01),
         Vector3::new(0.01, -0.2, 0.05),
     ));
-    let ext_block = [0.01, -0.02, 0.03, -0.3, 0.02, 0.01];
+    let ext_block = [-0.3, 0.02, 0.01, 0.01, -0.02, 0.03];
     let view =
         LocalPose::from_isometry(&nalgebra::Isometry3::new(Vector3::new(0.1, 0.0, 0.6), Vector3::new(2.9, 0.2, -0.1)));
-    let view_block = [0.2, -0.1, 0.05, 0.1, 0.0, 0.6];
+    let view_block = [0.1, 0.0, 0.6, 0.2, -0.1, 0.05];
     for d in distortions() {
         for fix_aspect in [false, true] {
             for second_camera in [false, true] {
@@ -56,6 +57,7 @@ fn residual_jacobians_match_finite_differences() {
                     view_ref: view.r_ref,
                     point: x,
                     pixel,
+                    deform: None,
                 };
                 let mut params: Vec<&[f64]> = vec![&free];
                 let mut manifolds: Vec<Arc<dyn Manifold>> = vec![Arc::new(Euclidean { n: free.len() })];
@@ -73,6 +75,94 @@ fn residual_jacobians_match_finite_differences() {
                     .assert_below(2e-5, &format!("{d:?}, fixed aspect {fix_aspect}, second camera {second_camera}"))
                     .unwrap();
                 assert!(report.entries > 20);
+            }
+        }
+    }
+}
+
+/// Gradient checker on the bundle residual with the target's blocks: the shape block
+/// `[b, s, t]` and the print-scale block `[e_x]` free alone and together (and held at non-zero
+/// values when not free), beside the camera, rig extrinsics and view blocks, for every lens
+/// model, at a point off the target's centre and axes, with non-zero increments.
+#[test]
+fn deformed_target_residual_jacobians_match_finite_differences() {
+    use ferrocal_lsq::check::check_residual;
+    use ferrocal_lsq::{Euclidean, Manifold};
+    use std::sync::Arc;
+    let target = PlanarTarget::chessboard(9, 6, 0.025);
+    let base = TargetDeformation::of_points(&target.points_m).unwrap();
+    assert!((base.centre_m[0] - 0.1).abs() < 1e-12 && (base.centre_m[1] - 0.0625).abs() < 1e-12);
+    assert!((base.half_m - 0.1).abs() < 1e-12);
+    let x = target.points_m[11];
+    let pixel = Point2::new(300.0, 200.0);
+    let ext = LocalPose::from_isometry(&nalgebra::Isometry3::new(
+        Vector3::new(-0.3, 0.02, 0.01),
+        Vector3::new(0.01, -0.2, 0.05),
+    ));
+    let ext_block = [-0.3, 0.02, 0.01, 0.01, -0.02, 0.03];
+    let view = LocalPose::from_isometry(&nalgebra::Isometry3::new(
+        Vector3::new(-0.05, -0.08, 0.6),
+        Vector3::new(2.9, 0.2, -0.1),
+    ));
+    let view_block = [-0.05, -0.08, 0.6, 0.2, -0.1, 0.05];
+    let shape_block = [0.0012, -0.0007, 0.0004];
+    let scale_block = [0.004];
+    for d in distortions() {
+        for (shape_free, scale_free) in [(true, false), (false, true), (true, true)] {
+            for second_camera in [false, true] {
+                let cam = camera(d);
+                let layout =
+                    CameraLayout { kind: d.kind(), fix_aspect: false, aspect: 1.0, image_size: cam.image_size };
+                let free = layout.free_from_model(&cam);
+                let deform = TargetDeformation {
+                    shape_m: [0.0008, 0.0003, -0.0002],
+                    scale: [-0.002, 0.0015],
+                    shape_free,
+                    scale_free,
+                    ..base
+                };
+                let residual = CornerResidual {
+                    layout,
+                    ext_ref: second_camera.then_some(ext.r_ref),
+                    view_ref: view.r_ref,
+                    point: x,
+                    pixel,
+                    deform: Some(deform),
+                };
+                let mut params: Vec<&[f64]> = vec![&free];
+                let mut manifolds: Vec<Arc<dyn Manifold>> = vec![Arc::new(Euclidean { n: free.len() })];
+                let mut scales = vec![free.iter().map(|v| v.abs().max(1.0)).collect::<Vec<f64>>()];
+                if second_camera {
+                    params.push(&ext_block);
+                    manifolds.push(Arc::new(Euclidean { n: 6 }));
+                    scales.push(vec![0.1; 6]);
+                }
+                if shape_free {
+                    params.push(&shape_block);
+                    manifolds.push(Arc::new(Euclidean { n: 3 }));
+                    scales.push(vec![1e-3; 3]);
+                }
+                if scale_free {
+                    params.push(&scale_block);
+                    manifolds.push(Arc::new(Euclidean { n: 1 }));
+                    scales.push(vec![1e-2]);
+                }
+                params.push(&view_block);
+                manifolds.push(Arc::new(Euclidean { n: 6 }));
+                scales.push(vec![0.1; 6]);
+                let report = check_residual(&residual, &params, &manifolds, &scales, 1e-6).unwrap();
+                let what =
+                    format!("{d:?}, shape free {shape_free}, scale free {scale_free}, second camera {second_camera}");
+                report.assert_below(2e-5, &what).unwrap();
+                // The target's columns are not zero (the check would pass trivially otherwise).
+                let mut out = [0.0; 2];
+                let mut jacs: Vec<Option<DMatrix<f64>>> =
+                    manifolds.iter().map(|m| Some(DMatrix::zeros(2, m.tangent_size()))).collect();
+                ferrocal_lsq::Residual::evaluate(&residual, &params, &mut out, Some(&mut jacs)).unwrap();
+                let first_target = 1 + usize::from(second_camera);
+                for j in &jacs[first_target..jacs.len() - 1] {
+                    assert!(j.as_ref().unwrap().norm() > 1e-3, "{what}: zero Jacobian of a target block");
+                }
             }
         }
     }

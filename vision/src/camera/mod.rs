@@ -198,6 +198,30 @@ impl Distortion {
         })
     }
 
+    /// The starting point of lens model `kind` from this one, for a refit with another model:
+    /// the coefficients the two models share carry over (Brown5 and Rational8 share
+    /// `k1 k2 p1 p2 k3`; a Rational8 model taken to Brown5 loses `k4 k5 k6`, an approximation),
+    /// every other coefficient starts at zero (Kannala-Brandt shares none with the others).
+    pub fn converted(&self, kind: DistortionKind) -> Self {
+        if self.kind() == kind {
+            return *self;
+        }
+        let b = self.brown_array();
+        let shares = matches!(self.kind(), DistortionKind::Brown5 | DistortionKind::Rational8);
+        match (kind, shares) {
+            (DistortionKind::Brown5, true) => Distortion::Brown5 { k1: b[0], k2: b[1], p1: b[2], p2: b[3], k3: b[4] },
+            (DistortionKind::Rational8, true) => {
+                Distortion::Rational8 { k1: b[0], k2: b[1], p1: b[2], p2: b[3], k3: b[4], k4: 0.0, k5: 0.0, k6: 0.0 }
+            }
+            (DistortionKind::None, _) => Distortion::None,
+            (DistortionKind::Brown5, false) => Distortion::Brown5 { k1: 0.0, k2: 0.0, p1: 0.0, p2: 0.0, k3: 0.0 },
+            (DistortionKind::Rational8, false) => {
+                Distortion::Rational8 { k1: 0.0, k2: 0.0, p1: 0.0, p2: 0.0, k3: 0.0, k4: 0.0, k5: 0.0, k6: 0.0 }
+            }
+            (DistortionKind::KannalaBrandt, _) => Distortion::KannalaBrandt { k1: 0.0, k2: 0.0, k3: 0.0, k4: 0.0 },
+        }
+    }
+
     /// Brown / rational coefficients padded to `k1 k2 p1 p2 k3 k4 k5 k6`.
     fn brown_array(&self) -> [f64; 8] {
         match *self {

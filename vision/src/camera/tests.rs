@@ -341,3 +341,20 @@ fn parity_with_opencv_project_points() {
         "OpenCV parity: worst pixel difference {worst_px:.2e} px, worst relative Jacobian difference {worst_jac:.2e}"
     );
 }
+
+#[test]
+fn a_lens_change_keeps_the_shared_coefficients() {
+    let b = Distortion::Brown5 { k1: -0.2, k2: 0.05, p1: 0.001, p2: -0.002, k3: 0.01 };
+    assert_eq!(b.converted(DistortionKind::Brown5), b);
+    assert_eq!(
+        b.converted(DistortionKind::Rational8).coefficients(),
+        vec![-0.2, 0.05, 0.001, -0.002, 0.01, 0.0, 0.0, 0.0]
+    );
+    let r = Distortion::Rational8 { k1: 0.4, k2: 0.05, p1: 0.001, p2: -0.0007, k3: 0.01, k4: 0.6, k5: 0.02, k6: 0.001 };
+    assert_eq!(r.converted(DistortionKind::Brown5).coefficients(), vec![0.4, 0.05, 0.001, -0.0007, 0.01]);
+    assert_eq!(b.converted(DistortionKind::KannalaBrandt).coefficients(), vec![0.0; 4]);
+    let kb = Distortion::KannalaBrandt { k1: 0.1, k2: 0.0, k3: 0.0, k4: 0.0 };
+    assert_eq!(kb.converted(DistortionKind::Rational8).coefficients(), vec![0.0; 8]);
+    assert_eq!(kb.converted(DistortionKind::None), Distortion::None);
+    assert_eq!(Distortion::None.converted(DistortionKind::Brown5).coefficients(), vec![0.0; 5]);
+}

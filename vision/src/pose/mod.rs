@@ -66,14 +66,14 @@ impl LocalPose {
         self.w = Vector3::zeros();
     }
 
-    /// The optimiser's block `[w, t]`.
+    /// The optimiser's block `[t, w]` (the project's 6-vector order: translation, then rotation).
     pub(crate) fn block(&self) -> [f64; 6] {
-        [self.w.x, self.w.y, self.w.z, self.t.x, self.t.y, self.t.z]
+        [self.t.x, self.t.y, self.t.z, self.w.x, self.w.y, self.w.z]
     }
 
-    /// The same reference with the block `[w, t]`.
+    /// The same reference with the block `[t, w]`.
     pub(crate) fn with_block(&self, b: &[f64]) -> Self {
-        Self { r_ref: self.r_ref, w: Vector3::new(b[0], b[1], b[2]), t: Vector3::new(b[3], b[4], b[5]) }
+        Self { r_ref: self.r_ref, t: Vector3::new(b[0], b[1], b[2]), w: Vector3::new(b[3], b[4], b[5]) }
     }
 }
 
@@ -84,9 +84,9 @@ pub(crate) struct Observed {
     pub residual: Vector2<f64>,
     /// With respect to the camera's model parameters (`fx fy cx cy k...`).
     pub d_model: Matrix2xX<f64>,
-    /// With respect to `[w, t]` of the camera's extrinsics `T_cam_cam0` (zero for camera 0).
+    /// With respect to `[t, w]` of the camera's extrinsics `T_cam_cam0` (zero for camera 0).
     pub d_ext: Matrix2x6<f64>,
-    /// With respect to `[w, t]` of the target pose `T_cam0_target`.
+    /// With respect to `[t, w]` of the target pose `T_cam0_target`.
     pub d_view: Matrix2x6<f64>,
 }
 
@@ -114,13 +114,13 @@ pub(crate) fn observe(
     let jp = proj.d_pixel_d_point;
     let mut d_ext = Matrix2x6::zeros();
     if let Some(dr) = d_ext_rot {
-        d_ext.fixed_view_mut::<2, 3>(0, 0).copy_from(&(jp * dr));
-        d_ext.fixed_view_mut::<2, 3>(0, 3).copy_from(&jp);
+        d_ext.fixed_view_mut::<2, 3>(0, 0).copy_from(&jp);
+        d_ext.fixed_view_mut::<2, 3>(0, 3).copy_from(&(jp * dr));
     }
     let jp0 = jp * r_k;
     let mut d_view = Matrix2x6::zeros();
-    d_view.fixed_view_mut::<2, 3>(0, 0).copy_from(&(jp0 * so3::d_rotated_d_increment(&view.w, &rotated_v)));
-    d_view.fixed_view_mut::<2, 3>(0, 3).copy_from(&jp0);
+    d_view.fixed_view_mut::<2, 3>(0, 0).copy_from(&jp0);
+    d_view.fixed_view_mut::<2, 3>(0, 3).copy_from(&(jp0 * so3::d_rotated_d_increment(&view.w, &rotated_v)));
     Ok(Observed { residual: proj.pixel - pixel, d_model: proj.d_pixel_d_params, d_ext, d_view })
 }
 
@@ -226,11 +226,11 @@ impl PoseEstimate {
         n_corners: usize,
         iterations: usize,
     ) -> Self {
-        // state [w (rad), t (m)] -> output [t (mm), w (rad)]
+        // state [t (m), w (rad)] -> output [t (mm), w (rad)]
         let mut m = Matrix6::zeros();
         for i in 0..3 {
-            m[(i, 3 + i)] = 1e3;
-            m[(3 + i, i)] = 1.0;
+            m[(i, i)] = 1e3;
+            m[(3 + i, 3 + i)] = 1.0;
         }
         Self {
             t_cam_target: t,
@@ -269,8 +269,8 @@ pub struct CameraRig {
     pub t_cam_cam0: Vec<Isometry3<f64>>,
     /// Covariance of the rig's parameters, when known: every camera's model parameters
     /// (`fx fy cx cy k...` in the order of [`CameraModel::parameters`]), camera after camera,
-    /// then `[dtheta (rad), t (m)]` of `T_cam_cam0` for cameras 1.. (rotation error on the
-    /// left, in the camera's frame). Propagated into [`PoseEstimate::covariance`].
+    /// then `[t (m), dtheta (rad)]` of `T_cam_cam0` for cameras 1.. (translation, then the
+    /// rotation error on the left, in the camera's frame: the project's 6-vector order). Propagated into [`PoseEstimate::covariance`].
     pub covariance: Option<DMatrix<f64>>,
 }
 
@@ -429,9 +429,9 @@ pub fn estimate_pose_rig(
             continue;
         };
         let cand = LocalPose {
-            r_ref: so3::exp(&Vector3::new(step[0], step[1], step[2])) * pose.rotation(),
+            r_ref: so3::exp(&Vector3::new(step[3], step[4], step[5])) * pose.rotation(),
             w: Vector3::zeros(),
-            t: pose.t + Vector3::new(step[3], step[4], step[5]),
+            t: pose.t + Vector3::new(step[0], step[1], step[2]),
         };
         match eval(&cand) {
             Ok((n2, g2, c2)) if c2 <= cost => {
