@@ -189,7 +189,7 @@ pub struct HandEyeOptions {
     pub huber_sigmas: f64,
     /// Fewest corners an image needs to take part.
     pub min_corners: usize,
-    /// The solver.
+    /// The solver (default: the Ceres back end).
     pub solver: SolverOptions,
 }
 
@@ -204,7 +204,7 @@ impl Default for HandEyeOptions {
             fallback_corner_sigma_px: 0.1,
             huber_sigmas: 3.0,
             min_corners: 6,
-            solver: SolverOptions::default(),
+            solver: SolverOptions { backend: ferrocal_lsq::Backend::Ceres, ..SolverOptions::default() },
         }
     }
 }
