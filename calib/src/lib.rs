@@ -6,6 +6,8 @@
 //! - [`lsq`]: the least-squares layer (`ferrocal-lsq`) as this crate uses it: dense
 //!   Levenberg-Marquardt with scaling, robust losses and covariance; linear fits go through
 //!   `ferrocal_lsq::linear`;
+//! - [`handeye`]: hand-eye calibration (eye-in-hand, eye-to-hand) refined in pixels, with
+//!   OpenCV's closed forms as the baseline;
 //! - [`identifiability`]: structural (SVD, pivoted QR) and practical identifiability;
 //! - [`kinematic`]: kinematic calibration; [`design`]: pose and experiment design;
 //! - [`dynamics`]: force-sensor models and hexapod dynamics identification;
@@ -27,6 +29,7 @@ pub mod error;
 pub mod export;
 pub mod file;
 pub mod frames;
+pub mod handeye;
 pub mod identifiability;
 pub mod kinematic;
 pub mod lsq;

@@ -3,6 +3,8 @@
 //! Entry points:
 //! - [`import`]: the measurement CSV of `shared/spec/measurements.md`, the UR5 and UR10
 //!   laser-tracker recordings, image folders; export to the measurement CSV.
+//! - [`handeye`]: hand-eye recordings (poses table, industrial_calibration importer, images
+//!   to a recording, simulation and the Monte Carlo study of the covariance).
 //! - [`measure`]: from a session's images to metric target poses (camera rig calibrated from the
 //!   plate views, one pose with covariance per robot pose).
 //! - [`render`]: the physically modelled camera renderer of the synthetic cell.
@@ -26,6 +28,7 @@ pub mod checks;
 pub mod dynsim;
 pub mod error;
 pub mod formats;
+pub mod handeye;
 pub mod import;
 pub mod measure;
 pub mod render;

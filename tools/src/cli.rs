@@ -45,6 +45,8 @@ pub enum Command {
     /// (joint and link compliance, backlash, scale, periodic, thermal; for cameras lens and target
     /// shape) on held-out data, report what passes.
     Diagnose(crate::commands::diagnose::DiagnoseArgs),
+    /// Hand-eye calibration (camera on the flange or fixed), refined in pixels, with OpenCV beside.
+    Handeye(ferrocal_report::handeye::HandeyeArgs),
     /// Predict a measurement table with a calibrated model and report the position errors.
     Evaluate(crate::commands::calibrate::EvaluateArgs),
     /// Export a calibration for other tools: the calibrated serial robot as a URDF.

@@ -7,6 +7,7 @@
 //! - [`calibrate`]: kinematic calibration (`ferrocal calibrate`, the demo);
 //! - [`camera`]: the JSON of `ferrocal camera calibrate` and `stereo`;
 //! - [`corner_study`]: the Markdown table of `ferrocal corner-study`;
+//! - [`handeye`]: `ferrocal handeye` (arguments, run, JSON, HTML) and its Monte Carlo study;
 //! - [`plan`]: the measurement plan (`ferrocal plan`), its flow and its report;
 //! - [`dynamics`]: force-sensor models and hexapod dynamics (`ferrocal dynamics study`);
 //! - [`stiffness`]: elastostatic identification (`ferrocal stiffness study` and `identify`);
@@ -20,6 +21,7 @@ pub mod corner_study;
 pub mod demo;
 pub mod diagnose;
 pub mod dynamics;
+pub mod handeye;
 pub mod plan;
 pub mod plot;
 pub mod report;

@@ -83,6 +83,60 @@ pub fn xy_plot(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> 
     svg
 }
 
+/// One bar per item, coloured by group (e.g. train and test), with the items' labels along x.
+/// `bars` are `(label, group, value)`; groups are coloured in order of first appearance and
+/// named in the legend.
+pub fn bar_chart(title: &str, y_label: &str, bars: &[(String, String, f64)]) -> String {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (720, 400)).into_drawing_area();
+        let _ = root.fill(&WHITE);
+        let top = bars.iter().map(|b| b.2).filter(|v| v.is_finite()).fold(0.0, f64::max).max(1e-12) * 1.15;
+        let n = bars.len().max(1);
+        let Ok(mut chart) = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(50)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0..n as f64, 0.0..top)
+        else {
+            return svg_error(title);
+        };
+        let labels: Vec<String> = bars.iter().map(|b| b.0.clone()).collect();
+        let _ = chart
+            .configure_mesh()
+            .y_desc(y_label)
+            .x_labels(n.min(40))
+            .x_label_formatter(&|x| labels.get(x.floor() as usize).cloned().unwrap_or_default())
+            .light_line_style(RGBColor(235, 235, 235))
+            .draw();
+        let mut groups: Vec<&str> = Vec::new();
+        for b in bars {
+            if !groups.contains(&b.1.as_str()) {
+                groups.push(&b.1);
+            }
+        }
+        for (g, name) in groups.iter().enumerate() {
+            let c = PALETTE[g % PALETTE.len()];
+            let rects =
+                bars.iter().enumerate().filter(|(_, b)| b.1 == *name && b.2.is_finite()).map(|(k, b)| {
+                    Rectangle::new([(k as f64 + 0.15, 0.0), (k as f64 + 0.85, b.2)], c.mix(0.8).filled())
+                });
+            if let Ok(a) = chart.draw_series(rects) {
+                a.label(*name).legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 12, y + 4)], c.filled()));
+            }
+        }
+        let _ = chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw();
+        let _ = root.present();
+    }
+    svg
+}
+
 /// A histogram of `values` with `bins` equal bins.
 pub fn histogram(title: &str, x_label: &str, values: &[f64], bins: usize) -> String {
     let mut svg = String::new();

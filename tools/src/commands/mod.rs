@@ -34,6 +34,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Plan(a) => plan::run(&a),
         Command::Calibrate(a) => calibrate::run_calibrate(&a),
         Command::Diagnose(a) => diagnose::run(&a),
+        Command::Handeye(a) => ferrocal_report::handeye::run(&a),
         Command::Evaluate(a) => calibrate::run_evaluate(&a),
         Command::Export(a) => calibrate::run_export(&a),
         Command::Dynamics(a) => dynamics::run(&a),

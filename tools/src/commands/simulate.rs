@@ -64,6 +64,8 @@ pub enum ImportKind {
     Ur10,
     /// A measurement table (re-written in canonical units, checked on the way).
     Table,
+    /// An industrial_calibration hand-eye set folder (cal_data.yaml, poses/) to a handeye poses CSV.
+    IcHandeye,
 }
 
 /// `ferrocal import`.
@@ -81,10 +83,20 @@ pub struct ImportArgs {
     /// Write joints in degrees (revolute) and lengths in mm instead of SI.
     #[arg(long)]
     pub user_units: bool,
+    /// ic-handeye: mark every K-th image `test` (2: every second one).
+    #[arg(long)]
+    pub test_every: Option<usize>,
+    /// ic-handeye: write the set's camera as OpenCV YAML here.
+    #[arg(long)]
+    pub intrinsics_out: Option<PathBuf>,
 }
 
 pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
     let (set, kinds) = match args.kind {
+        ImportKind::IcHandeye => {
+            let cam = args.intrinsics_out.as_deref();
+            return ferrocal_report::handeye::run_import_ic(&args.input, &args.out, args.test_every, cam);
+        }
         ImportKind::Ur5 => {
             let s = import::import_ur5_grid(&args.input)?;
             let n = s.n_joints();

@@ -1,0 +1,17 @@
+//! Hand-eye recordings: the poses table of `ferrocal handeye` ([`poses`]), the importer of
+//! ROS-Industrial industrial_calibration sets ([`ic`]), images and poses to a recording with the
+//! camera files `--intrinsics` reads ([`recording`]), and simulated recordings with the Monte
+//! Carlo study of the hand-eye covariance ([`sim`]).
+
+pub mod ic;
+pub mod poses;
+pub mod recording;
+pub mod sim;
+
+pub use ic::{import_ic_handeye, read_ic_set, IcSet};
+pub use poses::{read_handeye_poses, PoseRow, PosesTable, RobotReading};
+pub use recording::{load_recording, read_camera_file, Skipped};
+pub use sim::{
+    coverage_study, simulate_hand_eye, write_rendered_recording, CoverageSummary, HandEyeSimConfig, HandEyeTruth,
+    RenderedRecording, StudyMode,
+};

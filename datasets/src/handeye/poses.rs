@@ -1,0 +1,307 @@
+//! The hand-eye poses table (`ferrocal handeye --poses`, `shared/spec/cli.md`): one row per
+//! image, `image`, then either the flange pose the controller reported (`x_mm, y_mm, z_mm, qw,
+//! qx, qy, qz`: `T_base_flange`, Hamilton unit quaternion, scalar first; `x_m, y_m, z_m` in
+//! metres also accepted) or joint readings `q1_<unit>, q2_<unit>, ...` (`rad`, `deg`, `m`, `mm`)
+//! for a robot model, and an optional `split` column (`train` / `test`, empty = train).
+//!
+//! Comment lines start with `#`. Every error names the file, the line and the column.
+//! Quaternions are normalised when their norm is within [`QUATERNION_NORM_TOLERANCE`] of 1
+//! (controllers print rounded values) and rejected otherwise.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+
+use ferrocal_calib::Split;
+use ferrocal_robot::{Kinematics, RobotModel};
+
+use crate::error::{DatasetError, Location, Result};
+use crate::import::table::{Table, TableFormat};
+use crate::import::units::{JointUnit, LengthUnit};
+
+/// How far from 1 a quaternion's norm may be before the row is rejected.
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+
+/// What the robot reported for one image.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RobotReading {
+    /// `T_base_flange` (metres).
+    Flange(Isometry3<f64>),
+    /// Joint values in SI units (rad, m), in the model's order.
+    Joints(Vec<f64>),
+}
+
+/// One row of the table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseRow {
+    /// The image's file name.
+    pub image: String,
+    /// 1-based line of the row in the file.
+    pub line: u64,
+    /// Train or test.
+    pub split: Split,
+    /// The robot's reading.
+    pub robot: RobotReading,
+}
+
+/// A parsed poses table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PosesTable {
+    /// The file (for messages).
+    pub file: PathBuf,
+    /// The rows, in file order.
+    pub rows: Vec<PoseRow>,
+    /// The joint columns' units (empty for flange poses).
+    pub joint_units: Vec<JointUnit>,
+    /// The data's source and licence, from a `# source: ...` comment line (the importers write
+    /// one), to be shown wherever results on the data are.
+    pub source: Option<String>,
+}
+
+const POSE_COLUMNS: [&str; 4] = ["qw", "qx", "qy", "qz"];
+
+fn is_numeric_column(h: &str) -> bool {
+    h != "image" && h != "split"
+}
+
+/// Reads a poses table.
+pub fn read_handeye_poses(path: impl AsRef<Path>) -> Result<PosesTable> {
+    let path = path.as_ref();
+    let text = crate::import::table::read_text(path)?;
+    parse_handeye_poses(&text, path)
+}
+
+/// The joint columns `q1_<u>, q2_<u>, ...` of a header, in order, with their units.
+fn joint_columns(t: &Table) -> Result<Vec<(usize, JointUnit)>> {
+    let mut found: Vec<(usize, usize, JointUnit)> = Vec::new();
+    for (c, h) in t.headers.iter().enumerate() {
+        let Some(rest) = h.strip_prefix('q') else { continue };
+        let Some((num, unit)) = rest.split_once('_') else { continue };
+        let Ok(k) = num.parse::<usize>() else { continue };
+        let unit = JointUnit::from_suffix(unit).ok_or_else(|| DatasetError::Invalid {
+            location: t.header_loc(c),
+            message: format!("unknown joint unit '{unit}': use rad, deg, m or mm"),
+        })?;
+        found.push((k, c, unit));
+    }
+    found.sort_by_key(|f| f.0);
+    for (i, f) in found.iter().enumerate() {
+        if f.0 != i + 1 {
+            return Err(DatasetError::Invalid {
+                location: t.header_loc(f.1),
+                message: format!("joint columns must be numbered q1, q2, ... without gaps; expected q{}", i + 1),
+            });
+        }
+    }
+    Ok(found.into_iter().map(|f| (f.1, f.2)).collect())
+}
+
+/// Parses a poses table from text; `file` names it in messages.
+pub fn parse_handeye_poses(text: &str, file: &Path) -> Result<PosesTable> {
+    let t = Table::parse(text, file, TableFormat::CSV, &is_numeric_column)?;
+    let image = t.require("image")?;
+    let split = t.col("split");
+    let joints = joint_columns(&t)?;
+    let unit = ["mm", "m"].into_iter().find(|u| t.col(&format!("x_{u}")).is_some());
+    let position = match unit {
+        Some(u) => {
+            let lu = LengthUnit::from_suffix(u).expect("mm or m");
+            let cols: Vec<usize> =
+                ["x", "y", "z"].iter().map(|a| t.require(&format!("{a}_{u}"))).collect::<Result<_>>()?;
+            let q: Vec<usize> = POSE_COLUMNS.iter().map(|c| t.require(c)).collect::<Result<_>>()?;
+            Some((lu, cols, q))
+        }
+        None => None,
+    };
+    if position.is_some() && !joints.is_empty() {
+        return Err(DatasetError::Invalid {
+            location: t.header_loc(joints[0].0),
+            message: "the table has both flange-pose columns (x_mm ... qz) and joint columns; give one of them".into(),
+        });
+    }
+    if position.is_none() && joints.is_empty() {
+        return Err(t.missing_column_of(&["x_mm", "q1_deg", "q1_rad"]));
+    }
+    let mut rows = Vec::with_capacity(t.rows.len());
+    let mut seen: HashMap<String, u64> = HashMap::new();
+    for row in &t.rows {
+        let name = t.text(row, image)?.to_string();
+        if let Some(first) = seen.insert(name.clone(), row.line) {
+            return Err(DatasetError::Invalid {
+                location: t.loc(row, image),
+                message: format!("image '{name}' occurs twice (first on line {first})"),
+            });
+        }
+        let split = match split.map(|c| row.cells[c].to_ascii_lowercase()) {
+            None => Split::Train,
+            Some(s) if s.is_empty() || s == "train" => Split::Train,
+            Some(s) if s == "test" => Split::Test,
+            Some(s) => {
+                return Err(DatasetError::Invalid {
+                    location: t.loc(row, split.expect("present")),
+                    message: format!("split '{s}': expected train or test"),
+                })
+            }
+        };
+        let robot = match &position {
+            Some((lu, cols, qc)) => {
+                let p: Vec<f64> = cols.iter().map(|&c| t.number(row, c).map(|v| lu.to_m(v))).collect::<Result<_>>()?;
+                let q: Vec<f64> = qc.iter().map(|&c| t.number(row, c)).collect::<Result<_>>()?;
+                let quat = Quaternion::new(q[0], q[1], q[2], q[3]);
+                let norm = quat.norm();
+                if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+                    return Err(DatasetError::Invalid {
+                        location: t.loc(row, qc[0]),
+                        message: format!(
+                            "the quaternion (qw, qx, qy, qz) has norm {norm:.6}; a unit quaternion is expected \
+                             (scalar first, Hamilton)"
+                        ),
+                    });
+                }
+                RobotReading::Flange(Isometry3::from_parts(
+                    Translation3::from(Vector3::new(p[0], p[1], p[2])),
+                    UnitQuaternion::from_quaternion(quat),
+                ))
+            }
+            None => RobotReading::Joints(
+                joints.iter().map(|&(c, u)| t.number(row, c).map(|v| u.to_si(v))).collect::<Result<_>>()?,
+            ),
+        };
+        rows.push(PoseRow { image: name, line: row.line, split, robot });
+    }
+    if rows.is_empty() {
+        return Err(DatasetError::Invalid { location: Location::line(file, t.header_line), message: "no rows".into() });
+    }
+    let source = text.lines().find_map(|l| l.strip_prefix("# source:").map(|s| s.trim().to_string()));
+    Ok(PosesTable { file: file.to_path_buf(), rows, joint_units: joints.iter().map(|j| j.1).collect(), source })
+}
+
+impl PosesTable {
+    /// Every row's `T_base_flange`: as written, or from the joints by the model's forward
+    /// kinematics. Errors name the file, the line and the joint.
+    pub fn flange_poses(&self, robot: Option<&RobotModel>) -> Result<Vec<Isometry3<f64>>> {
+        self.rows
+            .iter()
+            .map(|r| match (&r.robot, robot) {
+                (RobotReading::Flange(t), _) => Ok(*t),
+                (RobotReading::Joints(_), None) => Err(DatasetError::Invalid {
+                    location: Location::line(&self.file, r.line),
+                    message: "the table holds joint readings: give the robot model (--robot)".into(),
+                }),
+                (RobotReading::Joints(q), Some(m)) => {
+                    if q.len() != m.dof() {
+                        return Err(DatasetError::JointCount {
+                            location: Location::line(&self.file, r.line),
+                            message: format!(
+                                "{} joint columns, the robot '{}' has {} joints",
+                                q.len(),
+                                m.name(),
+                                m.dof()
+                            ),
+                        });
+                    }
+                    m.forward(q).map_err(|e| DatasetError::Invalid {
+                        location: Location::line(&self.file, r.line),
+                        message: format!("forward kinematics of the robot '{}': {e}", m.name()),
+                    })
+                }
+            })
+            .collect()
+    }
+}
+
+/// The table's text for flange poses (`x_mm ... qz`, `split`), numbers written so that they
+/// read back to the same `f64`.
+pub fn flange_poses_to_string(rows: &[(String, Isometry3<f64>, Split)], comments: &[String]) -> String {
+    let mut out = String::new();
+    for c in comments {
+        out.push_str(&format!("# {c}\n"));
+    }
+    out.push_str("image,x_mm,y_mm,z_mm,qw,qx,qy,qz,split\n");
+    for (name, t, split) in rows {
+        let p = t.translation.vector * 1e3;
+        let q = t.rotation;
+        let s = match split {
+            Split::Train => "train",
+            Split::Test => "test",
+        };
+        out.push_str(&format!("{name},{},{},{},{},{},{},{},{s}\n", p.x, p.y, p.z, q.w, q.i, q.j, q.k));
+    }
+    out
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
+/// reader never sees half a file; refuses to write onto one of `inputs`.
+pub fn write_atomic(path: &Path, bytes: &[u8], inputs: &[&Path]) -> Result<()> {
+    let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => a == b,
+    };
+    if inputs.iter().any(|i| same(path, i)) {
+        return Err(DatasetError::Input(format!("refusing to overwrite the input {}", path.display())));
+    }
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let w = |source| DatasetError::Write { path: path.to_path_buf(), source };
+    std::fs::write(&tmp, bytes).map_err(w)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        w(e)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<PosesTable> {
+        parse_handeye_poses(text, Path::new("poses.csv"))
+    }
+
+    #[test]
+    fn flange_rows_with_split_read_back() {
+        let t = Isometry3::new(Vector3::new(0.71, 0.0033, 0.853), Vector3::new(0.1, 3.0, -0.2));
+        let text = flange_poses_to_string(
+            &[("0.png".into(), t, Split::Train), ("1.png".into(), t.inverse(), Split::Test)],
+            &["source: somebody's data, CC0".into()],
+        );
+        let p = parse(&text).unwrap();
+        assert_eq!(p.source.as_deref(), Some("somebody's data, CC0"));
+        assert_eq!(p.rows.len(), 2);
+        assert_eq!(p.rows[1].split, Split::Test);
+        assert_eq!(p.rows[0].line, 3);
+        let f = p.flange_poses(None).unwrap();
+        assert!((f[0].to_homogeneous() - t.to_homogeneous()).norm() < 1e-12);
+    }
+
+    #[test]
+    fn joint_rows_need_a_robot_and_the_right_count() {
+        let p = parse("image,q1_deg,q2_deg,split\na.png,10,20,train\n").unwrap();
+        assert_eq!(p.rows[0].robot, RobotReading::Joints(vec![10f64.to_radians(), 20f64.to_radians()]));
+        let e = p.flange_poses(None).unwrap_err().to_string();
+        assert!(e.contains("poses.csv: line 2") && e.contains("--robot"), "{e}");
+        let ur5 = RobotModel::load("ur5").unwrap();
+        let e = p.flange_poses(Some(&ur5)).unwrap_err().to_string();
+        assert!(e.contains("line 2") && e.contains("2 joint columns") && e.contains("6 joints"), "{e}");
+    }
+
+    #[test]
+    fn bad_cells_are_located() {
+        let head = "image,x_mm,y_mm,z_mm,qw,qx,qy,qz,split\n";
+        let cases = [
+            (format!("{head}a.png,1,2,3,0.5,0,0,0,train\n"), "line 2, column 'qw'", "norm 0.5"),
+            (format!("{head}a.png,1,2,x,1,0,0,0,train\n"), "line 2, column 'z_mm'", "not a number"),
+            (format!("{head}a.png,1,2,3,1,0,0,0,maybe\n"), "line 2, column 'split'", "train or test"),
+            (format!("{head}a.png,1,2,3,1,0,0,0,\na.png,1,2,3,1,0,0,0,\n"), "line 3, column 'image'", "twice"),
+            ("image,x_mm,y_mm,z_mm,qw,qx,qy\n".to_string(), "column 'qz'", "missing"),
+            ("image,split\na.png,train\n".to_string(), "column 'x_mm'", "missing"),
+            ("image,q1_deg,q3_deg\na,1,2\n".to_string(), "column 'q3_deg'", "expected q2"),
+        ];
+        for (text, at, what) in cases {
+            let e = parse(&text).unwrap_err().to_string();
+            assert!(e.contains(at) && e.contains(what), "{text}: {e}");
+        }
+    }
+}

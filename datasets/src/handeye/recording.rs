@@ -1,0 +1,187 @@
+//! From a folder of images and a poses table to a hand-eye recording
+//! ([`ferrocal_calib::handeye::HandEyeData`]): each image matched to its row by file name, the
+//! pattern detected with per-corner covariances, every corner numbered by its position on the
+//! target (so that any detector that reports target positions works, partial views included).
+//! Also the camera files `--intrinsics` accepts.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Point3};
+
+use ferrocal_calib::handeye::{HandEyeData, HandEyeView, Mount};
+use ferrocal_vision::camera::{CameraModel, Distortion, DistortionKind, ImageSize, Intrinsics};
+use ferrocal_vision::detect::{DetectOptions, Detector, Pattern};
+
+use super::poses::PosesTable;
+use crate::error::{DatasetError, Location, Result};
+
+/// An image or a row left out, and why.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Skipped {
+    /// The image (or the table row, `file:line`).
+    pub what: String,
+    /// Why.
+    pub reason: String,
+}
+
+/// Key of a target position, to 0.1 µm.
+fn key(p: &Point3<f64>) -> [i64; 3] {
+    [p.x, p.y, p.z].map(|v| (v * 1e7).round() as i64)
+}
+
+/// Detects `pattern` in every image and pairs it with its row of `table` (`flange[i]` is row
+/// `i`'s `T_base_flange`). Images without a row, rows without an image, unreadable images and
+/// images where the pattern is not found are listed in the second result; the batch goes on.
+pub fn load_recording(
+    images: &[PathBuf],
+    table: &PosesTable,
+    flange: &[Isometry3<f64>],
+    pattern: &Pattern,
+    mount: Mount,
+) -> Result<(HandEyeData, Vec<Skipped>)> {
+    let mut detector = Detector::new(pattern.clone(), DetectOptions::default(), None)?;
+    let by_name: HashMap<&str, usize> = table.rows.iter().enumerate().map(|(i, r)| (r.image.as_str(), i)).collect();
+    let mut used = vec![false; table.rows.len()];
+    let mut skipped = Vec::new();
+    let mut ids: HashMap<[i64; 3], usize> = HashMap::new();
+    let mut points: Vec<Point3<f64>> = Vec::new();
+    let mut views = Vec::new();
+    for path in images {
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let Some(&row) = by_name.get(name.as_str()) else {
+            skipped.push(Skipped {
+                what: path.display().to_string(),
+                reason: format!("no row of {} names it", table.file.display()),
+            });
+            continue;
+        };
+        used[row] = true;
+        let img = match ferrocal_vision::detect::load_gray(path) {
+            Ok(i) => i,
+            Err(e) => {
+                skipped.push(Skipped { what: path.display().to_string(), reason: e.to_string() });
+                continue;
+            }
+        };
+        let detections = match detector.detect(&img) {
+            Ok(d) => d,
+            Err(e) => {
+                skipped.push(Skipped { what: path.display().to_string(), reason: e.to_string() });
+                continue;
+            }
+        };
+        let mut view = HandEyeView {
+            name: name.clone(),
+            split: table.rows[row].split,
+            t_base_flange: flange[row],
+            image_size: ImageSize { width_px: img.width(), height_px: img.height() },
+            point_ids: Vec::new(),
+            corners_px: Vec::new(),
+            covariances_px2: Vec::new(),
+        };
+        for c in detections.iter().flat_map(|d| &d.corners) {
+            let Some(t) = c.target_m else { continue };
+            let id = *ids.entry(key(&t)).or_insert_with(|| {
+                points.push(t);
+                points.len() - 1
+            });
+            if view.point_ids.contains(&id) {
+                continue;
+            }
+            view.point_ids.push(id);
+            view.corners_px.push(c.position_px);
+            view.covariances_px2.push(c.covariance_px2);
+        }
+        if view.point_ids.is_empty() {
+            skipped.push(Skipped {
+                what: path.display().to_string(),
+                reason: format!("the pattern '{pattern}' gives no target positions (its size is needed)"),
+            });
+            continue;
+        }
+        views.push(view);
+    }
+    for (r, u) in table.rows.iter().zip(&used) {
+        if !u {
+            skipped.push(Skipped {
+                what: format!("{}:{}", table.file.display(), r.line),
+                reason: format!("no image named '{}' among the images given", r.image),
+            });
+        }
+    }
+    Ok((HandEyeData { mount, target_points_m: points, views }, skipped))
+}
+
+fn json_number(v: &serde_json::Value, key: &str, path: &Path) -> Result<f64> {
+    v.get(key).and_then(serde_json::Value::as_f64).ok_or_else(|| DatasetError::Invalid {
+        location: Location::new(path, 1, key),
+        message: format!("'{key}' is missing or not a number"),
+    })
+}
+
+/// A camera from the JSON of `ferrocal camera calibrate` (or the `camera` part of
+/// `ferrocal handeye`'s JSON).
+fn camera_from_json(text: &str, path: &Path) -> Result<CameraModel> {
+    let root: serde_json::Value = serde_json::from_str(text).map_err(|e| DatasetError::Invalid {
+        location: Location {
+            file: path.to_path_buf(),
+            line: e.line() as u64,
+            column: Some(format!("column {}", e.column())),
+        },
+        message: e.to_string(),
+    })?;
+    let v = root.get("camera").filter(|c| c.get("fx").is_some()).unwrap_or(&root);
+    let size = v.get("image_size").and_then(|s| s.as_array()).filter(|s| s.len() == 2);
+    let size = size.and_then(|s| Some(ImageSize { width_px: s[0].as_u64()? as u32, height_px: s[1].as_u64()? as u32 }));
+    let size = size.ok_or_else(|| DatasetError::Invalid {
+        location: Location::new(path, 1, "image_size"),
+        message: "'image_size' must be [width, height]".into(),
+    })?;
+    let coefficients: Vec<f64> = v
+        .get("distortion")
+        .and_then(|d| d.as_array())
+        .map(|d| d.iter().filter_map(serde_json::Value::as_f64).collect())
+        .unwrap_or_default();
+    let kind = match v.get("model").and_then(|m| m.as_str()).unwrap_or("brown5") {
+        "pinhole" | "none" => DistortionKind::None,
+        "brown5" => DistortionKind::Brown5,
+        "rational8" => DistortionKind::Rational8,
+        "kannala_brandt" => DistortionKind::KannalaBrandt,
+        other => {
+            return Err(DatasetError::Invalid {
+                location: Location::new(path, 1, "model"),
+                message: format!("unknown lens model '{other}'"),
+            })
+        }
+    };
+    let intrinsics = Intrinsics {
+        fx_px: json_number(v, "fx", path)?,
+        fy_px: json_number(v, "fy", path)?,
+        cx_px: json_number(v, "cx", path)?,
+        cy_px: json_number(v, "cy", path)?,
+    };
+    let distortion = if kind == DistortionKind::None {
+        Distortion::None
+    } else {
+        Distortion::from_coefficients(kind, &coefficients)?
+    };
+    Ok(CameraModel::new(intrinsics, distortion, size)?)
+}
+
+/// Reads a camera file: the JSON of `ferrocal camera calibrate`, OpenCV FileStorage YAML or ROS
+/// `camera_info` YAML (told apart by extension and content).
+pub fn read_camera_file(path: &Path) -> Result<CameraModel> {
+    let text = crate::import::table::read_text(path)?;
+    let located = |e: ferrocal_vision::VisionError| DatasetError::Invalid {
+        location: Location::line(path, 1),
+        message: format!("not a camera file ferrocal reads (camera calibrate JSON, OpenCV or ROS YAML): {e}"),
+    };
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) || text.trim_start().starts_with('{') {
+        return camera_from_json(&text, path);
+    }
+    if text.contains("!!opencv-matrix") || text.starts_with("%YAML") {
+        return ferrocal_vision::camera::io::from_opencv_yaml(&text).map_err(located);
+    }
+    ferrocal_vision::camera::io::from_ros_yaml(&text).map(|(c, _)| c).map_err(located)
+}

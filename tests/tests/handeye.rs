@@ -1,0 +1,144 @@
+//! `ferrocal handeye` and `ferrocal import ic-handeye` end to end through the binary: a rendered
+//! chessboard recording with known truth (`ferrocal handeye simulate`, the project's renderer
+//! with blur, vignetting and sensor noise; the chain, camera and noise model are the estimator's
+//! own family, the corners come from the project's chessboard detector), the JSON contract of
+//! `shared/spec/cli.md`, the importer on the ROS-Industrial industrial_calibration example data
+//! (Apache-2.0), and bad input.
+
+use ferrocal_tests::{data, ferrocal, json, run};
+
+fn vec3(v: &serde_json::Value) -> [f64; 3] {
+    [0, 1, 2].map(|i| v[i].as_f64().unwrap())
+}
+
+/// Rendered eye-to-hand chessboard recording (10 training, 6 held-out images): the JSON has
+/// every field of the contract; X's translation lies within 4.5 of its stated sigmas and 0.5 mm
+/// of the truth; the held-out chain RMS is below 0.5 px and OpenCV's results are reported beside.
+#[test]
+fn handeye_on_a_rendered_chessboard_recording() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("rec");
+    let out = run(ferrocal().args(["handeye", "simulate", "--mount", "eye-to-hand", "--seed", "4", "--out"]).arg(&dir));
+    assert!(out.status.success());
+    let truth = json(&dir.join("truth.json"));
+    let pattern = truth["pattern"].as_str().unwrap();
+    let res = tmp.path().join("he.json");
+    let html = tmp.path().join("he.html");
+    let out = run(ferrocal()
+        .args(["handeye", "--images"])
+        .arg(dir.join("images"))
+        .arg("--poses")
+        .arg(dir.join("poses.csv"))
+        .args(["--pattern", pattern, "--mount", "eye-to-hand", "--intrinsics"])
+        .arg(dir.join("camera.yaml"))
+        .arg("--json")
+        .arg(&res)
+        .arg("--report")
+        .arg(&html));
+    assert!(out.status.success());
+    let r = json(&res);
+    for key in ["mount", "camera", "hand_eye", "world", "train_rms_px", "heldout_rms_px", "per_image", "std"] {
+        assert!(r.get(key).is_some(), "missing '{key}'");
+    }
+    assert_eq!(r["mount"], "eye-to-hand");
+    assert_eq!(r["per_image"].as_array().unwrap().len(), 16);
+    assert_eq!(r["per_image"][15]["split"], "test");
+    let est = vec3(&r["hand_eye"]["translation_mm"]);
+    let std = vec3(&r["std"]["hand_eye"]["translation_mm"]);
+    let t = vec3(&truth["hand_eye"]["translation"]);
+    for i in 0..3 {
+        let err = (est[i] - t[i] * 1e3).abs();
+        assert!(err < 4.5 * std[i] && err < 0.5, "coordinate {i}: {} vs {} mm (std {})", est[i], t[i] * 1e3, std[i]);
+    }
+    let held = r["heldout_rms_px"].as_f64().unwrap();
+    assert!(held < 0.5, "held-out chain RMS {held} px");
+    assert_eq!(r["opencv"].as_array().unwrap().len(), 7);
+    let page = std::fs::read_to_string(&html).unwrap();
+    assert!(page.contains("Chain residual per image") && page.contains("calibrateRobotWorldHandEye"));
+}
+
+/// The importer on both industrial_calibration hand-eye sets: rows, mount, the pattern string,
+/// every second image held out, the charuco set's camera as OpenCV YAML.
+#[test]
+fn import_ic_handeye_reads_both_real_sets() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (set, rows, mount, pattern) in [
+        ("test_set_10x10", 15, "eye-in-hand", "circlegrid:10x10:25.4mm:modified"),
+        ("test_set_charuco", 16, "eye-to-hand", "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250"),
+    ] {
+        let csv = tmp.path().join(format!("{set}.csv"));
+        let cam = tmp.path().join(format!("{set}.yaml"));
+        let out = run(ferrocal()
+            .args(["import", "ic-handeye", "--test-every", "2", "--input"])
+            .arg(data(&format!("industrial_calibration/{set}")))
+            .arg("--out")
+            .arg(&csv)
+            .arg("--intrinsics-out")
+            .arg(&cam));
+        assert!(out.status.success());
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let lines: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();
+        assert_eq!(lines.len(), rows + 1, "{set}");
+        assert_eq!(lines.iter().filter(|l| l.ends_with(",test")).count(), rows / 2, "{set}");
+        assert!(
+            text.contains(&format!("# mount: {mount}")) && text.contains(&format!("# pattern: {pattern}")),
+            "{text}"
+        );
+        assert!(text.contains("ROS-Industrial industrial_calibration example data, Apache-2.0"));
+        // 0.png of the 10x10 set: x 0.7169496300523684 m, qw -0.002133951223335981 (scalar first here).
+        if set == "test_set_10x10" {
+            assert!(lines[1].starts_with("0.png,716.9496300523684,") && lines[1].contains(",-0.002133951223335981,"));
+        }
+        let yaml = std::fs::read_to_string(&cam).unwrap();
+        if set == "test_set_charuco" {
+            assert!(yaml.contains("1352.02747") && yaml.contains("image_width: 1600"), "{yaml}");
+        }
+    }
+}
+
+/// Bad input: a missing set folder, a pose file with a bad value (file, line, column), a
+/// poses table with a bad quaternion, joint columns without a robot; nothing is written.
+#[test]
+fn handeye_bad_input_is_located() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_csv = tmp.path().join("out.csv");
+    let out = run(ferrocal()
+        .args(["import", "ic-handeye", "--input"])
+        .arg(tmp.path().join("nope"))
+        .arg("--out")
+        .arg(&out_csv));
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cal_data.yaml"));
+
+    let set = tmp.path().join("set");
+    std::fs::create_dir_all(set.join("poses")).unwrap();
+    std::fs::write(set.join("cal_data.yaml"), "data:\n  - pose: poses/0.yaml\n    image: images/0.png\n").unwrap();
+    std::fs::write(set.join("poses/0.yaml"), "x: 0.5\ny: zero\nz: 0.1\nqx: 0\nqy: 0\nqz: 0\nqw: 1\n").unwrap();
+    let out = run(ferrocal().args(["import", "ic-handeye", "--input"]).arg(&set).arg("--out").arg(&out_csv));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("0.yaml: line 2"), "{err}");
+    assert!(!out_csv.exists());
+
+    let poses = tmp.path().join("poses.csv");
+    std::fs::write(&poses, "image,x_mm,y_mm,z_mm,qw,qx,qy,qz\na.png,1,2,3,2,0,0,0\n").unwrap();
+    let res = tmp.path().join("r.json");
+    let out = run(ferrocal()
+        .args(["handeye", "--images"])
+        .arg(tmp.path())
+        .arg("--poses")
+        .arg(&poses)
+        .args(["--pattern", "chessboard:9x6:30mm", "--mount", "eye-in-hand", "--json"])
+        .arg(&res));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("line 2, column 'qw'") && err.contains("norm 2"), "{err}");
+    std::fs::write(&poses, "image,q1_deg,q2_deg\na.png,1,2\n").unwrap();
+    let out = run(ferrocal().args(["handeye", "--images"]).arg(tmp.path()).arg("--poses").arg(&poses).args([
+        "--pattern",
+        "chessboard:9x6:30mm",
+        "--mount",
+        "eye-in-hand",
+    ]));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("line 2") && err.contains("--robot"), "{err}");
+    assert!(!res.exists());
+}

@@ -1,0 +1,317 @@
+//! `ferrocal handeye`: the command's arguments and its run (images and poses in, the JSON of
+//! `shared/spec/cli.md` and an HTML report out), `ferrocal handeye study` (the Monte Carlo
+//! check of the covariance) and the industrial_calibration importer's wiring. The method lives in
+//! `ferrocal_calib::handeye`, the formats in `ferrocal_datasets::handeye`.
+
+pub mod html;
+pub mod json;
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use ferrocal_calib::handeye::opencv::{best_baseline, opencv_baselines};
+use ferrocal_calib::handeye::{calibrate_hand_eye, HandEyeOptions, IntrinsicsMode, Mount};
+use ferrocal_datasets::handeye::{coverage_study, load_recording, read_camera_file, read_handeye_poses};
+use ferrocal_datasets::import::images::expand_image_specs;
+use ferrocal_robot::RobotModel;
+use ferrocal_vision::calib::CalibrationOptions;
+use serde_json::{json, Value};
+
+use crate::report::{write_atomic, Provenance, Report};
+
+/// The mount on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MountArg {
+    /// Camera on the flange, target fixed.
+    #[value(name = "eye-in-hand")]
+    EyeInHand,
+    /// Camera fixed, target on the flange.
+    #[value(name = "eye-to-hand")]
+    EyeToHand,
+}
+
+/// `ferrocal handeye`.
+#[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct HandeyeArgs {
+    /// The Monte Carlo study instead of a calibration.
+    #[command(subcommand)]
+    pub command: Option<HandeyeCommand>,
+    /// Images: files, directories or quoted globs.
+    #[arg(long, required = true, num_args = 1..)]
+    pub images: Vec<PathBuf>,
+    /// Poses CSV: `image`, then `x_mm,y_mm,z_mm,qw,qx,qy,qz` (T_base_flange) or joints `q1_<unit>...`
+    /// (with --robot), optional `split` (train/test).
+    #[arg(long, required = true)]
+    pub poses: Option<PathBuf>,
+    /// The target, e.g. `chessboard:9x6:25mm`.
+    #[arg(long, required = true)]
+    pub pattern: Option<String>,
+    /// Where the camera is.
+    #[arg(long, value_enum, required = true)]
+    pub mount: Option<MountArg>,
+    /// Robot model (preset, URDF or TOML) for joint readings.
+    #[arg(long)]
+    pub robot: Option<String>,
+    /// Camera file to hold fixed (camera calibrate JSON, OpenCV or ROS YAML); without it the
+    /// camera is calibrated from the training images and refined with the chain.
+    #[arg(long)]
+    pub intrinsics: Option<PathBuf>,
+    /// Write the JSON result here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write an HTML report here.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Fit the printed target's overall scale (visible only against metric robot poses).
+    #[arg(long)]
+    pub target_scale: bool,
+    /// Noise of the reported flange positions, mm per coordinate; with --robot-sigma-deg it
+    /// fixes the robot's noise (by default both are estimated from the data).
+    #[arg(long, requires = "robot_sigma_deg")]
+    pub robot_sigma_mm: Option<f64>,
+    /// Noise of the reported flange orientations, degrees per axis.
+    #[arg(long, requires = "robot_sigma_mm")]
+    pub robot_sigma_deg: Option<f64>,
+    /// Take the reported flange poses as exact (no robot-pose noise).
+    #[arg(long, conflicts_with = "robot_sigma_mm")]
+    pub exact_robot_poses: bool,
+    /// Huber threshold in robust standard deviations (0: plain least squares).
+    #[arg(long, default_value_t = 3.0)]
+    pub huber: f64,
+}
+
+/// `ferrocal handeye <command>`.
+#[derive(Debug, Subcommand)]
+pub enum HandeyeCommand {
+    /// Monte Carlo check of the hand-eye covariance on simulated recordings with known truth
+    /// (both mounts): the 3-sigma coverage of the hand-eye translation and rotation.
+    Study(StudyArgs),
+    /// Write a simulated recording with rendered chessboard images, the poses CSV, the true
+    /// camera (camera.yaml) and the truth (truth.json), to try the command on.
+    Simulate(SimulateArgs),
+}
+
+/// `ferrocal handeye simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// Where the camera is.
+    #[arg(long, value_enum)]
+    pub mount: MountArg,
+    /// Folder to write (images/, poses.csv, camera.yaml, truth.json).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Training images.
+    #[arg(long, default_value_t = 10)]
+    pub train: usize,
+    /// Held-out images.
+    #[arg(long, default_value_t = 6)]
+    pub test: usize,
+}
+
+/// `ferrocal handeye study`.
+#[derive(Debug, Args)]
+pub struct StudyArgs {
+    /// Simulations per mount.
+    #[arg(long, default_value_t = 200)]
+    pub simulations: usize,
+    /// Seed of the first simulation (the others follow).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Calibrate the intrinsics from the training images (else held at the truth).
+    #[arg(long)]
+    pub free_intrinsics: bool,
+    /// Estimate the noise levels by variance components (else the true ones are given).
+    #[arg(long)]
+    pub estimate_noise: bool,
+    /// Write the summary as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+fn write_json(path: &Path, v: &Value) -> Result<()> {
+    write_atomic(path, serde_json::to_string_pretty(v)?.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Runs `ferrocal handeye` (or its study).
+pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
+    match &a.command {
+        Some(HandeyeCommand::Study(s)) => return run_study(s),
+        Some(HandeyeCommand::Simulate(s)) => return run_simulate(s),
+        None => {}
+    }
+    let (Some(poses_path), Some(pattern_text), Some(mount)) = (&a.poses, &a.pattern, a.mount) else {
+        bail!("handeye: --poses, --pattern and --mount are required");
+    };
+    let mount = mount_of(mount);
+    let pattern: ferrocal_vision::detect::Pattern = pattern_text.parse()?;
+    let table = read_handeye_poses(poses_path)?;
+    let robot = a.robot.as_deref().map(RobotModel::load).transpose()?;
+    let flange = table.flange_poses(robot.as_ref())?;
+    let mut skipped_images = Vec::new();
+    let paths = expand_image_specs(&a.images, &mut skipped_images);
+    let (data, skipped) = load_recording(&paths, &table, &flange, &pattern, mount)?;
+    for s in &skipped_images {
+        eprintln!("ferrocal: skipped {s}");
+    }
+    for s in &skipped {
+        eprintln!("ferrocal: skipped {}: {}", s.what, s.reason);
+    }
+    let intrinsics = match &a.intrinsics {
+        Some(p) => IntrinsicsMode::Fixed(read_camera_file(p)?),
+        None => IntrinsicsMode::Calibrate(CalibrationOptions::default()),
+    };
+    let mut options = HandEyeOptions {
+        intrinsics,
+        fit_target_scale: a.target_scale,
+        huber_sigmas: a.huber,
+        ..HandEyeOptions::default()
+    };
+    if let (Some(mm), Some(deg)) = (a.robot_sigma_mm, a.robot_sigma_deg) {
+        (options.robot_sigma_m, options.robot_sigma_rad, options.estimate_noise) = (mm * 1e-3, deg.to_radians(), false);
+    }
+    if a.exact_robot_poses {
+        (options.robot_sigma_m, options.robot_sigma_rad) = (0.0, 0.0);
+    }
+    let result = calibrate_hand_eye(&data, &options)
+        .with_context(|| format!("handeye: {} usable image(s) of {}", data.views.len(), paths.len()))?;
+    let opencv_camera = result.initial_camera.as_ref().map_or(result.camera, |c| c.camera);
+    let baselines = opencv_baselines(&data, &options, &opencv_camera);
+    let mut skipped_json: Vec<Value> =
+        skipped_images.iter().map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason})).collect();
+    skipped_json.extend(skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
+    skipped_json.extend(result.skipped.iter().map(|s| json!({"image": s.name, "reason": s.reason})));
+    let source = table.source.as_deref();
+    if let Some(p) = &a.json {
+        write_json(p, &json::handeye_json(&result, &baselines, Value::Array(skipped_json), source))?;
+    }
+    if let Some(h) = &a.report {
+        let mut prov =
+            Provenance::new(json!({"pattern": pattern_text, "mount": mount.name(), "options": format!("{options:?}")}));
+        prov.add_input(poses_path);
+        let mut rep = Report::new(&format!("Hand-eye calibration ({}, {})", mount.name(), pattern_text), prov);
+        rep.sections.extend(html::handeye_sections(&result, &baselines, source));
+        write_atomic(h, rep.to_html().as_bytes())?;
+    }
+    print_summary(&result, best_baseline(&baselines), source);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_summary(
+    r: &ferrocal_calib::handeye::HandEyeResult,
+    best: Option<&ferrocal_calib::handeye::opencv::BaselineReport>,
+    source: Option<&str>,
+) {
+    let p = r.hand_eye.transform.translation.vector * 1e3;
+    let s = r.hand_eye.translation_std_mm();
+    println!(
+        "{} {}: translation [{:.3}, {:.3}, {:.3}] +- [{:.3}, {:.3}, {:.3}] mm, rotation std {:.4?} deg",
+        r.mount.name(),
+        r.mount.hand_eye_name(),
+        p.x,
+        p.y,
+        p.z,
+        s.x,
+        s.y,
+        s.z,
+        r.hand_eye.rotation_std_deg().as_slice()
+    );
+    let f = &r.figures;
+    let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
+    println!(
+        "chain RMS: train {:.4} px, held-out {} px; PnP agreement: train {} mm / {} deg, held-out {} mm / {} deg",
+        f.train_rms_px,
+        opt(f.heldout_rms_px),
+        opt(f.train_pnp_position_mm),
+        opt(f.train_pnp_rotation_deg),
+        opt(f.heldout_pnp_position_mm),
+        opt(f.heldout_pnp_rotation_deg)
+    );
+    if let Some(b) = best.and_then(|b| b.figures.as_ref().map(|f| (b, f))) {
+        println!(
+            "OpenCV best ({} {}): train {:.4} px, held-out {} px",
+            b.0.function,
+            b.0.method,
+            b.1.train_rms_px,
+            opt(b.1.heldout_rms_px)
+        );
+    }
+    if let Some(src) = source {
+        println!("data: {src}");
+    }
+}
+
+fn mount_of(m: MountArg) -> Mount {
+    match m {
+        MountArg::EyeInHand => Mount::EyeInHand,
+        MountArg::EyeToHand => Mount::EyeToHand,
+    }
+}
+
+fn run_simulate(s: &SimulateArgs) -> Result<ExitCode> {
+    let mut config = ferrocal_datasets::handeye::HandEyeSimConfig::default_for(mount_of(s.mount));
+    config.n_train = s.train;
+    config.n_test = s.test;
+    let r = ferrocal_datasets::handeye::write_rendered_recording(&config, &s.out, s.seed)?;
+    eprintln!("{} images written to {} (pattern {})", r.n_images, s.out.display(), r.pattern);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_study(s: &StudyArgs) -> Result<ExitCode> {
+    if s.simulations == 0 {
+        bail!("handeye study: --simulations must be at least 1");
+    }
+    let mode =
+        ferrocal_datasets::handeye::StudyMode { free_intrinsics: s.free_intrinsics, estimate_noise: s.estimate_noise };
+    let rows = coverage_study(s.simulations, s.seed, mode, &|k, n| {
+        if k % 20 == 0 || k == n {
+            eprintln!("handeye study: {k}/{n} simulations");
+        }
+    });
+    for r in &rows {
+        println!(
+            "{}: {} runs ({} failed); 3-sigma coverage translation {:.1} %, rotation {:.1} %; RMS error {:.4} mm \
+             (stated std {:.4} mm), {:.5} deg (stated {:.5} deg); held-out chain RMS {:.4} px",
+            r.mount.name(),
+            r.n_runs,
+            r.n_failed,
+            100.0 * r.translation_coverage_3sigma,
+            100.0 * r.rotation_coverage_3sigma,
+            r.translation_rms_error_mm,
+            r.translation_rms_std_mm,
+            r.rotation_rms_error_deg,
+            r.rotation_rms_std_deg,
+            r.mean_heldout_rms_px
+        );
+    }
+    if let Some(p) = &s.json {
+        write_json(p, &json!({"simulations": s.simulations, "seed": s.seed, "mode": mode, "mounts": rows}))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `ferrocal import ic-handeye`: an industrial_calibration set folder to the poses table (and its
+/// camera to OpenCV YAML when asked).
+pub fn run_import_ic(
+    input: &Path,
+    out: &Path,
+    test_every: Option<usize>,
+    intrinsics_out: Option<&Path>,
+) -> Result<ExitCode> {
+    let set = ferrocal_datasets::handeye::import_ic_handeye(input, out, test_every, intrinsics_out)?;
+    let n_test = set.rows.iter().filter(|r| r.2 == ferrocal_calib::Split::Test).count();
+    eprintln!(
+        "{} rows ({n_test} test) written to {}; mount {}{}",
+        set.rows.len(),
+        out.display(),
+        set.mount.name(),
+        set.pattern.map(|p| format!(", pattern {p}")).unwrap_or_default()
+    );
+    Ok(ExitCode::SUCCESS)
+}
