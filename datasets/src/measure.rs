@@ -66,6 +66,23 @@ pub fn detector_pattern(
         TargetConfig::Chessboard { inner_cols, inner_rows, square_m, .. } => {
             Pattern::Chessboard { cols: *inner_cols, rows: *inner_rows, square_mm: square_m * 1e3 }
         }
+        TargetConfig::Charuco { cols, rows, square_m, marker_m, dictionary, .. } => {
+            Pattern::Charuco(ferrocal_vision::detect::CharucoBoard {
+                cols: *cols,
+                rows: *rows,
+                square_mm: square_m * 1e3,
+                marker_mm: marker_m * 1e3,
+                dictionary: *dictionary,
+            })
+        }
+        TargetConfig::CircleGrid { cols, rows, spacing_m, large_radius_m, .. } => {
+            Pattern::CircleGrid(ferrocal_vision::detect::CircleGrid {
+                cols: *cols,
+                rows: *rows,
+                spacing_mm: spacing_m * 1e3,
+                modified: large_radius_m.is_some(),
+            })
+        }
         TargetConfig::AprilTagBoard { .. } => {
             return Err(DatasetError::Input(
                 "measuring with AprilTag boards is not supported yet: use the plate or a chessboard".into(),

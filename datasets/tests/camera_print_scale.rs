@@ -9,8 +9,7 @@
 //! chosen over the lens and flatness candidates and sized right, not that the model family is
 //! the only one that could explain such images.
 
-#[path = "../../vision/tests/calib_support/mod.rs"]
-mod calib_support;
+use crate::calib_support;
 
 use calib_support as sim;
 use ferrocal_calib::diagnose::camera::{diagnose_camera, CameraDiagnoseOptions, CameraDiagnoseReport};

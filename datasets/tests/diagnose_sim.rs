@@ -2,7 +2,7 @@
 //! versions of `examples/diagnose_study.rs`): the right effect on the right joint, nothing when
 //! there is nothing, untestable candidates named, too few poses declined, the JSON contract.
 
-mod diagnose_support;
+use crate::diagnose_support;
 
 use diagnose_support::{example_urdf, simulate, Payload, Scenario};
 use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions, DiagnoseReport};
@@ -172,7 +172,7 @@ fn plans_over_the_full_joint_limits() {
 }
 
 /// Writes simulated tables for trying `ferrocal diagnose` by hand:
-/// `DIAGNOSE_TABLES=dir cargo test -p ferrocal-datasets --test diagnose_sim -- --ignored`.
+/// `DIAGNOSE_TABLES=dir cargo test -p ferrocal-datasets --test integration diagnose_sim:: -- --ignored`.
 #[test]
 #[ignore]
 fn write_example_tables() {

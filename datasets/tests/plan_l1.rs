@@ -3,7 +3,7 @@
 //! wanted poses, the criterion, the predicted calibration checked by simulated calibrations (the
 //! datasets simulator), and the checked path with its programs, all from one plan.
 
-mod plan_support;
+use crate::plan_support;
 
 use ferrocal_calib::design::criteria::Criterion;
 use ferrocal_calib::design::flow::{plan_design, DesignSettings};

@@ -2,8 +2,7 @@
 //! chessboard (blur, vignetting, shot and read noise), OpenCV finds the corners, ferrocal
 //! calibrates; the result is compared with the renderer's exact camera.
 
-#[path = "../../vision/tests/calib_support/mod.rs"]
-mod calib_support;
+use crate::calib_support;
 
 use calib_support as sim;
 use ferrocal_datasets::render::{RenderConfig, Renderer, TargetConfig};

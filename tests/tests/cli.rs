@@ -157,6 +157,48 @@ fn camera_calibrate_on_the_opencv_sample_matches_the_published_numbers() {
     assert!(v["std"]["fx"].as_f64().unwrap() > 0.0);
 }
 
+/// ChArUco and circle grids through `detect` and `camera calibrate` on the ROS-Industrial
+/// industrial_calibration example data (Apache-2.0).
+#[test]
+fn charuco_and_circle_grid_through_detect_and_camera_calibrate() {
+    let tmp = tempfile::tempdir().unwrap();
+    let j = tmp.path().join("charuco.json");
+    let imgs = data("industrial_calibration/test_set_charuco/images");
+    let out = run(ferrocal()
+        .args(["detect", "--images"])
+        .arg(imgs.join("2.png"))
+        .arg(imgs.join("10.png"))
+        .args(["--pattern", "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250", "--json"])
+        .arg(&j));
+    assert!(out.status.success());
+    let v = json(&j);
+    let entries = v.as_array().unwrap();
+    assert_eq!(entries.len(), 2);
+    // Image 2 shows the board with two marker squares undecoded: a partial detection with ids.
+    let d2 = &entries[0]["detections"][0];
+    let n2 = d2["corners_px"].as_array().unwrap().len();
+    let ids = d2["corner_ids"].as_array().expect("a partial board lists its corner ids");
+    assert!((12..24).contains(&n2) && ids.len() == n2, "{n2} corners, {} ids", ids.len());
+    assert!(ids.iter().all(|i| i.as_u64().unwrap() < 24));
+    let d10 = &entries[1]["detections"][0];
+    assert_eq!(d10["corners_px"].as_array().unwrap().len(), 24);
+    assert!(d10.get("corner_ids").is_none() && d10["complete"].as_bool().unwrap());
+    assert_eq!(d10["covariance_px2"].as_array().unwrap().len(), 24);
+
+    let c = tmp.path().join("grid.json");
+    let out = run(ferrocal()
+        .args(["camera", "calibrate", "--images"])
+        .arg(data("industrial_calibration/test_set_10x10/images"))
+        .args(["--pattern", "circlegrid:10x10:25.4mm:modified", "--json"])
+        .arg(&c));
+    assert!(out.status.success());
+    let v = json(&c);
+    assert_eq!(v["per_view"].as_array().unwrap().len(), 15);
+    assert!(v["rms_px"].as_f64().unwrap() < 0.5);
+    let bias = &v["circle_bias"];
+    assert!(bias["rounds"].as_u64().unwrap() >= 1 && bias["shift_max_px"].as_f64().unwrap() > 0.0, "{bias}");
+}
+
 #[test]
 fn demo_writes_its_report() {
     let tmp = tempfile::tempdir().unwrap();

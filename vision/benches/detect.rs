@@ -1,5 +1,6 @@
 //! Detection speed: this project's detectors against OpenCV and the AprilTag libraries on the
-//! same images. Run with `cargo bench -p ferrocal-vision --bench detect`; the side-by-side
+//! same images (ChArUco boards and circle grids on the ROS-Industrial industrial_calibration
+//! example data, Apache-2.0). Run with `cargo bench --workspace --bench detect`; the side-by-side
 //! medians and ratios come from `cargo run --release -p ferrocal-vision --example speed`
 //! (see BENCHMARKS.md).
 
@@ -8,7 +9,8 @@ mod synth;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ferrocal_vision::detect::apriltag::{AprilTagDetector, AprilTagOptions, TagBackend, TagRefine};
-use ferrocal_vision::detect::baseline::{opencv_find_chessboard, opencv_find_chessboard_sb};
+use ferrocal_vision::detect::aruco::{opencv_charuco_corners, MarkerParams};
+use ferrocal_vision::detect::baseline::{opencv_find_chessboard, opencv_find_chessboard_sb, opencv_find_circles_grid};
 use ferrocal_vision::detect::{detect, load_gray, DetectOptions, Pattern, TagFamily};
 
 /// A 5 MP (2592 x 1944) view of a 9 x 6 chessboard with squares of about 120 px, blur 1 px,
@@ -74,5 +76,43 @@ fn apriltag(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, chessboard, plate, apriltag);
+/// An image of the ROS-Industrial industrial_calibration example data (Apache-2.0).
+fn industrial(set: &str, image: &str) -> image::GrayImage {
+    load_gray(format!("{}/../../shared/data/industrial_calibration/{set}/images/{image}", env!("CARGO_MANIFEST_DIR")))
+        .unwrap()
+}
+
+/// ChArUco, 1600 x 1200, the whole 5 x 7 board (24 corners): ours (OpenCV's marker decoding,
+/// own corner refinement with covariances) against OpenCV's `interpolateCornersCharuco`.
+fn charuco(c: &mut Criterion) {
+    let img = industrial("test_set_charuco", "10.png");
+    let pattern: Pattern = "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250".parse().unwrap();
+    let Pattern::Charuco(board) = pattern else { unreachable!() };
+    let mut g = c.benchmark_group("charuco_1600x1200");
+    g.sample_size(10);
+    g.bench_function("ferrocal_detect_refine", |b| {
+        b.iter(|| detect(&img, &pattern, &DetectOptions::default(), None).unwrap())
+    });
+    g.bench_function("opencv_interpolate_corners_charuco", |b| {
+        b.iter(|| opencv_charuco_corners(&img, &board, MarkerParams::OpenCv, 2).unwrap())
+    });
+    g.finish();
+}
+
+/// A modified 10 x 10 circle grid, 640 x 480 (Kinect): ours against `findCirclesGrid`.
+fn circle_grid(c: &mut Criterion) {
+    let img = industrial("test_set_10x10", "0.png");
+    let pattern: Pattern = "circlegrid:10x10:25.4mm:modified".parse().unwrap();
+    let mut g = c.benchmark_group("circlegrid_640x480");
+    g.sample_size(20);
+    g.bench_function("ferrocal_detect", |b| {
+        b.iter(|| detect(&img, &pattern, &DetectOptions::default(), None).unwrap())
+    });
+    g.bench_function("opencv_find_circles_grid", |b| {
+        b.iter(|| opencv_find_circles_grid(&img, 10, 10).unwrap().unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, chessboard, plate, apriltag, charuco, circle_grid);
 criterion_main!(benches);

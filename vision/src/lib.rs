@@ -1,4 +1,5 @@
-//! Vision measurement for ferrocal: detection of pattern plates, chessboards and AprilTags,
+//! Vision measurement for ferrocal: detection of pattern plates, chessboards, AprilTags,
+//! ChArUco boards and circle grids,
 //! sub-pixel corners, camera models, calibration and bundle adjustment.
 //!
 //! Entry points:

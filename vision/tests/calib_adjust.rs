@@ -4,7 +4,7 @@
 //! about the centroid) the estimator uses, so these tests check the solver, the parameter
 //! meanings and the documented identifiability, not that the model fits real targets.
 
-mod calib_support;
+use crate::calib_support;
 
 use calib_support as sim;
 use ferrocal_vision::calib::{

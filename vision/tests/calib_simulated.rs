@@ -2,7 +2,7 @@
 //! uncertainty claims checked against the truth over many seeds, selectable models, outliers,
 //! and every degenerate input.
 
-mod calib_support;
+use crate::calib_support;
 
 use calib_support as sim;
 use ferrocal_vision::calib::{calibrate_camera, CalibrationOptions, PlanarTarget, RobustLoss, View};

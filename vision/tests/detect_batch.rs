@@ -1,8 +1,7 @@
 //! Bad input in a batch: every image gets its own result, failures carry a clear message, the
 //! batch goes on; a pattern string that does not parse says what is expected.
 
-#[path = "support/synth.rs"]
-mod synth;
+use crate::synth;
 
 use ferrocal_vision::detect::{DetectOptions, Detector, ImageResult, Pattern};
 

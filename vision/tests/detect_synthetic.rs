@@ -2,8 +2,7 @@
 //! against OpenCV's cornerSubPix (11 x 11, from the same initial corners), partial views, the
 //! Gantry-Tau plate with and without a background image.
 
-#[path = "support/synth.rs"]
-mod synth;
+use crate::synth;
 
 use ferrocal_vision::detect::baseline::opencv_corner_subpix;
 use ferrocal_vision::detect::{detect, median_background, DetectOptions, Pattern};

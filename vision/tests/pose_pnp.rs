@@ -1,7 +1,7 @@
 //! Target pose from one calibrated camera (PnP): accuracy, covariance against Monte-Carlo
 //! sampling, corner covariances, calibration uncertainty propagated, and bad input.
 
-mod calib_support;
+use crate::calib_support;
 
 use calib_support as sim;
 use ferrocal_vision::calib::PlanarTarget;

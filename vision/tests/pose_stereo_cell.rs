@@ -4,7 +4,7 @@
 //! poses), then a smaller target is measured all over the workspace. Exact projections plus
 //! Gaussian corner noise.
 
-mod calib_support;
+use crate::calib_support;
 
 use calib_support::cell::{calibrate, measure, Cell};
 use nalgebra::Isometry3;

@@ -40,7 +40,7 @@ pub fn load_recording(
     pattern: &Pattern,
     mount: Mount,
 ) -> Result<(HandEyeData, Vec<Skipped>)> {
-    let mut detector = Detector::new(pattern.clone(), DetectOptions::default(), None)?;
+    let mut detector = Detector::new(*pattern, DetectOptions::default(), None)?;
     let by_name: HashMap<&str, usize> = table.rows.iter().enumerate().map(|(i, r)| (r.image.as_str(), i)).collect();
     let mut used = vec![false; table.rows.len()];
     let mut skipped = Vec::new();

@@ -2,7 +2,8 @@
 //! end-effector, with exact ground truth.
 //!
 //! Entry points:
-//! - [`TargetConfig`] (plate, chessboard, AprilTag board) and its [`TargetGeometry`];
+//! - [`TargetConfig`] (plate, chessboard, AprilTag board, ChArUco board, circle grid) and its
+//!   [`TargetGeometry`];
 //! - [`Renderer`] (of a [`TargetConfig`], or of any [`TargetGeometry`], e.g. one printed to a
 //!   wrong scale by [`TargetGeometry::printed`]): [`Renderer::render`] (8-bit image and [`GroundTruth`]),
 //!   [`Renderer::render_expected`] (noise-free expected charge per pixel),
@@ -36,6 +37,7 @@
 //! for a seed (ChaCha8).
 
 pub mod apriltag;
+mod boards;
 pub mod corner_study;
 mod optics;
 mod raster;

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::apriltag::TagFamily;
 use crate::error::{DatasetError, Result};
+use ferrocal_vision::detect::ArucoDictionary;
 
 /// Which target, with its dimensions. Embedded in TOML as e.g.
 /// `target = { kind = "plate", square_m = 0.05, margin_m = 0.02 }`.
@@ -58,17 +59,52 @@ pub enum TargetConfig {
         /// cell (`tag_size_m / 8`).
         margin_m: f64,
     },
+    /// A ChArUco board of `cols x rows` squares, laid out as OpenCV 4.6 draws it (top-left
+    /// square black, markers in the white squares, ids row by row from the top): the layout of
+    /// `ferrocal_vision::detect::charuco`.
+    Charuco {
+        /// Squares per row.
+        cols: u32,
+        /// Squares per column.
+        rows: u32,
+        /// Side of a square, metres.
+        square_m: f64,
+        /// Side of a marker, metres.
+        marker_m: f64,
+        /// The markers' dictionary (OpenCV's name, e.g. `DICT_6X6_250`).
+        dictionary: ArucoDictionary,
+        /// White margin around the squares, metres.
+        margin_m: f64,
+    },
+    /// A grid of `cols x rows` black dots (`ferrocal_vision::detect::circles` order: dot 0 at
+    /// the bottom-left, rows along x); with `large_radius_m` dot 0 is that large ("modified").
+    CircleGrid {
+        /// Dots per row.
+        cols: u32,
+        /// Dots per column.
+        rows: u32,
+        /// Distance between neighbouring centres, metres.
+        spacing_m: f64,
+        /// Radius of the dots, metres.
+        radius_m: f64,
+        /// Radius of dot 0, metres, for a modified grid.
+        #[serde(default)]
+        large_radius_m: Option<f64>,
+        /// White margin beyond the outermost dots' edges, metres.
+        margin_m: f64,
+    },
 }
 
 /// One ground-truth corner of a target.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TargetCorner {
     /// Plate: square index (0 top-left, 1 top-right, 2 centre, 3 bottom-left, 4 bottom-right);
-    /// chessboard: 0; AprilTag board: the tag id.
+    /// chessboard, ChArUco board, circle grid: 0; AprilTag board: the tag id.
     pub feature: u32,
     /// Plate: corner of the square (0 top-left, 1 top-right, 2 bottom-right, 3 bottom-left);
     /// chessboard: `row * inner_cols + col`, rows from the top; AprilTag: the C library's
-    /// corner order (0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left as printed).
+    /// corner order (0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left as printed);
+    /// ChArUco: the corner id (OpenCV's); circle grid: the dot index (its centre).
     pub index: u32,
     /// Position in the target frame (z = 0), metres.
     pub p_target_m: Point3<f64>,
@@ -121,7 +157,7 @@ impl TargetGeometry {
     }
 }
 
-fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<Point2<f64>> {
+pub(super) fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<Point2<f64>> {
     vec![Point2::new(x0, y0), Point2::new(x1, y0), Point2::new(x1, y1), Point2::new(x0, y1)]
 }
 
@@ -160,6 +196,25 @@ impl TargetConfig {
             }
             TargetConfig::AprilTagBoard { cols, rows, tag_size_m, spacing_m, first_id, ids, margin_m } => {
                 apriltag_board(*cols, *rows, *tag_size_m, *spacing_m, *first_id, ids.as_deref(), *margin_m)
+            }
+            TargetConfig::Charuco { cols, rows, square_m, marker_m, dictionary, margin_m } => {
+                check_count("cols", *cols, 2)?;
+                check_count("rows", *rows, 2)?;
+                check_length("square_m", *square_m, false)?;
+                check_length("marker_m", *marker_m, false)?;
+                check_length("margin_m", *margin_m, true)?;
+                super::boards::charuco(*cols, *rows, *square_m, *marker_m, *dictionary, *margin_m)
+            }
+            TargetConfig::CircleGrid { cols, rows, spacing_m, radius_m, large_radius_m, margin_m } => {
+                check_count("cols", *cols, 2)?;
+                check_count("rows", *rows, 2)?;
+                check_length("spacing_m", *spacing_m, false)?;
+                check_length("radius_m", *radius_m, false)?;
+                check_length("margin_m", *margin_m, true)?;
+                if let Some(l) = large_radius_m {
+                    check_length("large_radius_m", *l, false)?;
+                }
+                super::boards::circle_grid(*cols, *rows, *spacing_m, *radius_m, *large_radius_m, *margin_m)
             }
         }
     }

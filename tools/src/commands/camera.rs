@@ -12,12 +12,12 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
-use ferrocal_vision::calib::corners::{detect_view_slots, SkippedImage, SubpixWindow};
+use ferrocal_vision::calib::corners::{detect_pattern_views, detect_view_slots, SkippedImage, SubpixWindow};
 use ferrocal_vision::calib::{
-    calibrate_camera, calibrate_stereo, CalibrationOptions, CameraCalibration, PlanarTarget, RobustLoss, MIN_VIEWS,
+    calibrate_pattern, calibrate_stereo, compare::compare_with_opencv, CalibrationOptions, CalibrationPattern,
+    CameraCalibration, PlanarTarget, RobustLoss, MIN_VIEWS,
 };
 use ferrocal_vision::camera::{io, DistortionKind};
-use ferrocal_vision::detect::Pattern;
 use serde_json::{json, Value};
 
 /// `ferrocal camera ...`.
@@ -56,7 +56,8 @@ impl ModelArg {
 /// Settings shared by both calibrations.
 #[derive(Debug, Args)]
 pub struct SolveArgs {
-    /// The pattern, e.g. `chessboard:9x6:25mm` (inner corners, square size).
+    /// The pattern: `chessboard:9x6:25mm` (inner corners, square size),
+    /// `charuco:5x7:36.195mm:18.256mm:DICT_6X6_250` (squares), `circlegrid:10x10:25.4mm[:modified]`.
     #[arg(long)]
     pub pattern: String,
     /// Keep fx = fy (OpenCV's CALIB_FIX_ASPECT_RATIO with ratio 1).
@@ -98,9 +99,9 @@ impl WindowArg {
 }
 
 impl SolveArgs {
-    fn options(&self) -> Result<(Pattern, PlanarTarget, CalibrationOptions)> {
-        let pattern: Pattern = self.pattern.parse()?;
-        let target = PlanarTarget::of_pattern(&pattern)?;
+    fn options(&self) -> Result<(CalibrationPattern, PlanarTarget, CalibrationOptions)> {
+        let pattern: CalibrationPattern = self.pattern.parse()?;
+        let target = pattern.target();
         let options = CalibrationOptions {
             model: self.model.kind(),
             fix_aspect: self.fix_aspect,
@@ -134,6 +135,9 @@ pub struct CalibrateArgs {
     /// Camera name in the ROS file.
     #[arg(long, default_value = "camera")]
     pub camera_name: String,
+    /// Also run OpenCV's detector on the same images and print both calibrations side by side.
+    #[arg(long)]
+    pub compare_opencv: bool,
 }
 
 /// `ferrocal camera stereo`.
@@ -214,22 +218,30 @@ fn print_camera(label: &str, cal: &CameraCalibration) {
 }
 
 fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
-    let (pattern, target, options) = a.solve.options()?;
+    let (pattern, _, options) = a.solve.options()?;
     let mut skipped = Vec::new();
     let paths = expand_image_specs(&a.images, &mut skipped);
-    let (slots, detect_skipped) = detect_view_slots(&paths, &pattern, a.solve.subpix_window.window());
-    skipped.extend(detect_skipped);
+    let found = detect_pattern_views(&paths, &pattern, a.solve.subpix_window.window());
+    skipped.extend(found.skipped);
     report_skipped(&skipped);
-    let views: Vec<_> = slots.into_iter().flatten().collect();
+    let views: Vec<_> = found.slots.into_iter().flatten().collect();
     if views.len() < MIN_VIEWS {
         return Err(too_few("camera calibrate", views.len(), paths.len(), &skipped));
     }
-    let cal = calibrate_camera(&views, &target, &options).map_err(|e| {
+    let pc = calibrate_pattern(&views, &pattern, found.circle_radii_m, &options).map_err(|e| {
         anyhow::anyhow!("camera calibrate: {e} ({} usable views of {} images)", views.len(), paths.len())
     })?;
-    print_camera("camera", &cal);
+    let cal = &pc.calibration;
+    print_camera("camera", cal);
+    if let Some(b) = &pc.circle_bias {
+        println!("{b}");
+    }
+    if a.compare_opencv {
+        println!("{}", compare_with_opencv(&paths, &pattern, &options)?);
+    }
     if let Some(p) = &a.json {
-        let mut v = camera_json(&cal);
+        let mut v = camera_json(cal);
+        v["circle_bias"] = json!(pc.circle_bias);
         v["pattern"] = json!(pattern.to_string());
         v["fix_aspect"] = json!(a.solve.fix_aspect);
         v["skipped"] = skipped_json(&skipped);
@@ -288,7 +300,7 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
         st.calibration.rms_px
     );
     if let Some(p) = &a.json {
-        let v = stereo_json(&st, n_pairs, &pattern, a.solve.fix_aspect, &skipped);
+        let v = stereo_json(&st, n_pairs, &pattern.pattern(), a.solve.fix_aspect, &skipped);
         write_json(p, &v)?;
     }
     for (cal, path, ros, name) in [

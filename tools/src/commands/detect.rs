@@ -23,7 +23,9 @@ use crate::report::write_atomic;
 \"error\": \"<why>\" (only when the image failed)}]. Pixel (0, 0) is the centre of the top-left pixel. A chessboard is one \
 detection whose corners run row by row from the top-left as printed; the plate is one detection of 20 corners (squares \
 top-left, top-right, centre, bottom-left, bottom-right; corners top-left, top-right, bottom-right, bottom-left); tags are \
-one detection each, corners in the AprilTag library's order.\n\n\
+one detection each, corners in the AprilTag library's order; a ChArUco board is one detection of the corners seen, \
+with their ids in `corner_ids` (OpenCV's numbering); a circle grid one detection of the dot centres (ellipse centres, \
+not corrected for perspective) from the origin dot.\n\n\
 An image that cannot be read, is empty, or does not show the pattern is reported on stderr and in its JSON entry; the \
 batch goes on.\n\n\
 Exit status: 0 when the pattern was found in every image; 2 when at least one image failed (the JSON is still written); \
@@ -35,7 +37,8 @@ pub struct DetectArgs {
     pub images: Vec<String>,
     /// The pattern: `chessboard:<cols>x<rows>:<square>mm` (inner corners),
     /// `apriltag:<family>[:<tag size>mm]`, `plate:<square>mm` (the Gantry-Tau plate),
-    /// `aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]`.
+    /// `aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]`,
+    /// `charuco:<cols>x<rows>:<square>mm:<marker>mm:<dictionary>`, `circlegrid:<cols>x<rows>:<spacing>mm[:modified]`.
     #[arg(long)]
     pub pattern: String,
     /// Write the detections here (JSON).

@@ -179,7 +179,7 @@ fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
         };
         let mut ids = Vec::new();
         let mut px = Vec::new();
-        for c in dets.iter().filter(|d| d.complete).flat_map(|d| &d.corners) {
+        for c in dets.iter().filter(|d| d.anchored).flat_map(|d| &d.corners) {
             let Some(t) = c.target_m else { continue };
             let key = ((t.x * 1e6).round() as i64, (t.y * 1e6).round() as i64, (t.z * 1e6).round() as i64);
             let id = *key_of.entry(key).or_insert_with(|| {

@@ -1,15 +1,15 @@
-//! Chessboard corners from OpenCV (`findChessboardCorners` + `cornerSubPix`, 11 x 11 window,
-//! stop at 30 iterations or a move below 0.1 px), the recipe that reproduces OpenCV's
-//! published calibration of its stereo sample; the window shrinks on boards whose squares are
-//! smaller than the window when asked ([`SubpixWindow::Adaptive`]). It stands in until ferrocal's own detector
-//! (`crate::detect`) lands; swap the call, not the calibration.
+//! Corners for calibration. Chessboards from OpenCV (`findChessboardCorners` + `cornerSubPix`,
+//! 11 x 11 window, stop at 30 iterations or a move below 0.1 px), the recipe that reproduces
+//! OpenCV's published calibration of its stereo sample; the window shrinks on boards whose
+//! squares are smaller than the window when asked ([`SubpixWindow::Adaptive`]). ChArUco boards
+//! and circle grids from the project's own detectors ([`crate::detect`]), with point ids
+//! ([`detect_pattern_views`]).
 
 use std::path::{Path, PathBuf};
 
 use nalgebra::Point2;
 
 use crate::camera::ImageSize;
-use crate::detect::Pattern;
 use crate::error::{Result, VisionError};
 
 /// The corners found in one image, row by row (OpenCV's order), pixel-centre convention.
@@ -164,29 +164,60 @@ impl std::fmt::Display for SkippedImage {
     }
 }
 
+/// The views found in a batch of images.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PatternViews {
+    /// One slot per path (`None` where the image is unusable).
+    pub slots: Vec<Option<super::View>>,
+    /// The unusable images with their reasons.
+    pub skipped: Vec<SkippedImage>,
+    /// Circle grids: the dots' radii on the target, metres (`[small, large]`, medians over the
+    /// views), for the perspective-bias correction.
+    pub circle_radii_m: Option<[f64; 2]>,
+}
+
 /// Finds the pattern in every image, one slot per path (`None` where the image is unusable).
 /// A bad image (missing, empty, undecodable, pattern not found) never stops the batch: it is
 /// listed in the second result with the reason. Images whose size differs from the most common
-/// size (ties: the first seen) are left out too, with the sizes in the reason. OpenCV's detector
-/// finds chessboards: any other pattern leaves every image out, saying so.
+/// size (ties: the first seen) are left out too, with the sizes in the reason.
 pub fn detect_view_slots(
     paths: &[PathBuf],
-    pattern: &Pattern,
+    pattern: &super::CalibrationPattern,
     window: SubpixWindow,
 ) -> (Vec<Option<super::View>>, Vec<SkippedImage>) {
+    let v = detect_pattern_views(paths, pattern, window);
+    (v.slots, v.skipped)
+}
+
+/// [`detect_view_slots`] with what the detector measured besides the corners. Chessboards are
+/// found with OpenCV's recipe ([`chessboard_corners_opencv_with`]), ChArUco boards and circle
+/// grids with the project's detectors ([`crate::detect`]; their corners carry point ids, so a
+/// partial ChArUco view is a view of the corners it shows).
+pub fn detect_pattern_views(
+    paths: &[PathBuf],
+    pattern: &super::CalibrationPattern,
+    window: SubpixWindow,
+) -> PatternViews {
     let mut slots = Vec::with_capacity(paths.len());
     let mut skipped = Vec::new();
-    let Pattern::Chessboard { cols: inner_cols, rows: inner_rows, .. } = *pattern else {
-        for p in paths {
-            let reason = format!("pattern '{pattern}': camera calibration detects chessboards only");
-            skipped.push(SkippedImage { image: p.clone(), reason });
-            slots.push(None);
-        }
-        return (slots, skipped);
-    };
+    let mut radii: Vec<[f64; 2]> = Vec::new();
+    let mut detector =
+        pattern.own_detector().map(|p| crate::detect::Detector::new(p, crate::detect::DetectOptions::default(), None));
     for p in paths {
-        match chessboard_corners_opencv_with(p, inner_cols, inner_rows, window) {
-            Ok(c) => slots.push(Some(super::View::new(p.display().to_string(), c.image_size, c.corners_px))),
+        let found = match (&mut detector, *pattern) {
+            (None, super::CalibrationPattern::Chessboard { inner_cols, inner_rows, .. }) => {
+                chessboard_corners_opencv_with(p, inner_cols, inner_rows, window)
+                    .map(|c| super::View::new(p.display().to_string(), c.image_size, c.corners_px))
+            }
+            (Some(Ok(det)), _) => own_view(det, p).map(|(v, r)| {
+                radii.extend(r);
+                v
+            }),
+            (Some(Err(e)), _) => Err(unusable(p, e.to_string())),
+            (None, _) => Err(unusable(p, "no detector for this pattern")),
+        };
+        match found {
+            Ok(v) => slots.push(Some(v)),
             Err(VisionError::ImageUnusable { image, reason }) => {
                 skipped.push(SkippedImage { image, reason });
                 slots.push(None);
@@ -197,7 +228,34 @@ pub fn detect_view_slots(
             }
         }
     }
-    // The most common image size wins.
+    keep_main_size(&mut slots, paths, &mut skipped);
+    let circle_radii_m = (!radii.is_empty()).then(|| {
+        let med = |k: usize| super::median(&radii.iter().map(|r| r[k]).collect::<Vec<f64>>());
+        [med(0), med(1)]
+    });
+    PatternViews { slots, skipped, circle_radii_m }
+}
+
+/// One image through the project's detector: the view of its corners with point ids.
+fn own_view(det: &mut crate::detect::Detector, path: &Path) -> Result<(super::View, Option<[f64; 2]>)> {
+    let img = crate::detect::load_gray(path).map_err(|e| unusable(path, e.to_string()))?;
+    let size = ImageSize { width_px: img.width(), height_px: img.height() };
+    let found = det.detect(&img).map_err(|e| unusable(path, e.to_string()))?;
+    let Some(d) = found.into_iter().max_by_key(|d| d.corners.len()) else {
+        return Err(unusable(path, "pattern not found"));
+    };
+    let (ids, px): (Vec<usize>, Vec<Point2<f64>>) =
+        d.corners.iter().filter_map(|c| c.point_id.map(|i| (i as usize, c.position_px))).unzip();
+    if ids.len() < 4 {
+        return Err(unusable(path, format!("only {} corners with ids, a view needs at least 4", ids.len())));
+    }
+    let mut v = super::View::new(path.display().to_string(), size, px);
+    v.point_ids = ids;
+    Ok((v, d.circle_radii_m))
+}
+
+/// Leaves out the views whose image size is not the most common one (ties: the first seen).
+fn keep_main_size(slots: &mut [Option<super::View>], paths: &[PathBuf], skipped: &mut Vec<SkippedImage>) {
     let mut counts: Vec<(ImageSize, usize)> = Vec::new();
     for v in slots.iter().flatten() {
         match counts.iter_mut().find(|(s, _)| *s == v.image_size) {
@@ -223,13 +281,12 @@ pub fn detect_view_slots(
             }
         }
     }
-    (slots, skipped)
 }
 
 /// [`detect_view_slots`] without the empty slots.
 pub fn detect_views(
     paths: &[PathBuf],
-    pattern: &Pattern,
+    pattern: &super::CalibrationPattern,
     window: SubpixWindow,
 ) -> (Vec<super::View>, Vec<SkippedImage>) {
     let (slots, skipped) = detect_view_slots(paths, pattern, window);

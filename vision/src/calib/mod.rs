@@ -21,7 +21,8 @@
 //! extrinsics and one target pose per view (shared by the cameras that see it).
 //!
 //! Entry points: [`calibrate_camera`], [`calibrate_stereo`], [`calibrate_rig`]; the inputs
-//! [`PlanarTarget`] (from a [`crate::detect::Pattern`] string: [`PlanarTarget::of_pattern`]),
+//! [`PlanarTarget`] (from a [`crate::detect::Pattern`] string: [`PlanarTarget::of_pattern`];
+//! the patterns calibration can use: [`CalibrationPattern`], [`calibrate_pattern`]),
 //! [`View`], [`CalibrationOptions`]; OpenCV corners for real images in [`corners`]. The bundle
 //! adjustment itself, with a bent or mis-printed target, other lens models and a poses-only
 //! mode: [`adjust_bundle`] ([`BundleSpec`], [`BundleModel`], [`BundleFit`]).
@@ -35,8 +36,11 @@
 
 mod adjust;
 mod bundle;
+pub mod circles;
+pub mod compare;
 pub mod corners;
 mod deform;
+mod pattern;
 mod stereo;
 mod zhang;
 
@@ -47,6 +51,7 @@ use nalgebra::{DMatrix, Isometry3, Point2, Point3};
 use serde::{Deserialize, Serialize};
 
 pub use adjust::{adjust_bundle, BundleFit, BundleMode, BundleModel, BundleSpec, PrintScale, TargetShape, ViewFit};
+pub use pattern::CalibrationPattern;
 pub use stereo::{calibrate_rig, calibrate_stereo, RigCalibration, StereoCalibration};
 
 use crate::camera::{CameraModel, Distortion, DistortionKind, ImageSize};
@@ -88,17 +93,10 @@ impl PlanarTarget {
         PlanarTarget { points_m, reversible: true }
     }
 
-    /// The target of a pattern string's pattern; camera calibration detects chessboards only
+    /// The target of a pattern string's pattern: chessboards, ChArUco boards and circle grids
     /// (other patterns are refused, naming the pattern).
     pub fn of_pattern(pattern: &Pattern) -> Result<Self> {
-        match *pattern {
-            Pattern::Chessboard { cols, rows, square_mm } => Ok(Self::chessboard(cols, rows, square_mm * 1e-3)),
-            _ => Err(VisionError::InvalidInput {
-                detail: format!(
-                    "pattern '{pattern}': camera calibration supports chessboards only (chessboard:<cols>x<rows>:<square>mm, inner corners); AprilTag boards and plates are not supported by it yet"
-                ),
-            }),
-        }
+        Ok(CalibrationPattern::of(pattern)?.target())
     }
 
     /// Checks that there are at least four finite points on a plane.
@@ -646,6 +644,43 @@ pub fn calibrate_camera(
             warnings,
         },
     })
+}
+
+/// A calibration from a pattern's views ([`calibrate_pattern`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PatternCalibration {
+    /// The camera.
+    pub calibration: CameraCalibration,
+    /// Circle grids: what the perspective-bias correction did.
+    pub circle_bias: Option<circles::CircleBiasReport>,
+}
+
+/// Calibrates one camera from views of `pattern`: [`calibrate_camera`] on the pattern's target,
+/// and for circle grids with the dots' radii known (`circle_radii_m`, `[small, large]` metres,
+/// as [`corners::detect_pattern_views`] measures them) the perspective bias of the centres
+/// corrected ([`circles::calibrate_circle_grid`]).
+pub fn calibrate_pattern(
+    views: &[View],
+    pattern: &CalibrationPattern,
+    circle_radii_m: Option<[f64; 2]>,
+    options: &CalibrationOptions,
+) -> Result<PatternCalibration> {
+    match (pattern, circle_radii_m) {
+        (CalibrationPattern::CircleGrid(g), Some(r)) => {
+            let (calibration, bias) = circles::calibrate_circle_grid(views, g, r, options)?;
+            Ok(PatternCalibration { calibration, circle_bias: Some(bias) })
+        }
+        _ => {
+            let mut calibration = calibrate_camera(views, &pattern.target(), options)?;
+            if matches!(pattern, CalibrationPattern::CircleGrid(_)) {
+                calibration
+                    .summary
+                    .warnings
+                    .push("the dots' radii are unknown: centres not corrected for the perspective bias".into());
+            }
+            Ok(PatternCalibration { calibration, circle_bias: None })
+        }
+    }
 }
 
 /// An outlier corner found in a bundle's residuals.

@@ -234,8 +234,23 @@ fn pattern_strings_give_the_chessboard_target() {
         assert!(matches!(e, VisionError::PatternSyntax { .. }), "{bad}: {e}");
         assert!(e.to_string().contains(bad), "{e}");
     }
+    for bad in ["charuco:5x7:36mm:40mm:DICT_6X6_250", "circlegrid:4x11:20mm:asymmetric"] {
+        let e = bad.parse::<Pattern>().unwrap_err();
+        assert!(matches!(e, VisionError::PatternSyntax { .. }), "{bad}: {e}");
+    }
     let e = PlanarTarget::of_pattern(&"apriltag:36h11".parse().unwrap()).unwrap_err().to_string();
     assert!(e.contains("apriltag:tag36h11") && e.contains("not supported"), "{e}");
+    let c = CalibrationPattern::parse("charuco:5x7:36.195mm:18.256mm:DICT_6X6_250").unwrap();
+    assert_eq!(c.to_string(), "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250");
+    assert_eq!(c.target().points_m.len(), 24);
+    assert!(!c.target().reversible);
+    let g = CalibrationPattern::parse("circlegrid:10x10:25.4mm:modified").unwrap();
+    assert_eq!(g.to_string(), "circlegrid:10x10:25.4mm:modified");
+    assert_eq!(g.target().points_m.len(), 100);
+    assert_eq!(
+        CalibrationPattern::parse("chessboard:9x6:25mm").unwrap(),
+        CalibrationPattern::Chessboard { inner_cols: 9, inner_rows: 6, square_m: 0.025 }
+    );
 }
 
 #[test]

@@ -321,10 +321,11 @@ pub(crate) fn to_detections(tags: &[TagDetection], target: impl Fn(u32) -> Optio
                         crb_px2: crb,
                         target_m: tp.map(|p| p[k]),
                         grid_index: None,
+                        point_id: None,
                     }
                 })
                 .collect();
-            Detection { id: Some(t.id), corners, complete: true, anchored: true }
+            Detection { id: Some(t.id), corners, complete: true, anchored: true, circle_radii_m: None }
         })
         .collect()
 }

@@ -1,5 +1,6 @@
-//! OpenCV, the baseline every vision result is compared with: its chessboard detectors and
-//! `cornerSubPix`, called the way OpenCV users call them. OpenCV's corner coordinates use the
+//! OpenCV, the baseline every vision result is compared with: its chessboard detectors,
+//! `cornerSubPix` and `findCirclesGrid`, called the way OpenCV users call them (OpenCV's
+//! ChArUco corners are in [`super::aruco`]). OpenCV's corner coordinates use the
 //! same convention as this project (pixel `(0, 0)` is the centre of the top-left pixel).
 
 use image::GrayImage;
@@ -99,4 +100,15 @@ pub fn opencv_find_chessboard_sb(
     let found = opencv::calib3d::find_chessboard_corners_sb(&mat, Size::new(cols as i32, rows as i32), &mut v, flags)
         .map_err(cv_err)?;
     Ok(found.then(|| to_points(&v)))
+}
+
+/// `findCirclesGrid` with OpenCV's defaults (`CALIB_CB_SYMMETRIC_GRID`, the default
+/// `SimpleBlobDetector`: dark blobs): the dot centres of a `cols x rows` grid in OpenCV's
+/// order, `None` when OpenCV does not find the grid.
+pub fn opencv_find_circles_grid(img: &GrayImage, cols: u32, rows: u32) -> Result<Option<Vec<Point2<f64>>>> {
+    let mat = to_mat(img)?;
+    let mut v: Vector<Point2f> = Vector::new();
+    let found =
+        opencv::calib3d::find_circles_grid_def(&mat, Size::new(cols as i32, rows as i32), &mut v).map_err(cv_err)?;
+    Ok((found && v.len() == (cols * rows) as usize).then(|| to_points(&v)))
 }

@@ -274,14 +274,6 @@ pub(crate) fn detect_chessboard(
             rows * cols
         )));
     }
-    let square_m = square_mm * 1e-3;
-    let target = |r: u32, c: u32| {
-        Point3::new(
-            (c as f64 - 0.5 * (cols as f64 - 1.0)) * square_m,
-            (0.5 * (rows as f64 - 1.0) - r as f64) * square_m,
-            0.0,
-        )
-    };
     let refined =
         if options.refine { refine_chessboard(img, &lab, cols, rows, options)? } else { vec![None; lab.corners.len()] };
     let corners = lab
@@ -297,12 +289,24 @@ pub(crate) fn detect_chessboard(
                 position_px: pos,
                 covariance_px2: cov,
                 crb_px2: crb,
-                target_m: Some(target(*r, *c)),
+                target_m: Some(target_point(cols, rows, square_mm, *r, *c)),
                 grid_index: Some([*r, *c]),
+                point_id: lab.anchored.then_some(r * cols + c),
             }
         })
         .collect();
-    Ok(Detection { id: None, corners, complete: lab.complete, anchored: lab.anchored })
+    Ok(Detection { id: None, corners, complete: lab.complete, anchored: lab.anchored, circle_radii_m: None })
+}
+
+/// Inner corner `(r, c)` of a chessboard in the target frame (origin at the centre, x right,
+/// y up as printed, rows from the top), metres.
+pub(crate) fn target_point(cols: u32, rows: u32, square_mm: f64, r: u32, c: u32) -> Point3<f64> {
+    let square_m = square_mm * 1e-3;
+    Point3::new(
+        (c as f64 - 0.5 * (cols as f64 - 1.0)) * square_m,
+        (0.5 * (rows as f64 - 1.0) - r as f64) * square_m,
+        0.0,
+    )
 }
 
 type Refined = Option<(Point2<f64>, Matrix2<f64>, Option<Matrix2<f64>>)>;

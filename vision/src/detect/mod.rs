@@ -13,7 +13,9 @@
 //!
 //! Detectors: chessboards (full and partial views, [`chessboard`]), the Gantry-Tau plate
 //! ([`plate`], optionally with a background image subtracted), AprilTags and AprilTag boards
-//! of known layout.
+//! of known layout, ChArUco boards (full and partial, corner ids from OpenCV's ArUco markers,
+//! [`charuco`], [`aruco`]) and circle grids (symmetric and modified, [`circles`]). Frames,
+//! orders and ids of every target: `docs/targets.md`.
 //!
 //! # Conventions
 //! Pixel `(0, 0)` is the centre of the top-left pixel (`docs/conventions.md`); corners from the
@@ -25,8 +27,11 @@
 //! bottom-right, bottom-left).
 
 pub mod apriltag;
+pub mod aruco;
 pub mod baseline;
+pub mod charuco;
 pub mod chessboard;
+pub mod circles;
 mod grid;
 mod image;
 pub mod pattern;
@@ -41,7 +46,7 @@ use serde::{Deserialize, Serialize};
 
 pub use self::apriltag::{AprilTagDetector, AprilTagOptions, TagBackend, TagDetection, TagRefine};
 pub use self::image::{load_gray, median_background, to_gray, GrayF32};
-pub use self::pattern::{Pattern, TagFamily};
+pub use self::pattern::{ArucoDictionary, CharucoBoard, CircleGrid, Pattern, TagFamily};
 use crate::error::{Result, VisionError};
 use crate::subpix::RefineOptions;
 
@@ -56,8 +61,14 @@ pub struct Corner {
     pub crb_px2: Option<Matrix2<f64>>,
     /// Position on the target, metres (when the pattern's size is known).
     pub target_m: Option<Point3<f64>>,
-    /// Chessboard: `[row, col]` of the inner corner; plate: `[row, col]` of the 4 x 4 grid point.
+    /// Chessboard: `[row, col]` of the inner corner; plate: `[row, col]` of the 4 x 4 grid point;
+    /// ChArUco: `[row, col]` of the inner corner (rows from the top, OpenCV's numbering);
+    /// circle grid: `[row, col]` of the dot (rows from the origin dot's row).
     pub grid_index: Option<[u32; 2]>,
+    /// Index of the corner in [`Pattern::target_points_m`] (chessboards when anchored, ChArUco
+    /// corner ids, circle-grid dot indices); `None` for plates and tags.
+    #[serde(default)]
+    pub point_id: Option<u32>,
 }
 
 /// One detection: a chessboard, a plate or one tag.
@@ -72,6 +83,12 @@ pub struct Detection {
     /// Whether the corners' indices are the board's own (false for a partial chessboard whose
     /// visible part does not show which rows and columns it is; indices are then relative).
     pub anchored: bool,
+    /// Circle grids: the radii of the dots on the target, metres, as the image shows them
+    /// (`[small, large]`; the same twice for a symmetric grid), estimated from the ellipses'
+    /// axes over the local dot spacing. They serve the perspective-bias correction
+    /// ([`circles::bias`]). `None` for other patterns.
+    #[serde(default)]
+    pub circle_radii_m: Option<[f64; 2]>,
 }
 
 impl Detection {
@@ -96,6 +113,10 @@ pub struct DetectOptions {
     pub min_contrast_dn: f64,
     /// AprilTag options.
     pub apriltag: AprilTagOptions,
+    /// ChArUco options.
+    pub charuco: charuco::CharucoOptions,
+    /// Circle-grid options.
+    pub circles: circles::CircleOptions,
 }
 
 impl Default for DetectOptions {
@@ -106,6 +127,8 @@ impl Default for DetectOptions {
             partial: false,
             min_contrast_dn: 12.0,
             apriltag: AprilTagOptions::default(),
+            charuco: charuco::CharucoOptions::default(),
+            circles: circles::CircleOptions::default(),
         }
     }
 }
@@ -167,6 +190,8 @@ fn detect_with(
             }
             Ok(apriltag::to_detections(&found, target))
         }
+        Pattern::Charuco(board) => Ok(vec![charuco::detect_charuco(img, board, options, &text)?]),
+        Pattern::CircleGrid(grid) => Ok(vec![circles::detect_circle_grid(img, grid, options, &text)?]),
     }
 }
 
@@ -217,6 +242,13 @@ pub struct DetectionRecord {
     /// `[row, col]` per corner for chessboards and plates.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grid_index: Option<Vec<[u32; 2]>>,
+    /// The corners' ids (indices into the pattern's target points, e.g. ChArUco corner ids)
+    /// when not every corner of the pattern is seen (`complete` false).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub corner_ids: Option<Vec<u32>>,
+    /// Circle grids: the dots' radii on the target `[small, large]`, millimetres, as measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub circle_radii_mm: Option<[f64; 2]>,
     /// Covariance per corner `[xx, xy, yy]`, px^2, when refined.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub covariance_px2: Option<Vec<[f64; 3]>>,
@@ -237,6 +269,9 @@ impl From<&Detection> for DetectionRecord {
             corners_px: d.corners.iter().map(|c| [c.position_px.x, c.position_px.y]).collect(),
             grid_index: all(&|c| c.grid_index.is_some())
                 .then(|| d.corners.iter().filter_map(|c| c.grid_index).collect()),
+            corner_ids: (!d.complete && all(&|c| c.point_id.is_some()))
+                .then(|| d.corners.iter().filter_map(|c| c.point_id).collect()),
+            circle_radii_mm: d.circle_radii_m.map(|r| [r[0] * 1e3, r[1] * 1e3]),
             covariance_px2: all(&|c| c.covariance_px2.is_some()).then(|| {
                 d.corners.iter().filter_map(|c| c.covariance_px2).map(|m| [m[(0, 0)], m[(0, 1)], m[(1, 1)]]).collect()
             }),

@@ -6,17 +6,23 @@
 //! | `apriltag:<family>[:<tag size>mm]` | single AprilTags of a family (e.g. `tag36h11`) |
 //! | `plate:<square>mm` | the Gantry-Tau plate: five black squares of a 3 x 3 checkerboard |
 //! | `aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]` | a grid of tag36h11 tags, ids row by row from the top-left |
+//! | `charuco:<cols>x<rows>:<square>mm:<marker>mm:<dictionary>` | a ChArUco board of `cols x rows` squares ([`CharucoBoard`]) |
+//! | `circlegrid:<cols>x<rows>:<spacing>mm[:modified]` | a grid of `cols x rows` dots ([`CircleGrid`]); `modified`: one larger dot marks the origin |
 //!
 //! Sizes are millimetres with the unit written (`25mm`, `24.5mm`); the tag size is the side of
 //! the tag's black border (the AprilTag library's convention) and the board spacing is the gap
 //! between the black borders of neighbouring tags (as in `ferrocal_datasets`'
-//! `TargetConfig::AprilTagBoard`).
+//! `TargetConfig::AprilTagBoard`). A ChArUco board's dictionary is OpenCV's name
+//! (`DICT_6X6_250`, case-insensitive, `DICT_` optional) or number (`10`).
 
 use std::fmt;
 use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
+pub use super::aruco::ArucoDictionary;
+pub use super::charuco::CharucoBoard;
+pub use super::circles::CircleGrid;
 use crate::error::{Result, VisionError};
 
 /// The AprilTag families of the C library.
@@ -109,7 +115,7 @@ impl fmt::Display for TagFamily {
 }
 
 /// A pattern to detect.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Pattern {
     /// A chessboard with `cols x rows` inner corners.
@@ -146,11 +152,37 @@ pub enum Pattern {
         /// Id of the top-left tag.
         first_id: u32,
     },
+    /// A ChArUco board.
+    Charuco(CharucoBoard),
+    /// A grid of dots, symmetric or modified.
+    CircleGrid(CircleGrid),
+}
+
+impl Pattern {
+    /// The target points that [`super::Corner::point_id`] indexes, metres in the pattern's
+    /// target frame (see [`super`]), for the patterns whose corners carry point ids
+    /// (chessboards, ChArUco boards, circle grids); `None` for the others.
+    pub fn target_points_m(&self) -> Option<Vec<nalgebra::Point3<f64>>> {
+        match self {
+            Pattern::Chessboard { cols, rows, square_mm } => Some(
+                (0..*rows)
+                    .flat_map(|r| {
+                        (0..*cols).map(move |c| super::chessboard::target_point(*cols, *rows, *square_mm, r, c))
+                    })
+                    .collect(),
+            ),
+            Pattern::Charuco(b) => Some(b.target_points_m()),
+            Pattern::CircleGrid(g) => Some(g.target_points_m()),
+            _ => None,
+        }
+    }
 }
 
 const EXPECTED: &str = "one of 'chessboard:<cols>x<rows>:<square>mm' (inner corners, e.g. chessboard:9x6:25mm), \
 'apriltag:<family>[:<tag size>mm]' (e.g. apriltag:tag36h11:80mm), 'plate:<square>mm' (e.g. plate:50mm), \
-'aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]' (e.g. aprilboard:6x4:40mm:10mm:0)";
+'aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]' (e.g. aprilboard:6x4:40mm:10mm:0), \
+'charuco:<cols>x<rows>:<square>mm:<marker>mm:<dictionary>' (squares, e.g. charuco:5x7:36.195mm:18.256mm:DICT_6X6_250), \
+'circlegrid:<cols>x<rows>:<spacing>mm[:modified]' (dot centres, e.g. circlegrid:10x10:25.4mm:modified)";
 
 fn syntax(pattern: &str, problem: impl Into<String>) -> VisionError {
     VisionError::PatternSyntax { pattern: pattern.to_string(), problem: problem.into(), expected: EXPECTED.to_string() }
@@ -238,6 +270,39 @@ impl FromStr for Pattern {
                 };
                 Ok(Pattern::AprilBoard { cols, rows, tag_mm, spacing_mm, first_id })
             }
+            "charuco" => {
+                if n != 5 {
+                    return Err(syntax(text, format!("a ChArUco board has 5 fields, found {n}")));
+                }
+                let (cols, rows) = parse_dims(text, "square count", parts[1], 2)?;
+                let square_mm = parse_mm(text, "square size", parts[2])?;
+                let marker_mm = parse_mm(text, "marker size", parts[3])?;
+                let dictionary: ArucoDictionary = parts[4].parse().map_err(|e: String| {
+                    syntax(text, format!("{e}; known: {}", ArucoDictionary::ALL.map(|d| d.name()).join(", ")))
+                })?;
+                let board = CharucoBoard { cols, rows, square_mm, marker_mm, dictionary };
+                board.validate().map_err(|e| syntax(text, e))?;
+                Ok(Pattern::Charuco(board))
+            }
+            "circlegrid" => {
+                if !(3..=4).contains(&n) {
+                    return Err(syntax(text, format!("a circle grid has 3 or 4 fields, found {n}")));
+                }
+                let (cols, rows) = parse_dims(text, "dot count", parts[1], 2)?;
+                let spacing_mm = parse_mm(text, "dot spacing", parts[2])?;
+                let modified = match parts.get(3).map(|s| s.trim().to_ascii_lowercase()) {
+                    None => false,
+                    Some(m) if m == "modified" => true,
+                    Some(m) if m == "symmetric" => false,
+                    Some(_) => {
+                        return Err(syntax(
+                            text,
+                            format!("the last field '{}' must be 'modified' (or 'symmetric', the default)", parts[3]),
+                        ))
+                    }
+                };
+                Ok(Pattern::CircleGrid(CircleGrid { cols, rows, spacing_mm, modified }))
+            }
             "" => Err(syntax(text, "the pattern is empty")),
             other => Err(syntax(text, format!("unknown pattern kind '{other}'"))),
         }
@@ -253,6 +318,19 @@ impl fmt::Display for Pattern {
             Pattern::Plate { square_mm } => write!(f, "plate:{square_mm}mm"),
             Pattern::AprilBoard { cols, rows, tag_mm, spacing_mm, first_id } => {
                 write!(f, "aprilboard:{cols}x{rows}:{tag_mm}mm:{spacing_mm}mm:{first_id}")
+            }
+            Pattern::Charuco(b) => {
+                write!(f, "charuco:{}x{}:{}mm:{}mm:{}", b.cols, b.rows, b.square_mm, b.marker_mm, b.dictionary)
+            }
+            Pattern::CircleGrid(g) => {
+                write!(
+                    f,
+                    "circlegrid:{}x{}:{}mm{}",
+                    g.cols,
+                    g.rows,
+                    g.spacing_mm,
+                    if g.modified { ":modified" } else { "" }
+                )
             }
         }
     }
@@ -270,6 +348,9 @@ mod tests {
             "apriltag:tagStandard41h12:80mm",
             "plate:50mm",
             "aprilboard:6x4:40mm:10mm:3",
+            "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250",
+            "circlegrid:10x10:25.4mm:modified",
+            "circlegrid:4x11:20mm",
         ] {
             let p: Pattern = s.parse().unwrap();
             assert_eq!(p.to_string().parse::<Pattern>().unwrap(), p, "{s}");
@@ -292,6 +373,20 @@ mod tests {
             "apriltag:36h11".parse::<Pattern>().unwrap(),
             Pattern::AprilTag { family: TagFamily::Tag36h11, tag_mm: None }
         );
+        assert_eq!(
+            "charuco:5x7:36.195mm:18.256mm:6x6_250".parse::<Pattern>().unwrap(),
+            Pattern::Charuco(CharucoBoard {
+                cols: 5,
+                rows: 7,
+                square_mm: 36.195,
+                marker_mm: 18.256,
+                dictionary: ArucoDictionary::Dict6x6_250
+            })
+        );
+        assert_eq!(
+            "circlegrid:10x10:25.4mm:modified".parse::<Pattern>().unwrap(),
+            Pattern::CircleGrid(CircleGrid { cols: 10, rows: 10, spacing_mm: 25.4, modified: true })
+        );
     }
 
     #[test]
@@ -308,6 +403,14 @@ mod tests {
             "aprilboard:2x2:30mm",
             "circles:4x11:20mm",
             "chessboard:9x6:abcmm",
+            "charuco:5x7:36mm:18mm",
+            "charuco:5x7:36mm:40mm:DICT_6X6_250",
+            "charuco:5x7:36mm:18mm:DICT_6X6_7",
+            "charuco:30x30:36mm:18mm:DICT_4X4_50",
+            "charuco:1x7:36mm:18mm:DICT_6X6_250",
+            "circlegrid:10x10:25.4mm:mod",
+            "circlegrid:10x10:25.4",
+            "circlegrid:1x10:25.4mm",
         ] {
             let e = s.parse::<Pattern>().unwrap_err().to_string();
             assert!(

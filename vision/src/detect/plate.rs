@@ -233,6 +233,7 @@ pub(crate) fn detect_plates(
                         crb_px2: rc.crb_px2,
                         target_m: Some(target),
                         grid_index: Some([i as u32, j as u32]),
+                        point_id: None,
                     },
                     None => Corner {
                         position_px: Point2::new(lab[i][j].x, lab[i][j].y),
@@ -240,12 +241,13 @@ pub(crate) fn detect_plates(
                         crb_px2: None,
                         target_m: Some(target),
                         grid_index: Some([i as u32, j as u32]),
+                        point_id: None,
                     },
                 };
                 corners.push(c);
             }
         }
-        found.push((contrast, Detection { id: None, corners, complete: true, anchored: true }));
+        found.push((contrast, Detection { id: None, corners, complete: true, anchored: true, circle_radii_m: None }));
     }
     if found.is_empty() {
         return Err(VisionError::PatternNotFound {

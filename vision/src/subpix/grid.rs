@@ -442,7 +442,11 @@ impl Points<'_> {
                 _ => f64::INFINITY,
             };
             let width = if g.inside(f.0, f.1) {
-                dist
+                if g.dark(f.0, f.1) == Some(false) {
+                    dist * g.light_uniform_fraction.min(1.0)
+                } else {
+                    dist
+                }
             } else {
                 // Beyond the fields: the outside band's width relative to the neighbouring field.
                 let other = self.get_or_extrapolate(i - s * di, j - s * dj, di, dj);

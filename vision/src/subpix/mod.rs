@@ -261,6 +261,10 @@ pub struct CheckerGrid {
     /// Initial pixel positions of the grid points, row by row (`None` when unknown; a missing
     /// point is extrapolated from its neighbours where a segment needs it).
     pub points_px: Vec<Option<Point2<f64>>>,
+    /// How far from its sides a light field is uniform, as a fraction of the field (1 for a
+    /// chessboard; a ChArUco board's white squares carry a marker, uniform only over
+    /// `(square - marker) / (2 square)` from each side): limits the fit band there.
+    pub light_uniform_fraction: f64,
 }
 
 impl CheckerGrid {
@@ -276,7 +280,15 @@ impl CheckerGrid {
         let fields_dark = (0..field_rows * field_cols)
             .map(|k| Some((k / field_cols + k % field_cols).is_multiple_of(2) == top_left_dark))
             .collect();
-        Self { field_rows, field_cols, fields_dark, outside_dark, outside_width_fraction: 0.3, points_px }
+        Self {
+            field_rows,
+            field_cols,
+            fields_dark,
+            outside_dark,
+            outside_width_fraction: 0.3,
+            points_px,
+            light_uniform_fraction: 1.0,
+        }
     }
 
     fn check(&self) -> Result<()> {
@@ -296,6 +308,9 @@ impl CheckerGrid {
         }
         if !(self.outside_width_fraction.is_finite() && self.outside_width_fraction > 0.0) {
             return Err(bad("outside_width_fraction must be > 0".into()));
+        }
+        if !(self.light_uniform_fraction.is_finite() && self.light_uniform_fraction > 0.0) {
+            return Err(bad("light_uniform_fraction must be > 0".into()));
         }
         Ok(())
     }

@@ -1,0 +1,6 @@
+//! All integration tests of this crate in one binary: one link instead of one per file,
+//! which keeps the build small and fast (each file is a module, named as before).
+
+mod cli;
+mod compensate;
+mod handeye;
