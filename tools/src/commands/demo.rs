@@ -53,6 +53,13 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     s.push(section_plan(args)?);
     s.extend(sections_diagnose(args)?);
     s.push(ferrocal_report::compensate::demo_section(&ur5_csv, demo::UR5_ATTRIBUTION, &tick)?);
+    s.push(ferrocal_report::handeye::demo::demo_section(&args.data, &args.out.join("handeye"), &tick)?);
+    for set in ["test_set_charuco", "test_set_10x10"] {
+        let cal = args.data.join("industrial_calibration").join(set).join("cal_data.yaml");
+        if cal.exists() {
+            prov.add_input(&cal);
+        }
+    }
     s.push(ferrocal_report::dynamics::demo_section(args.seed, args.quick)?);
     s.push(demo::force_diagnose(args.seed)?);
     s.push(ferrocal_report::stiffness::demo_section(args.seed, args.quick)?);

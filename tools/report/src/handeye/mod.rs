@@ -3,6 +3,7 @@
 //! check of the covariance) and the industrial_calibration importer's wiring. The method lives in
 //! `ferrocal_calib::handeye`, the formats in `ferrocal_datasets::handeye`.
 
+pub mod demo;
 pub mod html;
 pub mod json;
 

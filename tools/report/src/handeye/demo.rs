@@ -1,0 +1,182 @@
+//! The demo's hand-eye section: the two real robot-camera recordings of ROS-Industrial's
+//! industrial_calibration examples, imported and calibrated as a user would (`import ic-handeye
+//! --test-every 2`, then `handeye` with the camera calibrated from the training images), with the
+//! robot poses once as noisy measurements (the default) and once as exact, OpenCV's best hand-eye
+//! solver beside them on the same corners, and the source's own acceptance thresholds.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use ferrocal_calib::check::Check;
+use ferrocal_calib::handeye::opencv::{best_baseline, opencv_baselines};
+use ferrocal_calib::handeye::{calibrate_hand_eye, ChainFigures, HandEyeOptions, IntrinsicsMode};
+use ferrocal_datasets::handeye::{import_ic_handeye, load_recording, read_handeye_poses};
+use ferrocal_datasets::import::images::expand_image_specs;
+use ferrocal_vision::calib::CalibrationOptions;
+use serde_json::json;
+
+use crate::report::Section;
+
+/// The recordings' attribution, shown wherever results on them are.
+pub const IC_ATTRIBUTION: &str = "ROS-Industrial industrial_calibration example data, Apache-2.0";
+
+/// One real set and the source's thresholds for it.
+struct RealSet {
+    folder: &'static str,
+    /// The source's mean camera-to-target difference against per-image PnP: mm, degrees.
+    pnp_limit: (f64, f64),
+}
+
+const SETS: [RealSet; 2] = [
+    RealSet { folder: "test_set_charuco", pnp_limit: (6.0, 1.5) },
+    RealSet { folder: "test_set_10x10", pnp_limit: (20.0, 3.0) },
+];
+
+/// The source's limit on the fit's residual RMS, pixels.
+const SOURCE_RMS_LIMIT_PX: f64 = 1.5;
+
+struct Run {
+    label: &'static str,
+    ours: ChainFigures,
+    opencv: Option<(String, ChainFigures)>,
+}
+
+/// The section; `data` is `../shared/data`, `work` a folder for the imported poses tables.
+pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result<Section> {
+    let mut s = Section::new("handeye-real", "Hand-eye calibration on real robot-camera recordings");
+    s.attribution(IC_ATTRIBUTION);
+    let root = data.join("industrial_calibration");
+    if !root.exists() {
+        s.skipped(format!("{} is not present", root.display()));
+        return Ok(s);
+    }
+    std::fs::create_dir_all(work).with_context(|| format!("creating {}", work.display()))?;
+    let mut rows = Vec::new();
+    let mut checks = Vec::new();
+    let mut data_json = Vec::new();
+    for (k, set) in SETS.iter().enumerate() {
+        tick("hand-eye (real)", k as u64, SETS.len() as u64);
+        let dir = root.join(set.folder);
+        let csv = work.join(format!("{}.poses.csv", set.folder));
+        let ic = import_ic_handeye(&dir, &csv, Some(2), None)?;
+        let pattern_text =
+            ic.pattern.clone().with_context(|| format!("{}: no target in cal_data.yaml", dir.display()))?;
+        let pattern: ferrocal_vision::detect::Pattern = pattern_text.parse()?;
+        let table = read_handeye_poses(&csv)?;
+        let flange = table.flange_poses(None)?;
+        let mut skipped_images = Vec::new();
+        let paths = expand_image_specs(&[dir.join("images")], &mut skipped_images);
+        let (rec, skipped) = load_recording(&paths, &table, &flange, &pattern, ic.mount)?;
+        let mut runs = Vec::new();
+        for (label, exact) in [("robot poses as measurements (default)", false), ("robot poses exact", true)] {
+            let mut options = HandEyeOptions {
+                intrinsics: IntrinsicsMode::Calibrate(CalibrationOptions::default()),
+                ..HandEyeOptions::default()
+            };
+            if exact {
+                (options.robot_sigma_m, options.robot_sigma_rad) = (0.0, 0.0);
+            }
+            let r = calibrate_hand_eye(&rec, &options).with_context(|| format!("hand-eye on {}", dir.display()))?;
+            let camera = r.initial_camera.as_ref().map_or(r.camera, |c| c.camera);
+            let baselines = opencv_baselines(&rec, &options, &camera);
+            let opencv = best_baseline(&baselines)
+                .and_then(|b| b.figures.clone().map(|f| (format!("{} {}", b.function, b.method), f)));
+            runs.push(Run { label, ours: r.figures, opencv });
+        }
+        for run in &runs {
+            let f = &run.ours;
+            rows.push(vec![
+                set.folder.to_string(),
+                run.label.to_string(),
+                f4(Some(f.train_rms_px)),
+                f4(f.heldout_rms_px),
+                run.opencv.as_ref().map_or("-".into(), |(_, o)| f4(o.heldout_rms_px)),
+                format!("{} / {}", f4(f.heldout_pnp_position_mm), f4(f.heldout_pnp_rotation_deg)),
+                run.opencv.as_ref().map_or("-".into(), |(_, o)| {
+                    format!("{} / {}", f4(o.heldout_pnp_position_mm), f4(o.heldout_pnp_rotation_deg))
+                }),
+                format!("{} mm / {} deg", set.pnp_limit.0, set.pnp_limit.1),
+            ]);
+            data_json.push(json!({
+                "set": set.folder, "pattern": pattern_text, "mount": ic.mount.name(), "mode": run.label,
+                "ours": run.ours, "opencv_best": run.opencv.as_ref().map(|(n, f)| json!({"method": n, "figures": f})),
+                "images": paths.len(), "skipped": skipped.len() + skipped_images.len(),
+            }));
+        }
+        let default = &runs[0].ours;
+        let within = default.heldout_pnp_position_mm.is_some_and(|p| p < set.pnp_limit.0)
+            && default.heldout_pnp_rotation_deg.is_some_and(|r| r < set.pnp_limit.1);
+        checks.push((
+            within,
+            format!(
+                "{}: held-out PnP agreement {} mm / {} deg (source: < {} mm / {} deg)",
+                set.folder,
+                f4(default.heldout_pnp_position_mm),
+                f4(default.heldout_pnp_rotation_deg),
+                set.pnp_limit.0,
+                set.pnp_limit.1
+            ),
+        ));
+        let exact = &runs[1];
+        let beats = match (exact.ours.heldout_rms_px, exact.opencv.as_ref().and_then(|(_, o)| o.heldout_rms_px)) {
+            (Some(a), Some(b)) => a < b,
+            _ => false,
+        };
+        checks.push((
+            beats,
+            format!(
+                "{}: held-out chain RMS with exact robot poses {} px against OpenCV's best {} px",
+                set.folder,
+                f4(exact.ours.heldout_rms_px),
+                exact.opencv.as_ref().map_or("-".into(), |(_, o)| f4(o.heldout_rms_px))
+            ),
+        ));
+        checks.push((
+            exact.ours.train_rms_px < SOURCE_RMS_LIMIT_PX,
+            format!(
+                "{}: fit residual RMS {:.4} px (source: < {SOURCE_RMS_LIMIT_PX} px)",
+                set.folder, exact.ours.train_rms_px
+            ),
+        ));
+    }
+    tick("hand-eye (real)", SETS.len() as u64, SETS.len() as u64);
+    s.text(
+        "Each set is imported with every second image held out (`ferrocal import ic-handeye --test-every 2`); \
+         the camera is calibrated from the training images and refined with the chain in pixels; OpenCV's \
+         hand-eye solvers run on the same corners with the same camera and the best of them is shown. \
+         The held-out images are used by no fit. The chain RMS predicts each image's corners from the \
+         reported robot pose, the hand-eye transform and the fixed frame; the PnP agreement compares the \
+         chain's camera-to-target pose with a per-image PnP, which is the source's own acceptance measure. \
+         On both recordings, taking the robot poses as exact predicts held-out pixels better than modelling \
+         them as independent noisy measurements: the robots' errors here are systematic, not per-pose noise. \
+         The 10x10 set moves the robot in x and y only, at one height and one orientation, so the hand-eye \
+         translation is barely observable (see its standard deviations in `ferrocal handeye --json`).",
+    );
+    s.table(
+        "Real recordings (held-out: every second image)",
+        &[
+            "set",
+            "robot poses",
+            "fit RMS [px]",
+            "held-out RMS [px]",
+            "OpenCV best held-out [px]",
+            "held-out PnP agreement [mm / deg]",
+            "OpenCV best held-out PnP [mm / deg]",
+            "source limit",
+        ],
+        rows,
+    );
+    s.text(format!(
+        "The source also asks for a residual below {SOURCE_RMS_LIMIT_PX} px; held-out images are not part of \
+         its test, and ours are above it on both sets (see the table)."
+    ));
+    let ok = checks.iter().all(|c| c.0);
+    let detail = checks.iter().map(|c| format!("{} {}", if c.0 { "ok:" } else { "FAILED:" }, c.1)).collect::<Vec<_>>();
+    s.data = json!({"runs": data_json, "checks": detail});
+    s.check(Check::from_bool("hand-eye on real recordings", ok, detail.join("; ")));
+    Ok(s)
+}
+
+fn f4(v: Option<f64>) -> String {
+    v.map_or("-".into(), |x| format!("{x:.4}"))
+}
