@@ -100,28 +100,9 @@ fn read_yaml<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
     serde_norway::from_str(&text).map_err(|e| yaml_error(path, &e))
 }
 
-/// OpenCV's ArUco dictionary names by their enum value.
+/// OpenCV's ArUco dictionary name by its enum value (the dictionaries ferrocal decodes).
 fn dictionary_name(k: u32) -> Option<&'static str> {
-    const NAMES: [&str; 17] = [
-        "DICT_4X4_50",
-        "DICT_4X4_100",
-        "DICT_4X4_250",
-        "DICT_4X4_1000",
-        "DICT_5X5_50",
-        "DICT_5X5_100",
-        "DICT_5X5_250",
-        "DICT_5X5_1000",
-        "DICT_6X6_50",
-        "DICT_6X6_100",
-        "DICT_6X6_250",
-        "DICT_6X6_1000",
-        "DICT_7X7_50",
-        "DICT_7X7_100",
-        "DICT_7X7_250",
-        "DICT_7X7_1000",
-        "DICT_ARUCO_ORIGINAL",
-    ];
-    NAMES.get(k as usize).copied()
+    ferrocal_vision::detect::ArucoDictionary::ALL.get(k as usize).map(|d| d.name())
 }
 
 fn mm(v_m: f64) -> String {
