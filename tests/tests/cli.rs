@@ -216,11 +216,14 @@ fn demo_writes_its_report() {
     assert!(html.contains("Provenance") && html.contains("<svg"));
     let r = json(&out_dir.join("report.json"));
     for (k, v) in r["sections"].as_object().unwrap() {
-        if let Some(ok) = v.get("ok") {
-            assert!(ok.as_bool().unwrap(), "demo section {k} failed: {}", v["status"]);
-            assert_ne!(v["status"], "skipped", "demo section {k} was skipped: is ../shared/data beside the checkout?");
-        }
+        assert_ne!(v["check"], "fail", "demo section {k} failed: {}", v["status"]);
+        assert_ne!(v["check"], "skipped", "demo section {k} was skipped: is ../shared/data beside the checkout?");
     }
+    // The hand-eye section on the real recordings: both robots rotate about several axes
+    // (the 10x10 set by up to 49 deg, the ChArUco set by up to 87 deg), so neither is flagged.
+    let he = &r["sections"]["handeye-real"];
+    assert_eq!(he["check"], "pass", "{}", he["status"]);
+    assert_eq!(he["data"]["warnings"].as_array().map(Vec::len), Some(0), "{}", he["data"]["warnings"]);
 }
 
 #[test]

@@ -37,6 +37,7 @@
 
 pub mod closed;
 pub mod evaluate;
+pub mod geometry;
 pub mod opencv;
 mod refine;
 pub mod residual;
@@ -50,6 +51,7 @@ use ferrocal_vision::camera::{CameraModel, ImageSize};
 
 pub use closed::{ClosedForm, PosePair};
 pub use evaluate::{chain_figures, chain_residuals_px, Chain, ChainFigures, ViewFigures};
+pub use geometry::{MotionGeometry, MIN_ROTATION_DEG};
 pub use refine::{calibrate_hand_eye, MAX_NOISE_ITERATIONS, MIN_TRAIN_VIEWS, NOISE_TOLERANCE};
 
 use crate::measurement::Split;
@@ -331,4 +333,8 @@ pub struct HandEyeResult {
     pub termination: String,
     /// Residual blocks (corners) the final solve's loss down-weighted.
     pub n_downweighted: usize,
+    /// How much the flange rotated over the training images.
+    pub motion: MotionGeometry,
+    /// What the recording leaves undetermined, in words (empty when nothing).
+    pub warnings: Vec<String>,
 }

@@ -439,6 +439,7 @@ pub fn calibrate_hand_eye(data: &HandEyeData, options: &HandEyeOptions) -> Resul
     let r = refine(&setup, &camera0, &start)?;
     let pnp = pnp_poses(&r.camera, &data.target_points_m, &views, fallback);
     let figures = chain_figures(data.mount, &r.camera, &data.target_points_m, &views, &pnp, &r.chain);
+    let motion = super::MotionGeometry::of(&views);
     Ok(HandEyeResult {
         mount: data.mount,
         camera: r.camera,
@@ -455,5 +456,7 @@ pub fn calibrate_hand_eye(data: &HandEyeData, options: &HandEyeOptions) -> Resul
         iterations: r.iterations,
         termination: r.termination,
         n_downweighted: r.n_downweighted,
+        motion,
+        warnings: motion.warnings(),
     })
 }

@@ -73,6 +73,13 @@ pub fn handeye_sections(r: &HandEyeResult, baselines: &[BaselineReport], source:
         r.iterations,
         r.termination
     ));
+    for w in &r.warnings {
+        s.text(format!("Warning: {w}."));
+    }
+    s.text(format!(
+        "Flange rotation over the training images: largest relative rotation {:.3} deg, {:.3} deg about a second axis.",
+        r.motion.max_rotation_deg, r.motion.second_axis_rotation_deg
+    ));
     s.table(
         "Transforms",
         &["transform", "translation (mm)", "std (mm)", "rotation (w, x, y, z)", "std (deg)"],

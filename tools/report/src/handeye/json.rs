@@ -128,6 +128,8 @@ pub fn handeye_json(r: &HandEyeResult, baselines: &[BaselineReport], skipped: Va
         },
         "target_scale": scale,
         "pnp_agreement": figures_json(&r.figures),
+        "motion": r.motion,
+        "warnings": r.warnings,
         "starts": r.starts,
         "opencv": baselines_json(baselines),
         "skipped": skipped,

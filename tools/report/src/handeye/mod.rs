@@ -246,6 +246,9 @@ fn print_summary(
     if let Some(src) = source {
         println!("data: {src}");
     }
+    for w in &r.warnings {
+        eprintln!("ferrocal handeye: warning: {w}");
+    }
 }
 
 fn mount_of(m: MountArg) -> Mount {
