@@ -98,7 +98,7 @@ impl PoseCovariance {
 }
 
 /// One measured robot pose.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PoseMeasurement {
     /// Unique id of the row.
     pub pose_id: String,

@@ -4,3 +4,4 @@
 mod cli;
 mod compensate;
 mod handeye;
+mod positioner;

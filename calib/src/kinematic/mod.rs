@@ -400,18 +400,28 @@ pub fn calibrate(
         }
     }
     let layout = StateLayout::new(model, tool_dim, &opts.model_params, &opts.effects);
-    let tool0 = Isometry3::identity();
-
     // Start: register the nominal model's positions to the measurements.
-    let mut nominal_pts = Vec::with_capacity(rows.len());
+    let mut nominal = Vec::with_capacity(rows.len());
     for r in rows {
-        let t = model.forward(&r.q).map_err(|e| row_error(r, e))?;
-        nominal_pts.push(Point3::from(t.translation.vector));
+        nominal.push(model.forward(&r.q).map_err(|e| row_error(r, e))?);
     }
+    let nominal_pts: Vec<Point3<f64>> = nominal.iter().map(|t| Point3::from(t.translation.vector)).collect();
     let measured: Vec<Point3<f64>> = rows.iter().map(|r| Point3::from(r.position_m)).collect();
-    let f0 = match opts.fixed_device_frame {
-        Some(f) => f,
-        None => fit_rigid(&nominal_pts, &measured)?,
+    let (f0, tool0) = match opts.fixed_device_frame {
+        Some(f) => (f, Isometry3::identity()),
+        None => {
+            let rigid = (fit_rigid(&nominal_pts, &measured)?, Isometry3::identity());
+            // With measured orientations, the device frame and the whole tool frame also follow in
+            // closed form (AX = ZB): needed when the target sits far from the flange on a robot
+            // whose flange origin hardly moves (a positioner). The start that fits the training
+            // positions better is taken, so the positions-only start stays where it serves.
+            match use_ori.then(|| pose_start(&nominal, rows)).flatten() {
+                Some(closed) if start_rms(&nominal, &measured, &closed) < start_rms(&nominal, &measured, &rigid) => {
+                    closed
+                }
+                _ => rigid,
+            }
+        }
     };
     let sigma_pos: Vec<f64> = rows.iter().map(|r| r.sigma_m.unwrap_or(opts.sigma_position_m)).collect();
     let sigma_ori: Vec<f64> = rows.iter().map(|r| r.sigma_rad.unwrap_or(opts.sigma_orientation_rad)).collect();
@@ -728,4 +738,30 @@ pub fn design_jacobian(
         .collect();
     let scaled = DMatrix::from_fn(j.nrows(), allowed.len(), |r, c| j[(r, allowed[c])] * layout.scales[allowed[c]]);
     Ok((scaled, allowed.iter().map(|&i| layout.names[i].clone()).collect()))
+}
+
+/// The device frame and the tool frame from measured poses by the closed form of `AX = ZB`
+/// (Shah): `FK_i T_tool M_i^-1 = F^-1` for every row with measured pose `M_i`. `None` when a row
+/// lacks an orientation or the closed form fails.
+fn pose_start(nominal: &[Isometry3<f64>], rows: &[&PoseMeasurement]) -> Option<(Isometry3<f64>, Isometry3<f64>)> {
+    let pairs: Vec<crate::handeye::PosePair> = nominal
+        .iter()
+        .zip(rows)
+        .map(|(fk, r)| {
+            let m = Isometry3::from_parts(r.position_m.into(), r.orientation?);
+            Some(crate::handeye::PosePair { t_base_flange: *fk, c: m.inverse() })
+        })
+        .collect::<Option<_>>()?;
+    let (tool, base_in_device_inv) = crate::handeye::closed::solve_ax_zb(&pairs).ok()?;
+    Some((base_in_device_inv.inverse(), tool))
+}
+
+/// RMS of the position residuals of a start `(device frame, tool frame)` over the rows, metres.
+fn start_rms(nominal: &[Isometry3<f64>], measured: &[Point3<f64>], start: &(Isometry3<f64>, Isometry3<f64>)) -> f64 {
+    let sum: f64 = nominal
+        .iter()
+        .zip(measured)
+        .map(|(fk, p)| ((start.0 * fk * start.1).translation.vector - p.coords).norm_squared())
+        .sum();
+    (sum / nominal.len().max(1) as f64).sqrt()
 }

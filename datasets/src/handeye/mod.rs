@@ -4,11 +4,13 @@
 //! Carlo study of the hand-eye covariance ([`sim`]).
 
 pub mod ic;
+pub mod ic_kinematic;
 pub mod poses;
 pub mod recording;
 pub mod sim;
 
 pub use ic::{import_ic_handeye, read_ic_set, IcSet};
+pub use ic_kinematic::{ic_positioner_nominal, read_ic_kinematic};
 pub use poses::{read_handeye_poses, PoseRow, PosesTable, RobotReading};
 pub use recording::{load_recording, read_camera_file, Skipped};
 pub use sim::{

@@ -54,8 +54,11 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     s.extend(sections_diagnose(args)?);
     s.push(ferrocal_report::compensate::demo_section(&ur5_csv, demo::UR5_ATTRIBUTION, &tick)?);
     s.push(ferrocal_report::handeye::demo::demo_section(&args.data, &args.out.join("handeye"), &tick)?);
-    for set in ["test_set_charuco", "test_set_10x10"] {
-        let cal = args.data.join("industrial_calibration").join(set).join("cal_data.yaml");
+    s.push(ferrocal_report::handeye::demo::positioner_section(&args.data)?);
+    for set in
+        ["test_set_charuco/cal_data.yaml", "test_set_10x10/cal_data.yaml", "kinematic_calibration/measurements.yaml"]
+    {
+        let cal = args.data.join("industrial_calibration").join(set);
         if cal.exists() {
             prov.add_input(&cal);
         }

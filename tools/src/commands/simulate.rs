@@ -66,6 +66,9 @@ pub enum ImportKind {
     Table,
     /// An industrial_calibration hand-eye set folder (cal_data.yaml, poses/) to a handeye poses CSV.
     IcHandeye,
+    /// An industrial_calibration kinematic-calibration set (`measurements.yaml`: the target in a
+    /// fixed camera's frame, the target chain's joints) to a measurement table.
+    IcKinematic,
 }
 
 /// `ferrocal import`.
@@ -83,12 +86,15 @@ pub struct ImportArgs {
     /// Write joints in degrees (revolute) and lengths in mm instead of SI.
     #[arg(long)]
     pub user_units: bool,
-    /// ic-handeye: mark every K-th image `test` (2: every second one).
+    /// ic-handeye, ic-kinematic: mark every K-th row `test` (2: every second one).
     #[arg(long)]
     pub test_every: Option<usize>,
     /// ic-handeye: write the set's camera as OpenCV YAML here.
     #[arg(long)]
     pub intrinsics_out: Option<PathBuf>,
+    /// ic-kinematic: write the source's nominal two-axis positioner model as URDF here.
+    #[arg(long)]
+    pub robot_out: Option<PathBuf>,
 }
 
 pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
@@ -96,6 +102,14 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
         ImportKind::IcHandeye => {
             let cam = args.intrinsics_out.as_deref();
             return ferrocal_report::handeye::run_import_ic(&args.input, &args.out, args.test_every, cam);
+        }
+        ImportKind::IcKinematic => {
+            let s = ferrocal_datasets::handeye::read_ic_kinematic(&args.input, args.test_every)?;
+            if let Some(p) = &args.robot_out {
+                ferrocal_datasets::handeye::ic_kinematic::write_ic_positioner_urdf(p, &args.input)?;
+            }
+            let n = s.n_joints();
+            (s, vec![JointKind::Revolute; n])
         }
         ImportKind::Ur5 => {
             let s = import::import_ur5_grid(&args.input)?;
