@@ -538,3 +538,28 @@ pub fn compare_with_tracker(
         nominal_model: nominal.calibrated.evaluate(&tracker_test).map_err(cal_err)?,
     })
 }
+
+/// The joint kinds of a session, from its joint table's header (`q<i>_rad`: revolute, `q<i>_m`:
+/// prismatic).
+pub fn session_joint_kinds(dir: &Path) -> Result<Vec<ferrocal_robot::JointKind>, DatasetError> {
+    let manifest_path = dir.join("manifest.json");
+    let manifest: SessionManifest = serde_json::from_str(
+        &std::fs::read_to_string(&manifest_path).map_err(|source| DatasetError::Io { path: manifest_path, source })?,
+    )?;
+    let path = dir.join(&manifest.joints);
+    let text = std::fs::read_to_string(&path).map_err(|source| DatasetError::Io { path: path.clone(), source })?;
+    Ok(text
+        .lines()
+        .next()
+        .unwrap_or("")
+        .split(',')
+        .filter(|h| h.starts_with('q') && (h.ends_with("_rad") || h.ends_with("_m")))
+        .map(|h| {
+            if h.ends_with("_rad") {
+                ferrocal_robot::JointKind::Revolute
+            } else {
+                ferrocal_robot::JointKind::Prismatic
+            }
+        })
+        .collect())
+}

@@ -354,3 +354,60 @@ fn header_only_and_missing_file() {
     let e = parse_measurements("pose_id;q1_rad;x_m;y_m;z_m\n1;0;0;0;0\n", "semi.csv").unwrap_err().to_string();
     assert!(e.contains("separated by another character"), "{e}");
 }
+
+/// A measured pose's covariance (`cov_<a>_<b>_<unit>` columns): the 6 x 6 of a camera pose and
+/// the 3 x 3 of a tracker reflector in one table round-trip in SI bit for bit and in mm to
+/// rounding; an incomplete or indefinite covariance is an error at its row and column.
+#[test]
+fn pose_covariances_round_trip_and_bad_ones_are_located() {
+    use ferrocal_calib::PoseCovariance;
+    use nalgebra::{Matrix3, Matrix6};
+    let a = Matrix6::from_fn(|i, j| ((i + 1) * (j + 2)) as f64 * 1e-3 + if i == j { 1.0 } else { 0.0 });
+    let si6 = (a * a.transpose()).component_mul(&Matrix6::from_fn(|i, j| {
+        let s = |k: usize| if k < 3 { 1e-4 } else { 1e-3 };
+        s(i) * s(j)
+    }));
+    let m2 = Matrix3::new(4e-8, 1e-9, 0.0, 1e-9, 9e-8, -2e-9, 0.0, -2e-9, 1e-8);
+    let mut cam = PoseMeasurement::new("cam", vec![0.1, 0.2], Vector3::new(0.5, 0.25, 1.0));
+    cam.orientation = Some(UnitQuaternion::identity());
+    cam.covariance = Some(PoseCovariance::Pose { si: si6 });
+    let mut tracker = PoseMeasurement::new("tracker", vec![0.3, 0.4], Vector3::new(0.5, 0.25, 1.5));
+    tracker.covariance = Some(PoseCovariance::Position { m2 });
+    let plain = PoseMeasurement::new("plain", vec![0.5, 0.6], Vector3::new(0.1, 0.2, 0.3));
+    let set = MeasurementSet { source: "test".into(), rows: vec![cam, tracker, plain] };
+    for (unit, tol) in [(LengthUnit::M, 0.0), (LengthUnit::Mm, 1e-15)] {
+        let opts = WriteOptions { length_unit: unit, ..WriteOptions::si(&[JointKind::Revolute; 2]) };
+        let text = measurements_to_string(&set, &opts).unwrap();
+        let header = text.lines().next().unwrap();
+        assert_eq!(header.matches("cov_").count(), 21, "{header}");
+        let u = unit.suffix();
+        assert!(header.contains(&format!("cov_x_x_{u}2")) && header.contains(&format!("cov_z_rx_{u}_rad")));
+        assert!(header.contains("cov_rz_rz_rad2"));
+        let back = parse_measurements(&text, "cov.csv").unwrap().set;
+        let (c0, c1) = (back.rows[0].covariance.as_ref().unwrap(), back.rows[1].covariance.as_ref().unwrap());
+        let rel = |x: f64, y: f64| (x - y).abs() / y.abs().max(1e-300);
+        assert!(si6.iter().zip(c0.pose().unwrap().iter()).all(|(x, y)| rel(*y, *x) <= tol), "{unit:?}");
+        assert!(c1.pose().is_none(), "the tracker row stays position-only");
+        assert!(m2.iter().zip(c1.position_m2().iter()).all(|(x, y)| *x == 0.0 && *y == 0.0 || rel(*y, *x) <= tol));
+        assert!(back.rows[2].covariance.is_none());
+    }
+    // A missing entry and a negative variance.
+    let text = measurements_to_string(&set, &WriteOptions::si(&[JointKind::Revolute; 2])).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "cov_x_ry_m_rad").unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut cells: Vec<String> = lines[1].split(',').map(String::from).collect();
+    cells[col] = String::new();
+    lines[1] = cells.join(",");
+    let (p, msg, _) = error_of("cov_missing.csv", &(lines.join("\n") + "\n"));
+    assert!(msg.contains(&p.display().to_string()) && msg.contains("line 2") && msg.contains("(x, ry)"), "{msg}");
+    let col = header.iter().position(|h| *h == "cov_y_y_m2").unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut cells: Vec<String> = lines[2].split(',').map(String::from).collect();
+    cells[col] = "-1e-8".into();
+    lines[2] = cells.join(",");
+    let (_, msg, _) = error_of("cov_negative.csv", &(lines.join("\n") + "\n"));
+    assert!(msg.contains("line 3"), "{msg}");
+    let (_, msg, _) = error_of("cov_name.csv", "pose_id,q1_rad,x_m,y_m,z_m,cov_rx_x_m_rad\np,0,0,0,0,1\n");
+    assert!(msg.contains("cov_rx_x_m_rad") && msg.contains("a first"), "{msg}");
+}

@@ -4,4 +4,5 @@
 mod cli;
 mod compensate;
 mod handeye;
+mod measure;
 mod positioner;

@@ -36,6 +36,9 @@ pub enum Command {
     Simulate(crate::commands::simulate::SimulateArgs),
     /// Convert a real recording (UR5, UR10 laser-tracker sets) into the measurement table.
     Import(crate::commands::simulate::ImportArgs),
+    /// Measure a recorded session with its cameras: the rig calibrated from its board views,
+    /// one target pose with its 6 x 6 covariance per robot pose, written as a measurement table.
+    Measure(crate::commands::simulate::MeasureArgs),
     /// Plan measurement poses: safe and measurable workspace, pose selection (A/D/K/N), predicted
     /// and simulated calibration, a checked path and robot programs (RAPID, CSV, G-code).
     Plan(crate::commands::plan::PlanArgs),

@@ -14,7 +14,7 @@ use std::collections::{BTreeSet, HashMap};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use ferrocal_calib::{MeasurementSet, PoseMeasurement, Split};
+use ferrocal_calib::{MeasurementSet, PoseCovariance, PoseMeasurement, Split};
 use ferrocal_robot::JointKind;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
@@ -210,6 +210,9 @@ pub fn measurements_to_string(set: &MeasurementSet, opts: &WriteOptions) -> Resu
         if values.iter().any(|v| !v.is_finite()) {
             return Err(DatasetError::Input(format!("{}: non-finite value", who())));
         }
+        if let Some(c) = &r.covariance {
+            c.validate().map_err(|e| DatasetError::Input(format!("{}: covariance: {e}", who())))?;
+        }
         if let Some(d) = &r.dir {
             if d.len() != n || d.iter().any(|v| !(-1..=1).contains(v)) {
                 return Err(DatasetError::Input(format!(
@@ -240,6 +243,10 @@ pub fn measurements_to_string(set: &MeasurementSet, opts: &WriteOptions) -> Resu
     let has_payload = any(&|r| r.payload_kg.is_some());
     let has_dir = any(&|r| r.dir.is_some());
     let has_split = any(&|r| r.split.is_some());
+    let cov_size =
+        set.rows.iter().filter_map(|r| r.covariance.as_ref()).map(|c| if c.pose().is_some() { 6 } else { 3 }).max();
+    let cov_entries: Vec<(usize, usize)> =
+        cov_size.map_or(Vec::new(), |n| (0..n).flat_map(|i| (i..n).map(move |j| (i, j))).collect());
     let lu = opts.length_unit.suffix();
 
     let mut header: Vec<String> = vec!["pose_id".into()];
@@ -266,6 +273,7 @@ pub fn measurements_to_string(set: &MeasurementSet, opts: &WriteOptions) -> Resu
     if has_split {
         header.push("split".into());
     }
+    header.extend(cov_entries.iter().map(|&(i, j)| cov_column(i, j, opts.length_unit)));
     header.extend(meta_keys.iter().map(|k| k.to_string()));
 
     let mut out = String::new();
@@ -311,6 +319,19 @@ pub fn measurements_to_string(set: &MeasurementSet, opts: &WriteOptions) -> Resu
                 None => String::new(),
             });
         }
+        for &(i, j) in &cov_entries {
+            let lm = opts.length_unit.from_m(1.0);
+            let factor = match (i < 3, j < 3) {
+                (true, true) => lm * lm,
+                (true, false) => lm,
+                _ => 1.0,
+            };
+            let v = r.covariance.as_ref().and_then(|c| match c.pose() {
+                Some(si) => Some(si[(i, j)]),
+                None => (j < 3).then(|| c.position_m2()[(i, j)]),
+            });
+            cells.push(opt(v.map(|v| v * factor)));
+        }
         for k in &meta_keys {
             cells.push(r.meta.get(*k).map_or(String::new(), |v| v.trim().to_string()));
         }
@@ -347,7 +368,7 @@ fn push_line<'a>(out: &mut String, cells: impl Iterator<Item = &'a str>) {
 }
 
 /// What a header name means.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 enum Column {
     PoseId,
     /// 1-based joint number and unit.
@@ -363,7 +384,56 @@ enum Column {
     /// 1-based joint number.
     Dir(usize),
     Split,
+    /// Covariance entry (row, column of the 6 x 6 over `[x, y, z, rx, ry, rz]`, row <= column)
+    /// and the factor from the column's unit to SI.
+    Cov(usize, usize, f64),
     Meta,
+}
+
+/// The coordinates of a pose covariance, in the order of [`PoseCovariance`]'s chart.
+const COV_AXES: [&str; 6] = ["x", "y", "z", "rx", "ry", "rz"];
+
+/// The covariance column of entry `(i, j)` (`i <= j`) with lengths in `unit`.
+fn cov_column(i: usize, j: usize, unit: LengthUnit) -> String {
+    let lu = unit.suffix();
+    let u = match (i < 3, j < 3) {
+        (true, true) => format!("{lu}2"),
+        (true, false) => format!("{lu}_rad"),
+        _ => "rad2".to_string(),
+    };
+    format!("cov_{}_{}_{u}", COV_AXES[i], COV_AXES[j])
+}
+
+/// A `cov_<a>_<b>_<unit>` name, or `None` when `name` is not one.
+fn classify_cov(name: &str) -> Option<std::result::Result<Column, String>> {
+    let rest = name.strip_prefix("cov_")?;
+    let axis = |s: &str| -> Option<(usize, usize)> {
+        COV_AXES
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| s.starts_with(*a) && s[a.len()..].starts_with('_'))
+            .map(|(k, a)| (k, a.len()))
+            .max_by_key(|x| x.1)
+    };
+    let bad = || {
+        Some(Err(format!("'{name}': a covariance column is cov_<a>_<b>_<unit> with <a>, <b> in x, y, z, rx, ry, rz (a first) and <unit> m2 or mm2, m_rad or mm_rad, rad2")))
+    };
+    let Some((i, la)) = axis(rest) else { return bad() };
+    let rest = &rest[la + 1..];
+    let Some((j, lb)) = axis(rest) else { return bad() };
+    let unit = &rest[lb + 1..];
+    if i > j {
+        return bad();
+    }
+    let scale = match ((i < 3, j < 3), unit) {
+        ((true, true), "m2") => 1.0,
+        ((true, true), "mm2") => 1e-6,
+        ((true, false), "m_rad") => 1.0,
+        ((true, false), "mm_rad") => 1e-3,
+        ((false, false), "rad2") => 1.0,
+        _ => return bad(),
+    };
+    Some(Ok(Column::Cov(i, j, scale)))
 }
 
 fn classify(name: &str) -> std::result::Result<Column, String> {
@@ -378,6 +448,9 @@ fn classify(name: &str) -> std::result::Result<Column, String> {
         "payload_kg" => return Ok(Column::PayloadKg),
         "split" => return Ok(Column::Split),
         _ => {}
+    }
+    if let Some(c) = classify_cov(name) {
+        return c;
     }
     if let Some(rest) = name.strip_prefix('q') {
         let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
@@ -433,6 +506,8 @@ struct Layout {
     payload_kg: Option<usize>,
     dir: Option<Vec<usize>>,
     split: Option<usize>,
+    /// (row, column, factor to SI, table column) of every covariance entry given.
+    cov: Vec<(usize, usize, f64, usize)>,
     meta: Vec<usize>,
 }
 
@@ -446,6 +521,7 @@ impl Layout {
         let (mut t_s, mut temp_c, mut payload_kg, mut split) = (None, None, None, None);
         let mut dirs: HashMap<usize, usize> = HashMap::new();
         let mut meta = Vec::new();
+        let mut cov: Vec<(usize, usize, f64, usize)> = Vec::new();
         let twice = |col: usize, other: usize| DatasetError::Invalid {
             location: t.header_loc(col),
             message: format!("the same quantity as column '{}'", t.headers[other]),
@@ -478,6 +554,12 @@ impl Layout {
                     dirs.insert(i, col);
                 }
                 Column::Split => split = Some(col),
+                Column::Cov(i, j, f) => {
+                    if let Some(other) = cov.iter().find(|c| c.0 == i && c.1 == j) {
+                        return Err(twice(col, other.3));
+                    }
+                    cov.push((i, j, f, col));
+                }
                 Column::Meta => meta.push(col),
             }
         }
@@ -566,8 +648,47 @@ impl Layout {
             payload_kg,
             dir,
             split,
+            cov,
             meta,
         })
+    }
+
+    /// The row's covariance from the `cov_*` cells: the position block alone when no entry
+    /// involves an orientation, else the whole 6 x 6 (every entry it needs present).
+    fn read_covariance(&self, t: &Table, row: &Row, m: &mut PoseMeasurement) -> Result<()> {
+        let mut given = Vec::new();
+        for &(i, j, f, col) in &self.cov {
+            if let Some(v) = t.opt_number(row, col)? {
+                given.push((i, j, v * f, col));
+            }
+        }
+        let Some(first) = given.first().map(|g| g.3) else { return Ok(()) };
+        let size = if given.iter().any(|g| g.1 >= 3) { 6 } else { 3 };
+        let mut c = nalgebra::Matrix6::<f64>::zeros();
+        let mut seen = [[false; 6]; 6];
+        for (i, j, v, _) in given {
+            (c[(i, j)], c[(j, i)]) = (v, v);
+            seen[i][j] = true;
+        }
+        if let Some((i, j)) = (0..size).flat_map(|i| (i..size).map(move |j| (i, j))).find(|&(i, j)| !seen[i][j]) {
+            return Err(DatasetError::Invalid {
+                location: t.loc(row, first),
+                message: format!(
+                    "the covariance lacks entry ({}, {}): a {size} x {size} covariance needs all {} upper-triangle entries",
+                    COV_AXES[i],
+                    COV_AXES[j],
+                    size * (size + 1) / 2
+                ),
+            });
+        }
+        let cov = if size == 3 {
+            PoseCovariance::Position { m2: c.fixed_view::<3, 3>(0, 0).into_owned() }
+        } else {
+            PoseCovariance::Pose { si: c }
+        };
+        cov.validate().map_err(|message| DatasetError::Invalid { location: t.loc(row, first), message })?;
+        m.covariance = Some(cov);
+        Ok(())
     }
 
     fn read_row(&self, t: &Table, row: &Row) -> Result<PoseMeasurement> {
@@ -670,6 +791,7 @@ impl Layout {
                 }
             };
         }
+        self.read_covariance(t, row, &mut m)?;
         for col in &self.meta {
             let v = &row.cells[*col];
             if !v.is_empty() {

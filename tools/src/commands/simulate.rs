@@ -143,3 +143,106 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
     eprintln!("{} rows written to {}", set.rows.len(), args.out.display());
     Ok(ExitCode::SUCCESS)
 }
+
+/// `ferrocal measure`.
+#[derive(Debug, Args)]
+pub struct MeasureArgs {
+    /// The session folder (docs/session-format.md; `ferrocal simulate` writes one).
+    #[arg(long)]
+    pub session: PathBuf,
+    /// The measurement table to write (shared/spec/measurements.md with the `cov_*` columns of
+    /// docs/session-format.md), lengths in mm.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Write a JSON summary here (rig calibration, per-pose standard deviations, skipped images).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Corner standard deviation for corners the detector gives no covariance for, pixels.
+    #[arg(long, default_value_t = 0.02)]
+    pub corner_sigma_px: f64,
+    /// A laser tracker's measurement table of the same poses (matched by pose id): the camera
+    /// system is compared with it, and the robot calibrated from each on held-out tracker poses.
+    #[arg(long, requires = "robot")]
+    pub tracker: Option<PathBuf>,
+    /// The robot model for the comparison (preset, URDF or TOML).
+    #[arg(long)]
+    pub robot: Option<String>,
+}
+
+/// Runs `ferrocal measure`: every image that cannot be used is named on stderr and in the JSON,
+/// and the batch goes on; the table is written only when at least one pose was measured.
+pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
+    use ferrocal_datasets::measure::{measure_session, CornerSource, MeasureOptions};
+    if !(args.corner_sigma_px.is_finite() && args.corner_sigma_px > 0.0) {
+        anyhow::bail!("measure: --corner-sigma-px must be positive, got {}", args.corner_sigma_px);
+    }
+    let opts = MeasureOptions {
+        corners: CornerSource::Detector,
+        corner_sigma_px: args.corner_sigma_px,
+        calibration: ferrocal_vision::calib::CalibrationOptions::default(),
+    };
+    eprintln!("measuring {} ...", args.session.display());
+    let m = measure_session(&args.session, &opts).with_context(|| format!("measure: {}", args.session.display()))?;
+    for s in &m.skipped {
+        eprintln!("ferrocal measure: skipped {s}");
+    }
+    if m.rows.rows.is_empty() {
+        anyhow::bail!("measure: no pose of {} could be measured ({} skipped)", args.session.display(), m.skipped.len());
+    }
+    let kinds = vec![JointKind::Revolute; m.rows.n_joints()];
+    let manifest_kinds = ferrocal_datasets::measure::session_joint_kinds(&args.session).unwrap_or(kinds);
+    let mut wopts = WriteOptions::si(&manifest_kinds);
+    wopts.length_unit = LengthUnit::Mm;
+    wopts.comments = vec![
+        format!("measured by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), args.session.display()),
+        "positions and orientations of the target in the first camera's frame; cov_*: each pose's covariance".into(),
+    ];
+    import::write_measurements(&args.out, &m.rows, &wopts)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    let sigmas: Vec<f64> = m.rows.rows.iter().filter_map(|r| r.sigma_m.map(|s| s * 1e3)).collect();
+    let median_sigma_mm = {
+        let mut s = sigmas.clone();
+        s.sort_by(f64::total_cmp);
+        s.get(s.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    println!(
+        "{} poses measured, {} skipped; rig calibration RMS {:.4} px; median position sigma {:.4} mm; table {}",
+        m.rows.rows.len(),
+        m.skipped.len(),
+        m.rig.rms_px,
+        median_sigma_mm,
+        args.out.display()
+    );
+    let comparison = match (&args.tracker, &args.robot) {
+        (Some(t), Some(r)) => {
+            let tracker = import::read_measurements(t)?.set;
+            let model = ferrocal_robot::RobotModel::load(r)?;
+            let kopts = ferrocal_calib::kinematic::KinematicOptions::default();
+            let c = ferrocal_datasets::measure::compare_with_tracker(&model, &m.rows, &tracker, &m.poses, &kopts)?;
+            println!(
+                "against the tracker ({} common poses): cameras {:.4} mm mean after registration; held-out tracker error of the model calibrated from the cameras {:.4} mm, from the tracker {:.4} mm, nominal {:.4} mm",
+                c.n_common, c.camera_mean_mm, c.camera_model.mean_mm, c.tracker_model.mean_mm, c.nominal_model.mean_mm
+            );
+            Some(c)
+        }
+        _ => None,
+    };
+    if let Some(j) = &args.json {
+        let v = serde_json::json!({
+            "tracker_comparison": comparison,
+            "session": args.session.display().to_string(),
+            "n_measured": m.rows.rows.len(),
+            "skipped": m.skipped,
+            "rig_rms_px": m.rig.rms_px,
+            "median_position_sigma_mm": median_sigma_mm,
+            "poses": m.poses.iter().map(|p| serde_json::json!({
+                "pose_id": p.pose_id,
+                "cameras": p.cameras,
+                "sigma_position_mm": p.estimate.sigma_position_mm().as_slice(),
+                "sigma_rotation_deg": p.estimate.sigma_rotation_deg().as_slice(),
+            })).collect::<Vec<_>>(),
+        });
+        ferrocal_report::write_atomic(j, serde_json::to_string_pretty(&v)?.as_bytes())?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
