@@ -4,6 +4,7 @@
 #[path = "../../vision/tests/calib_support/mod.rs"]
 mod calib_support;
 mod camera_print_scale;
+mod corrected_commands;
 mod demo_checks;
 mod diagnose_sim;
 mod diagnose_support;

@@ -216,3 +216,60 @@ fn exported_urdf_reproduces_evaluate_on_the_ur5_table() {
         .fold(0.0, f64::max);
     assert!(worst < 1e-6, "{worst:e} mm");
 }
+
+/// `ferrocal correct` on the UR5 recording: the calibration's corrected commands for the table's
+/// own joints. Under the calibrated model each corrected command reaches the pose the nominal
+/// model meant (to 1 nm), and the error it removes is what the calibration found (0.01-5 mm); the
+/// corrected commands run on the real robot are checked in simulation
+/// (`datasets/tests/corrected_commands.rs`). A program without joint columns is refused with
+/// its file named, and nothing is written.
+#[test]
+fn correct_writes_commands_that_the_calibrated_model_puts_on_the_nominal_poses() {
+    let tmp = tempfile::tempdir().unwrap();
+    let table = import_ur5(tmp.path());
+    let cal = tmp.path().join("cal.json");
+    ok(ferrocal().args(["calibrate", "--robot", "ur5", "--measurements"]).arg(&table).arg("--out").arg(&cal));
+    let program = tmp.path().join("program.csv");
+    let text = std::fs::read_to_string(&table).unwrap();
+    let lines: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).take(41).collect();
+    std::fs::write(&program, lines.join("\n") + "\n").unwrap();
+    let out = tmp.path().join("corrected.csv");
+    ok(ferrocal()
+        .args(["correct", "--robot", "ur5", "--calibration"])
+        .arg(&cal)
+        .arg("--program")
+        .arg(&program)
+        .arg("--out")
+        .arg(&out));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<&str>> = text.lines().filter(|l| !l.starts_with('#')).map(|l| l.split(',').collect()).collect();
+    let program_header: Vec<&str> = lines[0].split(',').collect();
+    assert_eq!(rows[0][..2], ["pose_id", program_header[1]], "the program's joint units are kept");
+    assert_eq!(rows.len(), 41);
+    let col = |name: &str| rows[0].iter().position(|h| *h == name).unwrap();
+    let (removed, residual) = (col("removed_error_mm"), col("residual_mm"));
+    let mut mean = 0.0;
+    for r in &rows[1..] {
+        let v: f64 = r[removed].parse().unwrap();
+        assert!(r[residual].parse::<f64>().unwrap() < 1e-6, "{r:?}");
+        assert!(v > 0.01 && v < 5.0, "{r:?}");
+        mean += v / 40.0;
+    }
+    eprintln!("UR5 program of 40 commands: the correction removes {mean:.4} mm on average");
+
+    let bad = tmp.path().join("bad.csv");
+    std::fs::write(&bad, "pose_id,x_mm\n1,2\n").unwrap();
+    let out2 = tmp.path().join("never.csv");
+    let o = ferrocal_tests::run(
+        ferrocal()
+            .args(["correct", "--robot", "ur5", "--calibration"])
+            .arg(&cal)
+            .arg("--program")
+            .arg(&bad)
+            .arg("--out")
+            .arg(&out2),
+    );
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("bad.csv"));
+    assert!(!out2.exists());
+}

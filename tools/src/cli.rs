@@ -39,6 +39,9 @@ pub enum Command {
     /// Measure a recorded session with its cameras: the rig calibrated from its board views,
     /// one target pose with its 6 x 6 covariance per robot pose, written as a measurement table.
     Measure(crate::commands::simulate::MeasureArgs),
+    /// Correct a program's joint commands through a calibration, so that the robot reaches the
+    /// poses the nominal model meant.
+    Correct(ferrocal_report::compensate::CorrectArgs),
     /// Plan measurement poses: safe and measurable workspace, pose selection (A/D/K/N), predicted
     /// and simulated calibration, a checked path and robot programs (RAPID, CSV, G-code).
     Plan(crate::commands::plan::PlanArgs),

@@ -32,6 +32,7 @@ use crate::identifiability::{analyze, Identifiability};
 use crate::lsq::{covariance, solve, LmOptions, LmSummary, Loss};
 use crate::measurement::PoseMeasurement;
 
+pub mod correct;
 mod model;
 mod problem;
 mod refit;

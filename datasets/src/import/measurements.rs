@@ -125,7 +125,20 @@ pub fn read_measurements(path: impl AsRef<Path>) -> Result<MeasurementTable> {
 
 /// Parses a measurement table from text; `source` names it in messages and in the set.
 pub fn parse_measurements(text: &str, source: impl AsRef<Path>) -> Result<MeasurementTable> {
-    let source = source.as_ref();
+    parse_table(text, source.as_ref(), true)
+}
+
+/// Reads a joint program: the measurement table's columns without the measured ones (`x`, `y`,
+/// `z` may be absent; when absent the rows' positions are zero and mean nothing): `pose_id`,
+/// `q1_<u>` ... `qN_<u>`, and the conditions the effects see (`dir<i>`, `temp_c`, `payload_kg`,
+/// `t_s`). Errors name the file, line and column as for measurement tables.
+pub fn read_joint_program(path: impl AsRef<Path>) -> Result<MeasurementTable> {
+    let path = path.as_ref();
+    let text = super::table::read_text(path)?;
+    parse_table(&text, path, false)
+}
+
+fn parse_table(text: &str, source: &Path, require_positions: bool) -> Result<MeasurementTable> {
     let table = Table::parse(text, source, TableFormat::CSV, &|name| {
         matches!(
             classify(name),
@@ -138,7 +151,7 @@ pub fn parse_measurements(text: &str, source: impl AsRef<Path>) -> Result<Measur
                 | Column::PayloadKg)
         )
     })?;
-    let layout = Layout::from_table(&table)?;
+    let layout = Layout::from_table(&table, require_positions)?;
     let mut rows = Vec::with_capacity(table.rows.len());
     let mut seen: HashMap<String, u64> = HashMap::new();
     for row in &table.rows {
@@ -157,6 +170,7 @@ pub fn parse_measurements(text: &str, source: impl AsRef<Path>) -> Result<Measur
         set: MeasurementSet { source: source.display().to_string(), rows },
         joint_units: layout.joints.iter().map(|(_, u)| *u).collect(),
         position_units: [layout.xyz[0].1, layout.xyz[1].1, layout.xyz[2].1],
+
         sigma_unit: layout.sigma.map(|(_, u)| u),
         file: source.to_path_buf(),
         header_line: table.header_line,
@@ -512,7 +526,7 @@ struct Layout {
 }
 
 impl Layout {
-    fn from_table(t: &Table) -> Result<Layout> {
+    fn from_table(t: &Table, require_positions: bool) -> Result<Layout> {
         let mut pose_id = None;
         let mut joints: HashMap<usize, (usize, JointUnit)> = HashMap::new();
         let mut xyz: [Option<(usize, LengthUnit)>; 3] = [None; 3];
@@ -591,6 +605,7 @@ impl Layout {
             let axis = ["x", "y", "z"][a];
             match slot {
                 Some(c) => xyz_cols[a] = *c,
+                None if !require_positions => xyz_cols[a] = (usize::MAX, LengthUnit::M),
                 None => return Err(t.missing_column_of(&[&format!("{axis}_m"), &format!("{axis}_mm")])),
             }
         }
@@ -698,7 +713,7 @@ impl Layout {
             q.push(unit.to_si(t.number(row, *col)?));
         }
         let mut p = Vector3::zeros();
-        for (a, (col, unit)) in self.xyz.iter().enumerate() {
+        for (a, (col, unit)) in self.xyz.iter().enumerate().filter(|(_, (col, _))| *col != usize::MAX) {
             p[a] = unit.to_m(t.number(row, *col)?);
         }
         let mut m = PoseMeasurement::new(pose_id, q, p);

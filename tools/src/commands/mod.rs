@@ -32,6 +32,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Simulate(a) => simulate::run_simulate(&a),
         Command::Import(a) => simulate::run_import(&a),
         Command::Measure(a) => simulate::run_measure(&a),
+        Command::Correct(a) => ferrocal_report::compensate::run_correct(&a),
         Command::Plan(a) => plan::run(&a),
         Command::Calibrate(a) => calibrate::run_calibrate(&a),
         Command::Diagnose(a) => diagnose::run(&a),
