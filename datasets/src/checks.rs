@@ -248,6 +248,22 @@ pub fn ur5_compensation(geometric: &ErrorStats, compensated: &ErrorStats) -> Che
     )
 }
 
+/// Corrected commands on the true robot may miss by at most this many times the calibration's
+/// held-out error ([compensate]).
+pub const CORRECTED_COMMANDS_RATIO: f64 = 1.5;
+
+/// The simulated corrected-program check.
+pub fn corrected_commands(s: &crate::sim::CorrectedCommandsStudy) -> Check {
+    Check::from_bool(
+        "corrected commands on the true robot",
+        s.corrected_mm < CORRECTED_COMMANDS_RATIO * s.held_out_mm && s.corrected_mm < s.uncorrected_mm,
+        format!(
+            "{:.4} mm corrected, {:.4} mm uncorrected; the calibration's held-out error {:.4} mm (limit {CORRECTED_COMMANDS_RATIO}x)",
+            s.corrected_mm, s.uncorrected_mm, s.held_out_mm
+        ),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

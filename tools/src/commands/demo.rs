@@ -53,6 +53,7 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     s.push(section_plan(args)?);
     s.extend(sections_diagnose(args)?);
     s.push(ferrocal_report::compensate::demo_section(&ur5_csv, demo::UR5_ATTRIBUTION, &tick)?);
+    s.push(ferrocal_report::compensate::corrected_section(args.seed)?);
     s.push(ferrocal_report::handeye::demo::demo_section(&args.data, &args.out.join("handeye"), &tick)?);
     s.push(ferrocal_report::handeye::demo::positioner_section(&args.data)?);
     for set in
