@@ -167,6 +167,8 @@ pub struct SessionMeasurement {
     pub rows: MeasurementSet,
     /// Poses not measured, with the reason.
     pub skipped: Vec<String>,
+    /// The kinds of the session's joints (the units the table writes them in).
+    pub joint_kinds: Vec<ferrocal_robot::JointKind>,
 }
 
 /// The target's corner points in its own frame, in the order of the session's corner files.
@@ -178,8 +180,12 @@ pub fn target_points(manifest: &SessionManifest) -> Result<Vec<Point3<f64>>, Dat
     Ok(pattern.build()?.corners.iter().map(|c| c.p_target_m).collect())
 }
 
-/// Reads `joints.csv` of a session: pose id, joints (SI), time, temperature, payload, directions.
-pub fn read_session_joints(dir: &Path, manifest: &SessionManifest) -> Result<Vec<PoseMeasurement>, DatasetError> {
+/// Reads `joints.csv` of a session: pose id, joints (SI), time, temperature, payload, directions;
+/// and the joints' kinds from the header (`q<i>_rad`: revolute, `q<i>_m`: prismatic).
+pub fn read_session_joints(
+    dir: &Path,
+    manifest: &SessionManifest,
+) -> Result<(Vec<PoseMeasurement>, Vec<ferrocal_robot::JointKind>), DatasetError> {
     let path = dir.join(&manifest.joints);
     let text = std::fs::read_to_string(&path).map_err(|source| DatasetError::Io { path: path.clone(), source })?;
     let mut lines = text.lines();
@@ -190,6 +196,16 @@ pub fn read_session_joints(dir: &Path, manifest: &SessionManifest) -> Result<Vec
         .enumerate()
         .filter(|(_, h)| h.starts_with('q') && (h.ends_with("_rad") || h.ends_with("_m")))
         .map(|(i, _)| i)
+        .collect();
+    let kinds = q_cols
+        .iter()
+        .map(|&c| {
+            if header[c].ends_with("_rad") {
+                ferrocal_robot::JointKind::Revolute
+            } else {
+                ferrocal_robot::JointKind::Prismatic
+            }
+        })
         .collect();
     let dir_cols: Vec<usize> =
         header.iter().enumerate().filter(|(_, h)| h.starts_with("dir")).map(|(i, _)| i).collect();
@@ -210,7 +226,7 @@ pub fn read_session_joints(dir: &Path, manifest: &SessionManifest) -> Result<Vec
         row.source_line = Some(k as u64 + 2);
         out.push(row);
     }
-    Ok(out)
+    Ok((out, kinds))
 }
 
 /// Reads the exact corners of one camera: per pose id, the pixels of every corner index.
@@ -302,7 +318,7 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
         return Err(DatasetError::Input(format!("{}: the session has no cameras", dir.display())));
     }
     let points = target_points(&manifest)?;
-    let joints = read_session_joints(dir, &manifest)?;
+    let (joints, joint_kinds) = read_session_joints(dir, &manifest)?;
     let n = points.len();
     // Corners per camera and pose.
     let mut notes = Vec::new();
@@ -443,6 +459,7 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
         poses,
         rows: MeasurementSet { source: format!("cameras of {}", dir.display()), rows },
         skipped,
+        joint_kinds,
     })
 }
 
@@ -537,29 +554,4 @@ pub fn compare_with_tracker(
         camera_model: camera_model.evaluate(&tracker_test).map_err(cal_err)?,
         nominal_model: nominal.calibrated.evaluate(&tracker_test).map_err(cal_err)?,
     })
-}
-
-/// The joint kinds of a session, from its joint table's header (`q<i>_rad`: revolute, `q<i>_m`:
-/// prismatic).
-pub fn session_joint_kinds(dir: &Path) -> Result<Vec<ferrocal_robot::JointKind>, DatasetError> {
-    let manifest_path = dir.join("manifest.json");
-    let manifest: SessionManifest = serde_json::from_str(
-        &std::fs::read_to_string(&manifest_path).map_err(|source| DatasetError::Io { path: manifest_path, source })?,
-    )?;
-    let path = dir.join(&manifest.joints);
-    let text = std::fs::read_to_string(&path).map_err(|source| DatasetError::Io { path: path.clone(), source })?;
-    Ok(text
-        .lines()
-        .next()
-        .unwrap_or("")
-        .split(',')
-        .filter(|h| h.starts_with('q') && (h.ends_with("_rad") || h.ends_with("_m")))
-        .map(|h| {
-            if h.ends_with("_rad") {
-                ferrocal_robot::JointKind::Revolute
-            } else {
-                ferrocal_robot::JointKind::Prismatic
-            }
-        })
-        .collect())
 }

@@ -53,13 +53,13 @@ pub struct CorrectedCommand {
 /// (`cal.load_model`) agrees best with the calibrated model over `rows` (at least 3 commands
 /// whose orientations differ about two axes).
 pub fn nominal_frames(cal: &CalibratedModel, rows: &[PoseMeasurement]) -> Result<(Isometry3<f64>, Isometry3<f64>)> {
-    let mut pairs = Vec::with_capacity(rows.len());
+    let mut flange = Vec::with_capacity(rows.len());
+    let mut predicted = Vec::with_capacity(rows.len());
     for r in rows {
-        let predicted = cal.predict_row(r)?;
-        pairs.push(crate::handeye::PosePair { t_base_flange: cal.load_model.forward(&r.q)?, c: predicted.inverse() });
+        flange.push(cal.load_model.forward(&r.q)?);
+        predicted.push(cal.predict_row(r)?);
     }
-    let (tool, base_in_device_inv) = crate::handeye::closed::solve_ax_zb(&pairs)?;
-    Ok((base_in_device_inv.inverse(), tool))
+    super::device_and_tool(&flange, &predicted)
 }
 
 /// Every command of a program corrected (see the module documentation).

@@ -745,16 +745,25 @@ pub fn design_jacobian(
 /// (Shah): `FK_i T_tool M_i^-1 = F^-1` for every row with measured pose `M_i`. `None` when a row
 /// lacks an orientation or the closed form fails.
 fn pose_start(nominal: &[Isometry3<f64>], rows: &[&PoseMeasurement]) -> Option<(Isometry3<f64>, Isometry3<f64>)> {
-    let pairs: Vec<crate::handeye::PosePair> = nominal
+    let measured: Vec<Isometry3<f64>> =
+        rows.iter().map(|r| Some(Isometry3::from_parts(r.position_m.into(), r.orientation?))).collect::<Option<_>>()?;
+    device_and_tool(nominal, &measured).ok()
+}
+
+/// `(T_device_base, T_flange_target)` with `T_device_base FK_i T_flange_target = M_i` for flange
+/// poses `FK_i` and target poses `M_i` in the device frame, by the closed form of `AX = ZB`
+/// (Shah; at least 3 poses whose orientations differ about two axes).
+pub(crate) fn device_and_tool(
+    flange: &[Isometry3<f64>],
+    measured: &[Isometry3<f64>],
+) -> Result<(Isometry3<f64>, Isometry3<f64>)> {
+    let pairs: Vec<crate::handeye::PosePair> = flange
         .iter()
-        .zip(rows)
-        .map(|(fk, r)| {
-            let m = Isometry3::from_parts(r.position_m.into(), r.orientation?);
-            Some(crate::handeye::PosePair { t_base_flange: *fk, c: m.inverse() })
-        })
-        .collect::<Option<_>>()?;
-    let (tool, base_in_device_inv) = crate::handeye::closed::solve_ax_zb(&pairs).ok()?;
-    Some((base_in_device_inv.inverse(), tool))
+        .zip(measured)
+        .map(|(fk, m)| crate::handeye::PosePair { t_base_flange: *fk, c: m.inverse() })
+        .collect();
+    let (tool, base_in_device_inv) = crate::handeye::closed::solve_ax_zb(&pairs)?;
+    Ok((base_in_device_inv.inverse(), tool))
 }
 
 /// RMS of the position residuals of a start `(device frame, tool frame)` over the rows, metres.

@@ -63,14 +63,14 @@ struct TargetFinder {
 }
 
 #[derive(Deserialize)]
-struct IcPose {
-    x: f64,
-    y: f64,
-    z: f64,
-    qx: f64,
-    qy: f64,
-    qz: f64,
-    qw: f64,
+pub(super) struct IcPose {
+    pub(super) x: f64,
+    pub(super) y: f64,
+    pub(super) z: f64,
+    pub(super) qx: f64,
+    pub(super) qy: f64,
+    pub(super) qz: f64,
+    pub(super) qw: f64,
 }
 
 /// An imported set.
@@ -87,7 +87,7 @@ pub struct IcSet {
     pub pattern: Option<String>,
 }
 
-fn yaml_error(path: &Path, e: &serde_norway::Error) -> DatasetError {
+pub(super) fn yaml_error(path: &Path, e: &serde_norway::Error) -> DatasetError {
     let (line, column) = e.location().map_or((1, None), |l| (l.line() as u64, Some(l.column().to_string())));
     DatasetError::Invalid {
         location: Location { file: path.to_path_buf(), line, column },

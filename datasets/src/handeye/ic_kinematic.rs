@@ -19,6 +19,7 @@ use serde::Deserialize;
 use ferrocal_calib::{MeasurementSet, PoseMeasurement, Split};
 use ferrocal_robot::serial::SerialChain;
 
+use super::ic::{yaml_error, IcPose};
 use super::poses::QUATERNION_NORM_TOLERANCE;
 use crate::error::{DatasetError, Location, Result};
 use crate::import::natural_cmp;
@@ -27,19 +28,8 @@ use crate::import::natural_cmp;
 struct Observation {
     #[serde(default)]
     camera_joints: Vec<f64>,
-    pose: Pose,
+    pose: IcPose,
     target_joints: Vec<f64>,
-}
-
-#[derive(Deserialize)]
-struct Pose {
-    x: f64,
-    y: f64,
-    z: f64,
-    qx: f64,
-    qy: f64,
-    qz: f64,
-    qw: f64,
 }
 
 /// Reads `measurements.yaml` (the file, or the folder that holds it).
@@ -49,13 +39,7 @@ pub fn read_ic_kinematic(input: &Path, test_every: Option<usize>) -> Result<Meas
     }
     let path = if input.is_dir() { input.join("measurements.yaml") } else { input.to_path_buf() };
     let text = crate::import::table::read_text(&path)?;
-    let map: BTreeMap<String, Observation> = serde_norway::from_str(&text).map_err(|e| {
-        let (line, column) = e.location().map_or((1, None), |l| (l.line() as u64, Some(l.column().to_string())));
-        DatasetError::Invalid {
-            location: Location { file: path.clone(), line, column },
-            message: e.to_string().split(" at line ").next().unwrap_or_default().to_string(),
-        }
-    })?;
+    let map: BTreeMap<String, Observation> = serde_norway::from_str(&text).map_err(|e| yaml_error(&path, &e))?;
     let located = |key: &str, message: String| {
         let line = text.lines().position(|l| l.trim_start_matches('\'').starts_with(key)).map_or(1, |k| k as u64 + 1);
         DatasetError::Invalid { location: Location::line(&path, line), message }

@@ -189,9 +189,7 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
     if m.rows.rows.is_empty() {
         anyhow::bail!("measure: no pose of {} could be measured ({} skipped)", args.session.display(), m.skipped.len());
     }
-    let kinds = vec![JointKind::Revolute; m.rows.n_joints()];
-    let manifest_kinds = ferrocal_datasets::measure::session_joint_kinds(&args.session).unwrap_or(kinds);
-    let mut wopts = WriteOptions::si(&manifest_kinds);
+    let mut wopts = WriteOptions::si(&m.joint_kinds);
     wopts.length_unit = LengthUnit::Mm;
     wopts.comments = vec![
         format!("measured by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), args.session.display()),
@@ -201,7 +199,7 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
         .with_context(|| format!("writing {}", args.out.display()))?;
     let sigmas: Vec<f64> = m.rows.rows.iter().filter_map(|r| r.sigma_m.map(|s| s * 1e3)).collect();
     let median_sigma_mm = {
-        let mut s = sigmas.clone();
+        let mut s = sigmas;
         s.sort_by(f64::total_cmp);
         s.get(s.len() / 2).copied().unwrap_or(f64::NAN)
     };
