@@ -68,6 +68,14 @@ fn measure_turns_a_recorded_session_into_a_table_with_covariances() {
     let rows2 = std::fs::read_to_string(&table2).unwrap().lines().filter(|l| !l.starts_with('#')).count() as u64 - 1;
     assert!(rows2 + 1 >= n, "{rows2} rows after losing two images of {n} poses (the other camera still sees them)");
 
+    // The session's own files are never overwritten.
+    let tracker = session.join("tracker.csv");
+    let before = std::fs::read(&tracker).unwrap();
+    let out = run(ferrocal().args(["measure", "--session"]).arg(&session).arg("--out").arg(&tracker));
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("refusing to overwrite"));
+    assert_eq!(std::fs::read(&tracker).unwrap(), before);
+
     // A session folder without a manifest is an error that names it, and writes nothing.
     let empty = tmp.path().join("empty");
     std::fs::create_dir(&empty).unwrap();

@@ -177,11 +177,11 @@ fn parse_table(text: &str, source: &Path, require_positions: bool) -> Result<Mea
     })
 }
 
-/// Writes a measurement table to `path`.
+/// Writes a measurement table to `path` (atomically: a reader never sees half a table).
 pub fn write_measurements(path: impl AsRef<Path>, set: &MeasurementSet, opts: &WriteOptions) -> Result<()> {
     let path = path.as_ref();
     let text = measurements_to_string(set, opts)?;
-    std::fs::write(path, text).map_err(|source| DatasetError::Write { path: path.to_path_buf(), source })
+    crate::handeye::poses::write_atomic(path, text.as_bytes(), &[])
 }
 
 /// The measurement table of `set` as text. Fails (without writing anything) on a set the reader

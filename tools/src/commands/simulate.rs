@@ -181,6 +181,11 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
         corner_sigma_px: args.corner_sigma_px,
         calibration: ferrocal_vision::calib::CalibrationOptions::default(),
     };
+    if let (Ok(out), Ok(session)) = (args.out.canonicalize(), args.session.canonicalize()) {
+        if out.starts_with(&session) {
+            anyhow::bail!("measure: refusing to overwrite {}, a file of the session", args.out.display());
+        }
+    }
     eprintln!("measuring {} ...", args.session.display());
     let m = measure_session(&args.session, &opts).with_context(|| format!("measure: {}", args.session.display()))?;
     for s in &m.skipped {
