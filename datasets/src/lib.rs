@@ -31,6 +31,7 @@ pub mod formats;
 pub mod handeye;
 pub mod import;
 pub mod measure;
+pub mod recording;
 pub mod render;
 pub mod sim;
 pub mod stiffsim;

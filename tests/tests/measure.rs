@@ -85,3 +85,61 @@ fn measure_turns_a_recorded_session_into_a_table_with_covariances() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("manifest.json"));
     assert!(!table3.exists());
 }
+
+/// A real recording without a session: the ChArUco images of the ROS-Industrial
+/// industrial_calibration example data (Apache-2.0) with their flange poses, measured by the
+/// camera calibrated from the same images. Flange poses give the per-image poses in the JSON;
+/// a measurement table needs joints, which is refused by name; a missing image is reported and
+/// the batch goes on.
+#[test]
+fn measure_a_real_image_folder_with_its_poses_table() {
+    let tmp = tempfile::tempdir().unwrap();
+    let set = ferrocal_tests::data("industrial_calibration/test_set_charuco");
+    let poses = tmp.path().join("poses.csv");
+    ok(ferrocal().args(["import", "ic-handeye", "--input"]).arg(&set).arg("--out").arg(&poses));
+    // One more row naming an image that is not there.
+    let mut text = std::fs::read_to_string(&poses).unwrap();
+    text.push_str("99.png,0,0,1000,1,0,0,0,train\n");
+    std::fs::write(&poses, text).unwrap();
+    let pattern = "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250";
+    let j = tmp.path().join("m.json");
+    let out = ok(ferrocal()
+        .args(["measure", "--images"])
+        .arg(set.join("images"))
+        .arg("--poses")
+        .arg(&poses)
+        .args(["--pattern", pattern, "--json"])
+        .arg(&j));
+    let v = json(&j);
+    assert_eq!(v["n_measured"].as_u64().unwrap(), 16, "{}", String::from_utf8_lossy(&out.stdout));
+    let skipped = v["skipped"].to_string();
+    assert!(skipped.contains("99.png"), "{skipped}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("99.png"));
+    // The camera from the images: within 1 % of the source's calibrated fx 1352.0, fy 1356.1.
+    let cam = &v["camera"]["camera"]["intrinsics"];
+    let (fx, fy) = (cam["fx_px"].as_f64().unwrap(), cam["fy_px"].as_f64().unwrap());
+    assert!((fx / 1352.0 - 1.0).abs() < 0.01 && (fy / 1356.1 - 1.0).abs() < 0.01, "fx {fx}, fy {fy}");
+    for p in v["poses"].as_array().unwrap() {
+        let rms = p["rms_px"].as_f64().unwrap();
+        let s = p["sigma_position_mm"].as_array().unwrap();
+        // Measured: reprojection up to 1.02 px per image (the source's acceptance threshold is
+        // 1.5 px); position sigmas of about 1 to 3 mm (the camera's own uncertainty from 16
+        // views dominates).
+        assert!(rms < 1.5, "{p}");
+        assert!(s.iter().all(|x| x.as_f64().unwrap() > 0.05 && x.as_f64().unwrap() < 10.0), "{p}");
+    }
+    // A table needs joints: refused, nothing written.
+    let table = tmp.path().join("m.csv");
+    let out = ferrocal()
+        .args(["measure", "--images"])
+        .arg(set.join("images"))
+        .arg("--poses")
+        .arg(&poses)
+        .args(["--pattern", pattern, "--out"])
+        .arg(&table)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("needs joint readings"));
+    assert!(!table.exists());
+}

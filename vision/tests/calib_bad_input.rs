@@ -4,7 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
-use ferrocal_vision::calib::corners::{chessboard_corners_opencv, detect_view_slots, detect_views, SubpixWindow};
+use ferrocal_vision::calib::corners::{
+    chessboard_corners_opencv, detect_view_slots, detect_views, CornerMethod, SubpixWindow,
+};
 use ferrocal_vision::calib::{calibrate_camera, CalibrationOptions, CalibrationPattern, PlanarTarget};
 use ferrocal_vision::detect::Pattern;
 use ferrocal_vision::VisionError;
@@ -46,7 +48,11 @@ fn every_bad_image_is_reported_and_the_batch_goes_on() {
     let pattern = "chessboard:9x6:25mm".parse::<Pattern>().unwrap();
     let mut paths: Vec<PathBuf> = (1..=5).map(left).collect();
     paths.extend(bad_images(dir.path()));
-    let (slots, skipped) = detect_view_slots(&paths, &CalibrationPattern::of(&pattern).unwrap(), SubpixWindow::OpenCv);
+    let (slots, skipped) = detect_view_slots(
+        &paths,
+        &CalibrationPattern::of(&pattern).unwrap(),
+        CornerMethod::OpenCv(SubpixWindow::OpenCv),
+    );
     assert_eq!(slots.len(), paths.len());
     assert_eq!(slots.iter().flatten().count(), 5);
     let reason = |name: &str| {
@@ -82,7 +88,8 @@ fn too_few_usable_views_is_an_error_that_counts_them() {
     let pattern = "chessboard:9x6:25mm".parse::<Pattern>().unwrap();
     let mut paths = vec![left(1), left(3)];
     paths.extend(bad_images(dir.path()));
-    let (views, skipped) = detect_views(&paths, &CalibrationPattern::of(&pattern).unwrap(), SubpixWindow::Adaptive);
+    let (views, skipped) =
+        detect_views(&paths, &CalibrationPattern::of(&pattern).unwrap(), CornerMethod::OpenCv(SubpixWindow::Adaptive));
     assert_eq!(views.len(), 2);
     assert_eq!(skipped.len(), 5);
     let e = calibrate_camera(&views, &PlanarTarget::of_pattern(&pattern).unwrap(), &CalibrationOptions::default())

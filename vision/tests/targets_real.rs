@@ -14,7 +14,7 @@
 use std::path::PathBuf;
 
 use ferrocal_vision::calib::compare::compare_with_opencv;
-use ferrocal_vision::calib::corners::{detect_pattern_views, SubpixWindow};
+use ferrocal_vision::calib::corners::{detect_pattern_views, CornerMethod};
 use ferrocal_vision::calib::{calibrate_pattern, CalibrationOptions, CalibrationPattern as Pattern};
 use ferrocal_vision::detect::aruco::{detect_markers, ArucoDictionary, MarkerParams};
 use ferrocal_vision::detect::{detect, load_gray, DetectOptions, Pattern as DetectPattern};
@@ -40,7 +40,7 @@ fn charuco_set_every_image_gives_corners_with_ids_and_calibrates() {
     let paths = images("test_set_charuco");
     assert_eq!(paths.len(), 16);
     let pattern = Pattern::parse(CHARUCO).unwrap();
-    let found = detect_pattern_views(&paths, &pattern, SubpixWindow::OpenCv);
+    let found = detect_pattern_views(&paths, &pattern, CornerMethod::Own);
     assert!(found.skipped.is_empty(), "{:?}", found.skipped);
     let mut total = 0;
     for (p, v) in paths.iter().zip(&found.slots) {
@@ -165,7 +165,7 @@ fn circle_grid_set_every_image_gives_100_centres_in_order() {
         med(1)
     );
     let cal_pattern = Pattern::parse(GRID).unwrap();
-    let found = detect_pattern_views(&paths, &cal_pattern, SubpixWindow::OpenCv);
+    let found = detect_pattern_views(&paths, &cal_pattern, CornerMethod::Own);
     let views: Vec<_> = found.slots.into_iter().flatten().collect();
     assert_eq!(views.len(), 15);
     let pc = calibrate_pattern(&views, &cal_pattern, found.circle_radii_m, &CalibrationOptions::default()).unwrap();

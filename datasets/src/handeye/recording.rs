@@ -11,7 +11,7 @@ use nalgebra::{Isometry3, Point3};
 
 use ferrocal_calib::handeye::{HandEyeData, HandEyeView, Mount};
 use ferrocal_vision::camera::{CameraModel, Distortion, DistortionKind, ImageSize, Intrinsics};
-use ferrocal_vision::detect::{DetectOptions, Detector, Pattern};
+use ferrocal_vision::detect::{DetectOptions, Detection, Detector, Pattern};
 
 use super::poses::PosesTable;
 use crate::error::{DatasetError, Location, Result};
@@ -40,13 +40,17 @@ pub fn load_recording(
     pattern: &Pattern,
     mount: Mount,
 ) -> Result<(HandEyeData, Vec<Skipped>)> {
-    let mut detector = Detector::new(*pattern, DetectOptions::default(), None)?;
+    // Fail early on a pattern the detector refuses, before any image is read.
+    Detector::new(*pattern, DetectOptions::default(), None)?;
     let by_name: HashMap<&str, usize> = table.rows.iter().enumerate().map(|(i, r)| (r.image.as_str(), i)).collect();
     let mut used = vec![false; table.rows.len()];
     let mut skipped = Vec::new();
     let mut ids: HashMap<[i64; 3], usize> = HashMap::new();
     let mut points: Vec<Point3<f64>> = Vec::new();
     let mut views = Vec::new();
+    // Images matched to rows, then read and searched in parallel (one detector per worker
+    // thread), then numbered in input order so that the result does not depend on the threads.
+    let mut matched = Vec::new();
     for path in images {
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let Some(&row) = by_name.get(name.as_str()) else {
@@ -57,25 +61,40 @@ pub fn load_recording(
             continue;
         };
         used[row] = true;
-        let img = match ferrocal_vision::detect::load_gray(path) {
-            Ok(i) => i,
-            Err(e) => {
-                skipped.push(Skipped { what: path.display().to_string(), reason: e.to_string() });
+        matched.push((path, name, row));
+    }
+    let found: Vec<std::result::Result<(ImageSize, Vec<Detection>), String>> = {
+        use rayon::prelude::*;
+        matched
+            .par_iter()
+            .map_init(
+                || Detector::new(*pattern, DetectOptions::default(), None),
+                |det, (path, _, _)| {
+                    let det = det.as_mut().map_err(|e| e.to_string())?;
+                    let img = ferrocal_vision::detect::load_gray(path).map_err(|e| e.to_string())?;
+                    let size = ImageSize { width_px: img.width(), height_px: img.height() };
+                    det.detect(&img).map(|d| (size, d)).map_err(|e| e.to_string())
+                },
+            )
+            .collect()
+    };
+    for ((path, name, row), found) in matched.into_iter().zip(found) {
+        let (image_size, detections) = match found {
+            Ok(f) => f,
+            Err(reason) => {
+                skipped.push(Skipped { what: path.display().to_string(), reason });
                 continue;
             }
         };
-        let detections = match detector.detect(&img) {
-            Ok(d) => d,
-            Err(e) => {
-                skipped.push(Skipped { what: path.display().to_string(), reason: e.to_string() });
-                continue;
-            }
-        };
+        if detections.iter().all(|d| d.corners.is_empty()) {
+            skipped.push(Skipped { what: path.display().to_string(), reason: format!("'{pattern}' not found") });
+            continue;
+        }
         let mut view = HandEyeView {
             name: name.clone(),
             split: table.rows[row].split,
             t_base_flange: flange[row],
-            image_size: ImageSize { width_px: img.width(), height_px: img.height() },
+            image_size,
             point_ids: Vec::new(),
             corners_px: Vec::new(),
             covariances_px2: Vec::new(),

@@ -24,6 +24,7 @@ pub mod dynamics;
 pub mod handeye;
 pub mod plan;
 pub mod plot;
+pub mod recording;
 pub mod report;
 pub mod stiffness;
 

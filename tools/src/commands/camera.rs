@@ -12,7 +12,10 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
-use ferrocal_vision::calib::corners::{detect_pattern_views, detect_view_slots, SkippedImage, SubpixWindow};
+use ferrocal_vision::calib::corners::{
+    detect_pattern_views, detect_view_slots, CornerMethod, SkippedImage, SubpixWindow,
+};
+use ferrocal_vision::calib::heldout::held_out_reprojection;
 use ferrocal_vision::calib::{
     calibrate_pattern, calibrate_stereo, compare::compare_with_opencv, CalibrationOptions, CalibrationPattern,
     CameraCalibration, PlanarTarget, RobustLoss, MIN_VIEWS,
@@ -72,10 +75,27 @@ pub struct SolveArgs {
     /// Remove outlier views and corners and solve again.
     #[arg(long)]
     pub reject_outliers: bool,
-    /// cornerSubPix window: `opencv` (11 x 11 half-size, OpenCV's sample recipe, reproduces its
-    /// published numbers) or `adaptive` (shrunk where the squares are smaller than the window).
+    /// Chessboard corners: `own` (the project's detector and edge-model refinement, the default)
+    /// or `opencv` (findChessboardCorners + cornerSubPix, OpenCV's sample recipe: reproduces its
+    /// published numbers). ChArUco boards and circle grids are always found by the project's
+    /// detectors (`--compare-opencv` runs OpenCV's beside them).
+    #[arg(long, value_enum, default_value = "own")]
+    pub corners: CornersArg,
+    /// cornerSubPix window with `--corners opencv`: `opencv` (11 x 11 half-size, OpenCV's sample
+    /// recipe) or `adaptive` (shrunk where the squares are smaller than the window).
     #[arg(long, value_enum, default_value = "opencv")]
     pub subpix_window: WindowArg,
+}
+
+/// Where the chessboard corners come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum CornersArg {
+    /// The project's detector and edge-model refinement.
+    #[value(name = "own")]
+    Own,
+    /// OpenCV's findChessboardCorners + cornerSubPix.
+    #[value(name = "opencv")]
+    OpenCv,
 }
 
 /// The cornerSubPix window.
@@ -99,6 +119,13 @@ impl WindowArg {
 }
 
 impl SolveArgs {
+    fn corner_method(&self) -> CornerMethod {
+        match self.corners {
+            CornersArg::Own => CornerMethod::Own,
+            CornersArg::OpenCv => CornerMethod::OpenCv(self.subpix_window.window()),
+        }
+    }
+
     fn options(&self) -> Result<(CalibrationPattern, PlanarTarget, CalibrationOptions)> {
         let pattern: CalibrationPattern = self.pattern.parse()?;
         let target = pattern.target();
@@ -138,6 +165,10 @@ pub struct CalibrateArgs {
     /// Also run OpenCV's detector on the same images and print both calibrations side by side.
     #[arg(long)]
     pub compare_opencv: bool,
+    /// Hold out every K-th image (the K-th, 2K-th, ... in sorted order) from the calibration and
+    /// report the reprojection error on them (each held-out view's pose fitted, camera fixed).
+    #[arg(long, value_name = "K")]
+    pub test_every: Option<usize>,
 }
 
 /// `ferrocal camera stereo`.
@@ -221,10 +252,22 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
     let (pattern, _, options) = a.solve.options()?;
     let mut skipped = Vec::new();
     let paths = expand_image_specs(&a.images, &mut skipped);
-    let found = detect_pattern_views(&paths, &pattern, a.solve.subpix_window.window());
+    let found = detect_pattern_views(&paths, &pattern, a.solve.corner_method());
     skipped.extend(found.skipped);
     report_skipped(&skipped);
-    let views: Vec<_> = found.slots.into_iter().flatten().collect();
+    let k = match a.test_every {
+        Some(0) => bail!("camera calibrate: --test-every must be at least 1"),
+        Some(k) => k,
+        None => usize::MAX,
+    };
+    let (mut views, mut test_views) = (Vec::new(), Vec::new());
+    for (i, slot) in found.slots.into_iter().enumerate() {
+        match slot {
+            Some(v) if (i + 1) % k == 0 => test_views.push(v),
+            Some(v) => views.push(v),
+            None => {}
+        }
+    }
     if views.len() < MIN_VIEWS {
         return Err(too_few("camera calibrate", views.len(), paths.len(), &skipped));
     }
@@ -236,6 +279,20 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
     if let Some(b) = &pc.circle_bias {
         println!("{b}");
     }
+    let held_out = match a.test_every {
+        Some(_) => {
+            let h = held_out_reprojection(&cal.camera, &pattern.target(), &test_views)?;
+            match h.rms_px {
+                Some(r) => println!("held out: RMS {r:.4} px over {} views", test_views.len()),
+                None => println!("held out: no view usable ({} held out)", test_views.len()),
+            }
+            for v in h.views.iter().filter(|v| v.error.is_some()) {
+                eprintln!("ferrocal: held-out view {}: {}", v.name, v.error.as_deref().unwrap_or(""));
+            }
+            Some(h)
+        }
+        None => None,
+    };
     if a.compare_opencv {
         println!("{}", compare_with_opencv(&paths, &pattern, &options)?);
     }
@@ -244,6 +301,8 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
         v["circle_bias"] = json!(pc.circle_bias);
         v["pattern"] = json!(pattern.to_string());
         v["fix_aspect"] = json!(a.solve.fix_aspect);
+        v["corners"] = json!(a.solve.corner_method());
+        v["held_out"] = json!(held_out);
         v["skipped"] = skipped_json(&skipped);
         write_json(p, &v)?;
     }
@@ -269,9 +328,9 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
             right_paths.len()
         );
     }
-    let window = a.solve.subpix_window.window();
-    let (left, ls) = detect_view_slots(&left_paths, &pattern, window);
-    let (right, rs) = detect_view_slots(&right_paths, &pattern, window);
+    let method = a.solve.corner_method();
+    let (left, ls) = detect_view_slots(&left_paths, &pattern, method);
+    let (right, rs) = detect_view_slots(&right_paths, &pattern, method);
     skipped.extend(ls);
     skipped.extend(rs);
     report_skipped(&skipped);

@@ -148,12 +148,15 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
 #[derive(Debug, Args)]
 pub struct MeasureArgs {
     /// The session folder (docs/session-format.md; `ferrocal simulate` writes one).
-    #[arg(long)]
-    pub session: PathBuf,
+    #[arg(long, required_unless_present = "images")]
+    pub session: Option<PathBuf>,
+    /// A recording of images and a poses table instead of a session.
+    #[command(flatten)]
+    pub recording: ferrocal_report::recording::RecordingArgs,
     /// The measurement table to write (shared/spec/measurements.md with the `cov_*` columns of
-    /// docs/session-format.md), lengths in mm.
-    #[arg(long)]
-    pub out: PathBuf,
+    /// docs/session-format.md), lengths in mm; required with --session.
+    #[arg(long, required_unless_present = "images")]
+    pub out: Option<PathBuf>,
     /// Write a JSON summary here (rig calibration, per-pose standard deviations, skipped images).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -176,32 +179,39 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
     if !(args.corner_sigma_px.is_finite() && args.corner_sigma_px > 0.0) {
         anyhow::bail!("measure: --corner-sigma-px must be positive, got {}", args.corner_sigma_px);
     }
+    let (Some(session), Some(out)) = (&args.session, &args.out) else {
+        return ferrocal_report::recording::run(
+            &args.recording,
+            args.out.as_ref(),
+            args.json.as_ref(),
+            args.corner_sigma_px,
+        );
+    };
     let opts = MeasureOptions {
         corners: CornerSource::Detector,
         corner_sigma_px: args.corner_sigma_px,
         calibration: ferrocal_vision::calib::CalibrationOptions::default(),
     };
-    if let (Ok(out), Ok(session)) = (args.out.canonicalize(), args.session.canonicalize()) {
+    if let (Ok(out), Ok(session)) = (out.canonicalize(), session.canonicalize()) {
         if out.starts_with(&session) {
-            anyhow::bail!("measure: refusing to overwrite {}, a file of the session", args.out.display());
+            anyhow::bail!("measure: refusing to overwrite {}, a file of the session", out.display());
         }
     }
-    eprintln!("measuring {} ...", args.session.display());
-    let m = measure_session(&args.session, &opts).with_context(|| format!("measure: {}", args.session.display()))?;
+    eprintln!("measuring {} ...", session.display());
+    let m = measure_session(session, &opts).with_context(|| format!("measure: {}", session.display()))?;
     for s in &m.skipped {
         eprintln!("ferrocal measure: skipped {s}");
     }
     if m.rows.rows.is_empty() {
-        anyhow::bail!("measure: no pose of {} could be measured ({} skipped)", args.session.display(), m.skipped.len());
+        anyhow::bail!("measure: no pose of {} could be measured ({} skipped)", session.display(), m.skipped.len());
     }
     let mut wopts = WriteOptions::si(&m.joint_kinds);
     wopts.length_unit = LengthUnit::Mm;
     wopts.comments = vec![
-        format!("measured by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), args.session.display()),
+        format!("measured by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), session.display()),
         "positions and orientations of the target in the first camera's frame; cov_*: each pose's covariance".into(),
     ];
-    import::write_measurements(&args.out, &m.rows, &wopts)
-        .with_context(|| format!("writing {}", args.out.display()))?;
+    import::write_measurements(out, &m.rows, &wopts).with_context(|| format!("writing {}", out.display()))?;
     let sigmas: Vec<f64> = m.rows.rows.iter().filter_map(|r| r.sigma_m.map(|s| s * 1e3)).collect();
     let median_sigma_mm = {
         let mut s = sigmas;
@@ -214,7 +224,7 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
         m.skipped.len(),
         m.rig.rms_px,
         median_sigma_mm,
-        args.out.display()
+        out.display()
     );
     let comparison = match (&args.tracker, &args.robot) {
         (Some(t), Some(r)) => {
@@ -233,7 +243,7 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
     if let Some(j) = &args.json {
         let v = serde_json::json!({
             "tracker_comparison": comparison,
-            "session": args.session.display().to_string(),
+            "session": session.display().to_string(),
             "n_measured": m.rows.rows.len(),
             "skipped": m.skipped,
             "rig_rms_px": m.rig.rms_px,

@@ -164,11 +164,7 @@ pub fn compare_with_opencv(paths: &[PathBuf], pattern: &Pattern, options: &Calib
     let target = pattern.target();
     let mut sides = Vec::new();
     // ferrocal: the project's detector (chessboards included), with the pattern's calibration.
-    let own = match pattern.own_detector() {
-        Some(p) => p,
-        None => pattern.to_string().parse()?,
-    };
-    let mut det = Detector::new(own, DetectOptions::default(), None)?;
+    let mut det = Detector::new(pattern.pattern(), DetectOptions::default(), None)?;
     let radii = std::cell::Cell::new(Vec::<[f64; 2]>::new());
     let own_detect = |img: &GrayImage| -> Found {
         match det.detect(img) {

@@ -1,9 +1,13 @@
-//! Corners for calibration. Chessboards from OpenCV (`findChessboardCorners` + `cornerSubPix`,
-//! 11 x 11 window, stop at 30 iterations or a move below 0.1 px), the recipe that reproduces
-//! OpenCV's published calibration of its stereo sample; the window shrinks on boards whose
-//! squares are smaller than the window when asked ([`SubpixWindow::Adaptive`]). ChArUco boards
-//! and circle grids from the project's own detectors ([`crate::detect`]), with point ids
-//! ([`detect_pattern_views`]).
+//! Corners for calibration. By default every pattern is found by the project's own detectors
+//! ([`crate::detect`]: X-corners grown into a grid, then the edge-model refinement with a
+//! covariance per corner; ChArUco boards and circle grids likewise), with point ids, so a
+//! partial but anchored view is a view of the corners it shows ([`CornerMethod::Own`]).
+//! Chessboards can instead be found with OpenCV's recipe ([`CornerMethod::OpenCv`]:
+//! `findChessboardCorners` + `cornerSubPix`, 11 x 11 window, stop at 30 iterations or a move
+//! below 0.1 px), the recipe that reproduces OpenCV's published calibration of its stereo
+//! sample; the window shrinks on boards whose squares are smaller than the window when asked
+//! ([`SubpixWindow::Adaptive`]). Images are processed in parallel (rayon), one detector per
+//! worker thread; the results keep the input order.
 
 use std::path::{Path, PathBuf};
 
@@ -149,6 +153,18 @@ fn find_in_mat(
     Ok(Some(corners.iter().map(|p| Point2::new(f64::from(p.x), f64::from(p.y))).collect()))
 }
 
+/// Which corners a calibration is computed from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CornerMethod {
+    /// The project's detectors and edge-model refinement (every pattern kind).
+    #[default]
+    Own,
+    /// Chessboards: OpenCV's `findChessboardCorners` + `cornerSubPix` with this window (other
+    /// patterns are still found by the project's detectors).
+    OpenCv(SubpixWindow),
+}
+
 /// An image left out of a calibration, and why.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SkippedImage {
@@ -183,41 +199,53 @@ pub struct PatternViews {
 pub fn detect_view_slots(
     paths: &[PathBuf],
     pattern: &super::CalibrationPattern,
-    window: SubpixWindow,
+    method: CornerMethod,
 ) -> (Vec<Option<super::View>>, Vec<SkippedImage>) {
-    let v = detect_pattern_views(paths, pattern, window);
+    let v = detect_pattern_views(paths, pattern, method);
     (v.slots, v.skipped)
 }
 
 /// [`detect_view_slots`] with what the detector measured besides the corners. Chessboards are
-/// found with OpenCV's recipe ([`chessboard_corners_opencv_with`]), ChArUco boards and circle
-/// grids with the project's detectors ([`crate::detect`]; their corners carry point ids, so a
-/// partial ChArUco view is a view of the corners it shows).
+/// found by the project's detector or with OpenCV's recipe ([`chessboard_corners_opencv_with`])
+/// as `method` says, ChArUco boards and circle grids by the project's detectors
+/// ([`crate::detect`]; their corners carry point ids, so a partial ChArUco view is a view of
+/// the corners it shows). The images are read and searched in parallel.
 pub fn detect_pattern_views(
     paths: &[PathBuf],
     pattern: &super::CalibrationPattern,
-    window: SubpixWindow,
+    method: CornerMethod,
 ) -> PatternViews {
+    use rayon::prelude::*;
+    let own = match (pattern, method) {
+        (super::CalibrationPattern::Chessboard { .. }, CornerMethod::OpenCv(_)) => None,
+        _ => Some(pattern.pattern()),
+    };
+    let found: Vec<Result<(super::View, Option<[f64; 2]>)>> = paths
+        .par_iter()
+        .map_init(
+            || own.map(|p| crate::detect::Detector::new(p, crate::detect::DetectOptions::default(), None)),
+            |detector, p| match (detector, *pattern, method) {
+                (
+                    None,
+                    super::CalibrationPattern::Chessboard { inner_cols, inner_rows, .. },
+                    CornerMethod::OpenCv(w),
+                ) => chessboard_corners_opencv_with(p, inner_cols, inner_rows, w)
+                    .map(|c| (super::View::new(p.display().to_string(), c.image_size, c.corners_px), None)),
+                (Some(Ok(det)), _, _) => own_view(det, p),
+                (Some(Err(e)), _, _) => Err(unusable(p, e.to_string())),
+                (None, _, _) => Err(unusable(p, "no detector for this pattern")),
+            },
+        )
+        .collect();
     let mut slots = Vec::with_capacity(paths.len());
     let mut skipped = Vec::new();
     let mut radii: Vec<[f64; 2]> = Vec::new();
-    let mut detector =
-        pattern.own_detector().map(|p| crate::detect::Detector::new(p, crate::detect::DetectOptions::default(), None));
-    for p in paths {
-        let found = match (&mut detector, *pattern) {
-            (None, super::CalibrationPattern::Chessboard { inner_cols, inner_rows, .. }) => {
-                chessboard_corners_opencv_with(p, inner_cols, inner_rows, window)
-                    .map(|c| super::View::new(p.display().to_string(), c.image_size, c.corners_px))
-            }
-            (Some(Ok(det)), _) => own_view(det, p).map(|(v, r)| {
+    for (p, f) in paths.iter().zip(found) {
+        match f {
+            Ok((v, r)) => {
                 radii.extend(r);
-                v
-            }),
-            (Some(Err(e)), _) => Err(unusable(p, e.to_string())),
-            (None, _) => Err(unusable(p, "no detector for this pattern")),
-        };
-        match found {
-            Ok(v) => slots.push(Some(v)),
+                slots.push(Some(v));
+            }
             Err(VisionError::ImageUnusable { image, reason }) => {
                 skipped.push(SkippedImage { image, reason });
                 slots.push(None);
@@ -246,6 +274,15 @@ fn own_view(det: &mut crate::detect::Detector, path: &Path) -> Result<(super::Vi
     };
     let (ids, px): (Vec<usize>, Vec<Point2<f64>>) =
         d.corners.iter().filter_map(|c| c.point_id.map(|i| (i as usize, c.position_px))).unzip();
+    if !d.anchored {
+        return Err(unusable(
+            path,
+            format!(
+                "partial view of {} corners whose rows and columns cannot be told (no board edge in view)",
+                d.corners.len()
+            ),
+        ));
+    }
     if ids.len() < 4 {
         return Err(unusable(path, format!("only {} corners with ids, a view needs at least 4", ids.len())));
     }
@@ -287,8 +324,8 @@ fn keep_main_size(slots: &mut [Option<super::View>], paths: &[PathBuf], skipped:
 pub fn detect_views(
     paths: &[PathBuf],
     pattern: &super::CalibrationPattern,
-    window: SubpixWindow,
+    method: CornerMethod,
 ) -> (Vec<super::View>, Vec<SkippedImage>) {
-    let (slots, skipped) = detect_view_slots(paths, pattern, window);
+    let (slots, skipped) = detect_view_slots(paths, pattern, method);
     (slots.into_iter().flatten().collect(), skipped)
 }

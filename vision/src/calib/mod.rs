@@ -40,6 +40,7 @@ pub mod circles;
 pub mod compare;
 pub mod corners;
 mod deform;
+pub mod heldout;
 mod pattern;
 mod stereo;
 mod zhang;

@@ -71,15 +71,6 @@ impl CalibrationPattern {
             Self::CircleGrid(g) => Pattern::CircleGrid(g),
         }
     }
-
-    /// The pattern of the project's own detectors, for the patterns found by them (ChArUco
-    /// boards, circle grids); `None` for chessboards (OpenCV's recipe).
-    pub fn own_detector(&self) -> Option<Pattern> {
-        match self {
-            Self::Chessboard { .. } => None,
-            _ => Some(self.pattern()),
-        }
-    }
 }
 
 impl std::fmt::Display for CalibrationPattern {

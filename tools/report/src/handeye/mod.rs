@@ -251,7 +251,8 @@ fn print_summary(
     }
 }
 
-fn mount_of(m: MountArg) -> Mount {
+/// The mount of a command-line value.
+pub fn mount_of(m: MountArg) -> Mount {
     match m {
         MountArg::EyeInHand => Mount::EyeInHand,
         MountArg::EyeToHand => Mount::EyeToHand,

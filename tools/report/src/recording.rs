@@ -1,0 +1,186 @@
+//! `ferrocal measure --images ... --poses P.csv --pattern P`: a user's own recording (a folder of
+//! images and the poses table of `handeye`, no session manifest, no truth) measured by one camera
+//! into a measurement table with each pose's covariance (`ferrocal_datasets::recording`).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use ferrocal_datasets::handeye::{read_camera_file, read_handeye_poses};
+use ferrocal_datasets::import::images::expand_image_specs;
+use ferrocal_datasets::import::{self, JointUnit, LengthUnit, WriteOptions};
+use ferrocal_datasets::recording::{measure_recording, RecordingMeasurement, RecordingOptions};
+use ferrocal_vision::calib::CalibrationOptions;
+use serde_json::json;
+
+use crate::handeye::MountArg;
+use crate::report::write_atomic;
+
+/// The recording half of `ferrocal measure` (without `--session`).
+#[derive(Debug, Args)]
+pub struct RecordingArgs {
+    /// Images of a recording: files, directories or quoted globs (instead of --session).
+    #[arg(long, num_args = 1.., conflicts_with = "session", requires_all = ["poses", "pattern"])]
+    pub images: Vec<PathBuf>,
+    /// The poses table naming the images (the `handeye` format: `image`, joints `q1_<unit>...` or
+    /// a flange pose, optional `split`). A measurement table needs joints.
+    #[arg(long)]
+    pub poses: Option<PathBuf>,
+    /// The target: chessboard, ChArUco, circle grid, AprilTag board (docs/targets.md).
+    #[arg(long)]
+    pub pattern: Option<String>,
+    /// Where the camera is: fixed, measuring the target on the flange (eye-to-hand, the
+    /// default), or on the flange, looking at a fixed target (eye-in-hand: rows are the camera's
+    /// pose in the target's frame).
+    #[arg(long, value_enum, default_value = "eye-to-hand")]
+    pub mount: MountArg,
+    /// The camera (camera calibrate JSON, OpenCV or ROS YAML); without it the camera is
+    /// calibrated from the recording's own views, which then need varied orientations.
+    #[arg(long)]
+    pub intrinsics: Option<PathBuf>,
+}
+
+/// Runs the recording measurement: every image that cannot be used is named on stderr and in
+/// the JSON, and the batch goes on; the table is written only when at least one pose was
+/// measured, never onto an input.
+pub fn run(
+    a: &RecordingArgs,
+    out: Option<&PathBuf>,
+    json_out: Option<&PathBuf>,
+    corner_sigma_px: f64,
+) -> Result<ExitCode> {
+    let (Some(poses), Some(pattern_text)) = (&a.poses, &a.pattern) else {
+        bail!("measure: --images needs --poses and --pattern (or give --session)");
+    };
+    let pattern: ferrocal_vision::detect::Pattern = pattern_text.parse()?;
+    let table = read_handeye_poses(poses)?;
+    if out.is_some() && table.joint_units.is_empty() {
+        bail!(
+            "measure: {} gives flange poses, but a measurement table needs joint readings (q1_<unit>, ...); \
+             leave out --out to get the per-image poses in --json, or use `ferrocal handeye` for the hand-eye transform",
+            poses.display()
+        );
+    }
+    let mut skipped_images = Vec::new();
+    let paths = expand_image_specs(&a.images, &mut skipped_images);
+    for o in out.iter().chain(json_out.iter()) {
+        if let Ok(o) = o.canonicalize() {
+            if paths.iter().chain(std::iter::once(poses)).any(|p| p.canonicalize().is_ok_and(|p| p == o)) {
+                bail!("measure: refusing to overwrite {}, an input", o.display());
+            }
+        }
+    }
+    let opts = RecordingOptions {
+        mount: crate::handeye::mount_of(a.mount),
+        camera: a.intrinsics.as_deref().map(read_camera_file).transpose()?,
+        calibration: CalibrationOptions::default(),
+        corner_sigma_px,
+    };
+    eprintln!("measuring {} image(s) of {} ...", paths.len(), poses.display());
+    let m =
+        measure_recording(&paths, &table, &pattern, &opts).with_context(|| format!("measure: {}", poses.display()))?;
+    for s in &skipped_images {
+        eprintln!("ferrocal measure: skipped {s}");
+    }
+    for s in &m.skipped {
+        eprintln!("ferrocal measure: skipped {}: {}", s.what, s.reason);
+    }
+    print_summary(&m);
+    if let (Some(out), Some(rows)) = (out, &m.rows) {
+        // Joints in SI (rad, m) whatever the poses table used: the values are SI inside.
+        let mut wopts = WriteOptions::revolute(table.joint_units.len());
+        wopts.joint_units = table
+            .joint_units
+            .iter()
+            .map(|u| match u {
+                JointUnit::Rad | JointUnit::Deg => JointUnit::Rad,
+                JointUnit::M | JointUnit::Mm => JointUnit::M,
+            })
+            .collect();
+        wopts.length_unit = LengthUnit::Mm;
+        wopts.comments = vec![
+            format!("measured by ferrocal {} from the images of {}", env!("CARGO_PKG_VERSION"), poses.display()),
+            format!("{}; cov_*: each pose's covariance", frame_note(a.mount)),
+        ];
+        if let Some(s) = &m.source {
+            wopts.comments.push(format!("source: {s}"));
+        }
+        import::write_measurements(out, rows, &wopts).with_context(|| format!("writing {}", out.display()))?;
+        println!("table {} ({} rows)", out.display(), rows.rows.len());
+    }
+    if let Some(j) = json_out {
+        let mut skipped: Vec<serde_json::Value> = skipped_images
+            .iter()
+            .map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason}))
+            .collect();
+        skipped.extend(m.skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
+        let v = json!({
+            "poses_table": poses.display().to_string(),
+            "pattern": pattern_text,
+            "mount": crate::handeye::mount_of(a.mount).name(),
+            "frame": frame_note(a.mount),
+            "source": m.source,
+            "camera": m.camera,
+            "n_measured": m.poses.len(),
+            "skipped": skipped,
+            "poses": m.poses.iter().map(|p| json!({
+                "image": p.image,
+                "split": p.split,
+                "rms_px": p.estimate.rms_px,
+                "s0": p.estimate.s0,
+                "n_corners": p.estimate.n_corners,
+                "t_cam_target": crate::handeye::json::transform_json(&p.estimate.t_cam_target),
+                "measured": crate::handeye::json::transform_json(&p.measured),
+                "sigma_position_mm": ([0, 1, 2].map(|i| p.measured_covariance_mm_rad[(i, i)].sqrt())),
+                "sigma_rotation_deg": ([3, 4, 5].map(|i| p.measured_covariance_mm_rad[(i, i)].sqrt().to_degrees())),
+            })).collect::<Vec<_>>(),
+        });
+        write_atomic(j, serde_json::to_string_pretty(&v)?.as_bytes())?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn frame_note(mount: MountArg) -> &'static str {
+    match mount {
+        MountArg::EyeToHand => "positions and orientations of the target in the camera's frame",
+        MountArg::EyeInHand => "positions and orientations of the camera in the fixed target's frame",
+    }
+}
+
+fn print_summary(m: &RecordingMeasurement) {
+    let c = &m.camera;
+    match (c.calibration_rms_px, &c.std) {
+        (Some(rms), Some(std)) => println!(
+            "camera calibrated from {} views: fx {:.2} +- {:.2}, fy {:.2} +- {:.2}, cx {:.2} +- {:.2}, cy {:.2} +- {:.2} px, RMS {rms:.4} px",
+            c.calibration_views,
+            c.camera.intrinsics.fx_px,
+            std[0],
+            c.camera.intrinsics.fy_px,
+            std[1],
+            c.camera.intrinsics.cx_px,
+            std[2],
+            c.camera.intrinsics.cy_px,
+            std[3]
+        ),
+        _ => println!("camera given: fx {:.2}, fy {:.2} px", c.camera.intrinsics.fx_px, c.camera.intrinsics.fy_px),
+    }
+    let mut sig: Vec<f64> = m
+        .poses
+        .iter()
+        .map(|p| ((0..3).map(|i| p.measured_covariance_mm_rad[(i, i)]).sum::<f64>() / 3.0).sqrt())
+        .collect();
+    sig.sort_by(f64::total_cmp);
+    let rms: Vec<f64> = m.poses.iter().map(|p| p.estimate.rms_px).collect();
+    println!(
+        "{} image(s) measured, {} left out; median position sigma {:.4} mm; median reprojection RMS {:.4} px",
+        m.poses.len(),
+        m.skipped.len(),
+        sig[sig.len() / 2],
+        {
+            let mut r = rms;
+            r.sort_by(f64::total_cmp);
+            r[r.len() / 2]
+        }
+    );
+}
