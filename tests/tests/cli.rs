@@ -172,7 +172,9 @@ fn camera_calibrate_own_corners_beat_opencvs_recipe_on_held_out_views() {
             .arg(pattern.to_str().unwrap())
             .args(["--pattern", "chessboard:9x6:25mm", "--fix-aspect", "--test-every", "2", "--corners", corners])
             .arg("--json")
-            .arg(&j));
+            .arg(&j)
+            .arg("--report")
+            .arg(tmp.path().join(format!("{corners}.html"))));
         assert!(out.status.success());
         json(&j)
     };
@@ -187,6 +189,11 @@ fn camera_calibrate_own_corners_beat_opencvs_recipe_on_held_out_views() {
     assert!(cv_test > 2.0 * own_test, "held out: OpenCV recipe {cv_test} px, own {own_test} px");
     let fx = own["fx"].as_f64().unwrap();
     assert!((fx / 535.9157 - 1.0).abs() < 0.005, "fx {fx}");
+    // The report: per-view bars, residual vectors, coverage, two views of the poses, the
+    // projection uncertainty map.
+    let html = std::fs::read_to_string(tmp.path().join("own.html")).unwrap();
+    assert!(html.matches("<svg").count() >= 6, "report figures");
+    assert!(html.contains("Projection uncertainty") && html.contains("held out") && html.contains("left01.jpg"));
 }
 
 /// ChArUco and circle grids through `detect` and `camera calibrate` on the ROS-Industrial

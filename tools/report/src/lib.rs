@@ -16,6 +16,7 @@
 
 pub mod calibrate;
 pub mod camera;
+pub mod camera_report;
 pub mod compensate;
 pub mod corner_study;
 pub mod demo;

@@ -12,6 +12,8 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
+use ferrocal_report::camera_report::{camera_report, CameraReportInput};
+use ferrocal_report::report::{write_atomic, Provenance};
 use ferrocal_vision::calib::corners::{
     detect_pattern_views, detect_view_slots, CornerMethod, SkippedImage, SubpixWindow,
 };
@@ -169,6 +171,10 @@ pub struct CalibrateArgs {
     /// report the reprojection error on them (each held-out view's pose fitted, camera fixed).
     #[arg(long, value_name = "K")]
     pub test_every: Option<usize>,
+    /// Write an HTML report: per-view errors, residual vectors and coverage over the image, the
+    /// target poses, the projection uncertainty across the image.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
 }
 
 /// `ferrocal camera stereo`.
@@ -311,6 +317,19 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
     }
     if let Some(p) = &a.ros_yaml {
         io::write_ros_yaml(&cal.camera, &a.camera_name, p)?;
+    }
+    if let Some(p) = &a.report {
+        let mut prov = Provenance::new(json!({"pattern": pattern.to_string(), "corners": a.solve.corner_method(),
+            "fix_aspect": a.solve.fix_aspect, "model": format!("{:?}", a.solve.model), "test_every": a.test_every}));
+        paths.iter().for_each(|i| prov.add_input(i));
+        let input = CameraReportInput {
+            pattern: &pattern.to_string(),
+            views: &views,
+            target: &pattern.target(),
+            held_out: held_out.as_ref(),
+            provenance: prov,
+        };
+        write_atomic(p, camera_report(cal, input).to_html().as_bytes())?;
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -56,6 +56,7 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     s.push(ferrocal_report::compensate::corrected_section(args.seed)?);
     s.push(ferrocal_report::handeye::demo::demo_section(&args.data, &args.out.join("handeye"), &tick)?);
     s.push(ferrocal_report::handeye::demo::positioner_section(&args.data)?);
+    s.push(ferrocal_report::recording::demo_section(&args.data, &args.out.join("measure-real"))?);
     for set in
         ["test_set_charuco/cal_data.yaml", "test_set_10x10/cal_data.yaml", "kinematic_calibration/measurements.yaml"]
     {
@@ -111,28 +112,38 @@ fn sections_real_camera(args: &DemoArgs) -> Result<Vec<Section>> {
     let right_json = out.join("right.json");
     let stereo_json = out.join("stereo.json");
     let pattern = "chessboard:9x6:25mm";
-    let calibrate = |side: &str, json: &Path| {
+    let calibrate = |side: &str, json: &Path, extra: &[&str]| {
         let (images, json) = (glob(side), json.display().to_string());
-        run_command(&strings(&[
-            "camera",
-            "calibrate",
-            "--images",
-            &images,
-            "--pattern",
-            pattern,
-            "--fix-aspect",
-            "--json",
-            &json,
-        ]))
+        let mut argv = vec!["camera", "calibrate", "--images", &images, "--pattern", pattern, "--fix-aspect"];
+        argv.extend_from_slice(extra);
+        argv.extend_from_slice(&["--json", &json]);
+        run_command(&strings(&argv))
     };
-    calibrate("left", &left_json)?;
-    calibrate("right", &right_json)?;
+    // The published numbers come from OpenCV's corner recipe; the default (own corners) is
+    // compared with it on held-out views below.
+    calibrate("left", &left_json, &["--corners", "opencv"])?;
+    calibrate("right", &right_json, &["--corners", "opencv"])?;
+    let mut held_out = Vec::new();
+    for side in ["left", "right"] {
+        let mut pair = Vec::new();
+        for corners in ["own", "opencv"] {
+            let j = out.join(format!("{side}_{corners}_heldout.json"));
+            calibrate(side, &j, &["--corners", corners, "--test-every", "2"])?;
+            pair.push(serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(&j)?)?);
+        }
+        let cv = pair.pop().expect("two runs");
+        let own = pair.pop().expect("two runs");
+        held_out.push((side, own, cv));
+    }
     let (left, right, json) = (glob("left"), glob("right"), stereo_json.display().to_string());
     let argv =
         ["camera", "stereo", "--left", &left, "--right", &right, "--pattern", pattern, "--fix-aspect", "--json", &json];
     run_command(&strings(&argv))?;
     let read = |p: &Path| -> Result<serde_json::Value> { Ok(serde_json::from_str(&std::fs::read_to_string(p)?)?) };
-    let mut out_sections = vec![demo::camera_real(&read(&left_json)?, &read(&right_json)?, &read(&stereo_json)?)];
+    let mut out_sections = vec![
+        demo::camera_real(&read(&left_json)?, &read(&right_json)?, &read(&stereo_json)?),
+        demo::camera_own_corners(&held_out),
+    ];
 
     // What the default camera model leaves out.
     let mut reports = Vec::new();
