@@ -71,18 +71,18 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
         let (rec, skipped) = load_recording(&paths, &table, &flange, &pattern, ic.mount)?;
         let mut runs = Vec::new();
         for (label, exact, scale) in [
-            ("robot poses as measurements (default)", false, false),
-            ("robot poses exact", true, false),
-            ("as measurements, print scale fitted", false, true),
+            ("robot poses exact (default)", true, false),
+            ("robot poses as measurements", false, false),
             ("exact, print scale fitted", true, true),
+            ("as measurements, print scale fitted", false, true),
         ] {
             let mut options = HandEyeOptions {
                 intrinsics: IntrinsicsMode::Calibrate(CalibrationOptions::default()),
                 fit_target_scale: scale,
                 ..HandEyeOptions::default()
             };
-            if exact {
-                (options.robot_sigma_m, options.robot_sigma_rad) = (0.0, 0.0);
+            if !exact {
+                (options.robot_sigma_m, options.robot_sigma_rad) = HandEyeOptions::MEASURED_POSE_SIGMAS;
             }
             let r = calibrate_hand_eye(&rec, &options).with_context(|| format!("hand-eye on {}", dir.display()))?;
             let camera = r.initial_camera.as_ref().map_or(r.camera, |c| c.camera);
@@ -129,7 +129,7 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
                 set.pnp_limit.1
             ),
         ));
-        let exact = &runs[1];
+        let exact = &runs[0];
         let beats = match (exact.ours.heldout_rms_px, exact.opencv.as_ref().and_then(|(_, o)| o.heldout_rms_px)) {
             (Some(a), Some(b)) => a < b,
             _ => false,

@@ -69,16 +69,20 @@ pub struct HandeyeArgs {
     /// Fit the printed target's overall scale (visible only against metric robot poses).
     #[arg(long)]
     pub target_scale: bool,
-    /// Noise of the reported flange positions, mm per coordinate; with --robot-sigma-deg it
-    /// fixes the robot's noise (by default both are estimated from the data).
+    /// Noise of the reported flange positions, mm per coordinate; with --robot-sigma-deg the
+    /// poses are measurements with this fixed noise.
     #[arg(long, requires = "robot_sigma_deg")]
     pub robot_sigma_mm: Option<f64>,
     /// Noise of the reported flange orientations, degrees per axis.
     #[arg(long, requires = "robot_sigma_mm")]
     pub robot_sigma_deg: Option<f64>,
-    /// Take the reported flange poses as exact (no robot-pose noise).
-    #[arg(long, conflicts_with = "robot_sigma_mm")]
+    /// Take the reported flange poses as exact (no robot-pose noise): the default.
+    #[arg(long, conflicts_with_all = ["robot_sigma_mm", "robot_poses_as_measurements"])]
     pub exact_robot_poses: bool,
+    /// Take the reported flange poses as measurements with their own noise, estimated from the
+    /// data (for controllers whose poses scatter from pose to pose).
+    #[arg(long)]
+    pub robot_poses_as_measurements: bool,
     /// Huber threshold in robust standard deviations (0: plain least squares).
     #[arg(long, default_value_t = 3.0)]
     pub huber: f64,
@@ -174,6 +178,9 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
         huber_sigmas: a.huber,
         ..HandEyeOptions::default()
     };
+    if a.robot_poses_as_measurements {
+        (options.robot_sigma_m, options.robot_sigma_rad) = HandEyeOptions::MEASURED_POSE_SIGMAS;
+    }
     if let (Some(mm), Some(deg)) = (a.robot_sigma_mm, a.robot_sigma_deg) {
         (options.robot_sigma_m, options.robot_sigma_rad, options.estimate_noise) = (mm * 1e-3, deg.to_radians(), false);
     }
