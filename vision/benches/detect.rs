@@ -1,6 +1,6 @@
 //! Detection speed: this project's detectors against OpenCV and the AprilTag libraries on the
-//! same images (ChArUco boards and circle grids on the ROS-Industrial industrial_calibration
-//! example data, Apache-2.0). Run with `cargo bench --workspace --bench detect`; the side-by-side
+//! same images (procedural chessboards at 5 MP and 2 MP, ChArUco boards and circle grids on the
+//! ROS-Industrial industrial_calibration example data, Apache-2.0). Run with `cargo bench --workspace --bench detect`; the side-by-side
 //! medians and ratios come from `cargo run --release -p ferrocal-vision --example speed`
 //! (see BENCHMARKS.md).
 
@@ -45,6 +45,26 @@ fn chessboard(c: &mut Criterion) {
     });
     g.bench_function("opencv_classic_subpix11", |b| {
         b.iter(|| opencv_find_chessboard(&img, 9, 6, Some(5)).unwrap().unwrap())
+    });
+    g.finish();
+}
+
+/// A 2 MP (1920 x 1080) tilted view of a 25 x 17 chessboard (425 corners, squares of about
+/// 42 to 56 px), blur 1 px, noise 2 DN, JPEG quality 90.
+fn chessboard_2mp(c: &mut Criterion) {
+    let (_, img) = synth::chessboard_2mp_jpeg();
+    let pattern: Pattern = "chessboard:25x17:25mm".parse().unwrap();
+    let mut g = c.benchmark_group("chessboard_2mp_425");
+    g.sample_size(10);
+    g.bench_function("ferrocal_detect_refine", |b| {
+        b.iter(|| detect(&img, &pattern, &DetectOptions::default(), None).unwrap())
+    });
+    g.bench_function("ferrocal_detect_coarse", |b| {
+        b.iter(|| detect(&img, &pattern, &DetectOptions { refine: false, ..Default::default() }, None).unwrap())
+    });
+    g.bench_function("opencv_sb", |b| b.iter(|| opencv_find_chessboard_sb(&img, 25, 17, false).unwrap().unwrap()));
+    g.bench_function("opencv_classic_subpix11", |b| {
+        b.iter(|| opencv_find_chessboard(&img, 25, 17, Some(5)).unwrap().unwrap())
     });
     g.finish();
 }
@@ -114,5 +134,5 @@ fn circle_grid(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, chessboard, plate, apriltag, charuco, circle_grid);
+criterion_group!(benches, chessboard, chessboard_2mp, plate, apriltag, charuco, circle_grid);
 criterion_main!(benches);

@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use image::GrayImage;
+use rayon::prelude::*;
 
 use crate::error::{Result, VisionError};
 
@@ -48,7 +49,8 @@ impl GrayF32 {
     pub fn bilinear(&self, x: f64, y: f64) -> f64 {
         let xc = x.clamp(0.0, (self.width - 1) as f64);
         let yc = y.clamp(0.0, (self.height - 1) as f64);
-        let (x0, y0) = (xc.floor() as usize, yc.floor() as usize);
+        // Non-negative after the clamp: truncation is the floor.
+        let (x0, y0) = (xc as usize, yc as usize);
         let (x1, y1) = ((x0 + 1).min(self.width - 1), (y0 + 1).min(self.height - 1));
         let (fx, fy) = (xc - x0 as f64, yc - y0 as f64);
         let a = f64::from(self.get(x0, y0)) * (1.0 - fx) + f64::from(self.get(x1, y0)) * fx;
@@ -56,19 +58,58 @@ impl GrayF32 {
         a * (1.0 - fy) + b * fy
     }
 
-    /// Gaussian smoothing with standard deviation `sigma_px` (kornia-rs separable filter,
-    /// kernel `2 round(4 sigma) + 1`; kornia pads with zeros, so the outer `4 sigma` pixels are
-    /// darkened: callers ignore them).
+    /// Gaussian smoothing with standard deviation `sigma_px`: kornia-rs's kernel
+    /// (`2 round(4 sigma) + 1` taps, single precision) and its zero padding (the outer
+    /// `4 sigma` pixels are darkened: callers ignore them), the same sums in the same order as
+    /// kornia's separable filter, over bands of rows in parallel.
     pub fn gaussian(&self, sigma_px: f64) -> Result<Self> {
-        use kornia_image::{Image, ImageSize};
-        let size = ImageSize { width: self.width, height: self.height };
-        let err =
-            |e: kornia_image::ImageError| VisionError::Backend { library: "kornia-imgproc", message: e.to_string() };
-        let src = Image::<f32, 1>::new(size, self.data.clone()).map_err(err)?;
-        let mut dst = Image::<f32, 1>::from_size_val(size, 0.0).map_err(err)?;
-        kornia_imgproc::filter::gaussian_blur(&src, &mut dst, (0, 0), (sigma_px as f32, sigma_px as f32))
-            .map_err(err)?;
-        Ok(Self { width: self.width, height: self.height, data: dst.as_slice().to_vec() })
+        let sigma = sigma_px as f32;
+        if !(sigma > 0.0 && sigma.is_finite()) {
+            return Err(VisionError::BadOption {
+                name: "sigma_px",
+                value: sigma_px.to_string(),
+                reason: "the Gaussian's width must be positive and finite".into(),
+            });
+        }
+        let size = (2.0 * (4.0 * sigma).round() + 1.0) as usize | 1;
+        let kernel = kornia_imgproc::filter::kernels::gaussian_kernel_1d(size, sigma);
+        let half = (size / 2) as isize;
+        let (w, h) = (self.width, self.height);
+        // Along the rows.
+        let mut tmp = vec![0.0f32; w * h];
+        tmp.par_chunks_mut(w).zip(self.data.par_chunks(w)).for_each(|(out, row)| {
+            for (c, o) in out.iter_mut().enumerate() {
+                let mut acc = 0.0f32;
+                let first = c as isize - half;
+                if first >= 0 && first + size as isize <= w as isize {
+                    for (v, k) in row[first as usize..first as usize + size].iter().zip(&kernel) {
+                        acc += v * k;
+                    }
+                } else {
+                    for (i, k) in kernel.iter().enumerate() {
+                        let x = first + i as isize;
+                        if x >= 0 && x < w as isize {
+                            acc += row[x as usize] * k;
+                        }
+                    }
+                }
+                *o = acc;
+            }
+        });
+        // Along the columns, a whole row at a time (the taps in the same order per pixel).
+        let mut data = vec![0.0f32; w * h];
+        data.par_chunks_mut(w).enumerate().for_each(|(r, out)| {
+            for (i, k) in kernel.iter().enumerate() {
+                let y = r as isize + i as isize - half;
+                if y >= 0 && y < h as isize {
+                    let src = &tmp[y as usize * w..(y as usize + 1) * w];
+                    for (o, v) in out.iter_mut().zip(src) {
+                        *o += v * k;
+                    }
+                }
+            }
+        });
+        Ok(Self { width: w, height: h, data })
     }
 
     /// Halves the resolution by 2 x 2 averaging; pixel `(x, y)` of the result is centred on

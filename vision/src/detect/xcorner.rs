@@ -1,6 +1,6 @@
 //! X-corner (saddle) candidates: the points where two dark and two light fields meet.
 //!
-//! 1. Smooth with a Gaussian of `sigma` (kornia-rs); on images above 2.5 MP work on a 2 x 2
+//! 1. Smooth with a Gaussian of `sigma` (kornia-rs kernel); on images above 2.5 MP work on a 2 x 2
 //!    average first.
 //! 2. Saddle response from the second derivatives, `R = Ixy^2 - Ixx Iyy` (positive at saddles,
 //!    near zero on straight edges, negative on blobs). An ideal X-corner of step `b` and total
@@ -15,6 +15,7 @@
 //!    lines give the candidate's two edge directions.
 
 use nalgebra::Vector2;
+use rayon::prelude::*;
 
 use super::image::GrayF32;
 use crate::error::Result;
@@ -82,15 +83,37 @@ fn wrap(a: f64) -> f64 {
     x
 }
 
+/// Samples on a validation circle.
+const N: usize = 48;
+
+/// Angle, cosine, sine, and cosine and sine of the doubled angle of the circle's samples.
+struct CircleTrig {
+    th: [f64; N],
+    cos: [f64; N],
+    sin: [f64; N],
+    cos2: [f64; N],
+    sin2: [f64; N],
+}
+
+impl CircleTrig {
+    fn new() -> Self {
+        let mut t = Self { th: [0.0; N], cos: [0.0; N], sin: [0.0; N], cos2: [0.0; N], sin2: [0.0; N] };
+        for k in 0..N {
+            let th = std::f64::consts::TAU * k as f64 / N as f64;
+            let th2 = 2.0 * std::f64::consts::TAU * k as f64 / N as f64;
+            (t.th[k], t.cos[k], t.sin[k], t.cos2[k], t.sin2[k]) = (th, th.cos(), th.sin(), th2.cos(), th2.sin());
+        }
+        t
+    }
+}
+
 /// The circle test at radius `r`: edge-line angles and contrast, or `None`.
-fn circle_test(sm: &GrayF32, p: Vector2<f64>, r: f64, min_contrast: f64) -> Option<([f64; 2], f64)> {
-    const N: usize = 48;
+fn circle_test(sm: &GrayF32, trig: &CircleTrig, p: Vector2<f64>, r: f64, min_contrast: f64) -> Option<([f64; 2], f64)> {
     let mut v = [0.0f64; N];
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;
     for (k, val) in v.iter_mut().enumerate() {
-        let th = std::f64::consts::TAU * k as f64 / N as f64;
-        *val = sm.bilinear(p.x + r * th.cos(), p.y + r * th.sin());
+        *val = sm.bilinear(p.x + r * trig.cos[k], p.y + r * trig.sin[k]);
         lo = lo.min(*val);
         hi = hi.max(*val);
     }
@@ -124,10 +147,9 @@ fn circle_test(sm: &GrayF32, p: Vector2<f64>, r: f64, min_contrast: f64) -> Opti
     let mean = v.iter().sum::<f64>() / N as f64;
     let (mut re, mut im, mut e) = (0.0, 0.0, 0.0);
     for (k, val) in v.iter().enumerate() {
-        let th = 2.0 * std::f64::consts::TAU * k as f64 / N as f64;
         let d = val - mean;
-        re += d * th.cos();
-        im += d * th.sin();
+        re += d * trig.cos2[k];
+        im += d * trig.sin2[k];
         e += d * d;
     }
     if e <= 0.0 || 2.0 * (re * re + im * im) / (N as f64 * e) < 0.5 {
@@ -137,8 +159,7 @@ fn circle_test(sm: &GrayF32, p: Vector2<f64>, r: f64, min_contrast: f64) -> Opti
     let sector_mean = |a: f64, b: f64| {
         let (mut s, mut n) = (0.0, 0.0);
         for (k, val) in v.iter().enumerate() {
-            let th = std::f64::consts::TAU * k as f64 / N as f64;
-            let rel = (th - a).rem_euclid(std::f64::consts::TAU);
+            let rel = (trig.th[k] - a).rem_euclid(std::f64::consts::TAU);
             let span = (b - a).rem_euclid(std::f64::consts::TAU);
             if rel > 0.15 * span && rel < 0.85 * span {
                 s += val;
@@ -171,20 +192,25 @@ fn circle_test(sm: &GrayF32, p: Vector2<f64>, r: f64, min_contrast: f64) -> Opti
 
 /// Finds and validates X-corner candidates. `keep(x, y)` (full-resolution pixels) may restrict
 /// them to a region (e.g. the foreground of a background-subtracted image).
+///
+/// The response and the search for maxima run on bands of rows in parallel; the candidates
+/// come out in the same order as from a single thread.
 pub(crate) fn find_xcorners(
     img: &GrayF32,
     options: &XCornerOptions,
-    keep: Option<&dyn Fn(f64, f64) -> bool>,
+    keep: Option<&(dyn Fn(f64, f64) -> bool + Sync)>,
 ) -> Result<Vec<XCorner>> {
+    let half;
     let (work, factor) = if img.width * img.height > options.downsample_above_px {
-        (img.downsample2(), 2.0)
+        half = img.downsample2();
+        (&half, 2.0)
     } else {
-        (img.clone(), 1.0)
+        (img, 1.0)
     };
     let (w, h) = (work.width, work.height);
     let sigma = options.sigma_px;
     let sm = work.gaussian(sigma)?;
-    let (p_lo, p_hi) = percentiles(&work);
+    let (p_lo, p_hi) = percentiles(work);
     let min_contrast = options.min_contrast_dn.max(0.08 * (p_hi - p_lo));
     let st2 = sigma * sigma + 1.0;
     let tau = (0.4 * min_contrast / (std::f64::consts::PI * st2)).powi(2);
@@ -194,69 +220,77 @@ pub(crate) fn find_xcorners(
     }
     let at = |x: usize, y: usize| f64::from(sm.data[y * w + x]);
     let mut resp = vec![0.0f32; w * h];
-    for y in margin - 2..h - margin + 2 {
-        for x in margin - 2..w - margin + 2 {
+    resp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        if y < margin - 2 || y >= h - margin + 2 {
+            return;
+        }
+        for (x, out) in row.iter_mut().enumerate().take(w - margin + 2).skip(margin - 2) {
             let c = at(x, y);
             let ixx = at(x + 1, y) - 2.0 * c + at(x - 1, y);
             let iyy = at(x, y + 1) - 2.0 * c + at(x, y - 1);
             let ixy = 0.25 * (at(x + 1, y + 1) - at(x + 1, y - 1) - at(x - 1, y + 1) + at(x - 1, y - 1));
-            resp[y * w + x] = (ixy * ixy - ixx * iyy) as f32;
+            *out = (ixy * ixy - ixx * iyy) as f32;
         }
-    }
-    let mut out = Vec::new();
+    });
+    let trig = CircleTrig::new();
     let rad = 3isize;
-    for y in margin..h - margin {
-        'px: for x in margin..w - margin {
-            let r0 = resp[y * w + x];
-            if f64::from(r0) < tau {
-                continue;
-            }
-            for dy in -rad..=rad {
-                for dx in -rad..=rad {
-                    if dx == 0 && dy == 0 {
-                        continue;
-                    }
+    // Non-maximum suppression, nearest neighbours first (most pixels fail there).
+    let mut offsets: Vec<(isize, isize)> =
+        (-rad..=rad).flat_map(|dy| (-rad..=rad).map(move |dx| (dx, dy))).filter(|&o| o != (0, 0)).collect();
+    offsets.sort_by_key(|&(dx, dy)| dx.abs().max(dy.abs()));
+    let rows: Vec<Vec<XCorner>> = (margin..h - margin)
+        .into_par_iter()
+        .map(|y| {
+            let mut found = Vec::new();
+            'px: for x in margin..w - margin {
+                let r0 = resp[y * w + x];
+                if f64::from(r0) < tau {
+                    continue;
+                }
+                for &(dx, dy) in &offsets {
                     let v = resp[(y as isize + dy) as usize * w + (x as isize + dx) as usize];
                     // Ties broken towards the first in raster order.
                     if v > r0 || (v == r0 && (dy < 0 || (dy == 0 && dx < 0))) {
                         continue 'px;
                     }
                 }
-            }
-            // Sub-pixel saddle of the quadratic model.
-            let c = at(x, y);
-            let gx = 0.5 * (at(x + 1, y) - at(x - 1, y));
-            let gy = 0.5 * (at(x, y + 1) - at(x, y - 1));
-            let ixx = at(x + 1, y) - 2.0 * c + at(x - 1, y);
-            let iyy = at(x, y + 1) - 2.0 * c + at(x, y - 1);
-            let ixy = 0.25 * (at(x + 1, y + 1) - at(x + 1, y - 1) - at(x - 1, y + 1) + at(x - 1, y - 1));
-            let det = ixx * iyy - ixy * ixy;
-            let mut p = Vector2::new(x as f64, y as f64);
-            if det.abs() > 1e-12 {
-                let dx = -(iyy * gx - ixy * gy) / det;
-                let dy = -(-ixy * gx + ixx * gy) / det;
-                if dx.abs() <= 1.0 && dy.abs() <= 1.0 {
-                    p += Vector2::new(dx, dy);
+                // Sub-pixel saddle of the quadratic model.
+                let c = at(x, y);
+                let gx = 0.5 * (at(x + 1, y) - at(x - 1, y));
+                let gy = 0.5 * (at(x, y + 1) - at(x, y - 1));
+                let ixx = at(x + 1, y) - 2.0 * c + at(x - 1, y);
+                let iyy = at(x, y + 1) - 2.0 * c + at(x, y - 1);
+                let ixy = 0.25 * (at(x + 1, y + 1) - at(x + 1, y - 1) - at(x - 1, y + 1) + at(x - 1, y - 1));
+                let det = ixx * iyy - ixy * ixy;
+                let mut p = Vector2::new(x as f64, y as f64);
+                if det.abs() > 1e-12 {
+                    let dx = -(iyy * gx - ixy * gy) / det;
+                    let dy = -(-ixy * gx + ixx * gy) / det;
+                    if dx.abs() <= 1.0 && dy.abs() <= 1.0 {
+                        p += Vector2::new(dx, dy);
+                    }
+                }
+                let full = p * factor + Vector2::repeat(0.5 * (factor - 1.0));
+                if let Some(k) = keep {
+                    if !k(full.x, full.y) {
+                        continue;
+                    }
+                }
+                let mut best = None;
+                for r in [3.5, 5.5] {
+                    if let Some(t) = circle_test(&sm, &trig, p, r, min_contrast) {
+                        best = Some(t);
+                    }
+                }
+                if let Some((angles, contrast)) = best {
+                    let dirs = angles.map(|a| Vector2::new(a.cos(), a.sin()));
+                    found.push(XCorner { p: full, dirs, contrast });
                 }
             }
-            let full = p * factor + Vector2::repeat(0.5 * (factor - 1.0));
-            if let Some(k) = keep {
-                if !k(full.x, full.y) {
-                    continue;
-                }
-            }
-            let mut best = None;
-            for r in [3.5, 5.5] {
-                if let Some(t) = circle_test(&sm, p, r, min_contrast) {
-                    best = Some(t);
-                }
-            }
-            if let Some((angles, contrast)) = best {
-                let dirs = angles.map(|a| Vector2::new(a.cos(), a.sin()));
-                out.push(XCorner { p: full, dirs, contrast });
-            }
-        }
-    }
+            found
+        })
+        .collect();
+    let mut out: Vec<XCorner> = rows.into_iter().flatten().collect();
     out.sort_by(|a, b| b.contrast.total_cmp(&a.contrast));
     out.truncate(options.max_candidates);
     Ok(out)

@@ -1,4 +1,11 @@
 //! The standard normal distribution, written out for the edge model.
+//!
+//! The line fits evaluate `Phi` and `phi` at every pixel of every Levenberg-Marquardt step;
+//! [`NormalTable`] serves both from one table lookup (cubic Hermite interpolation of tabulated
+//! values and derivatives, no `exp`): `phi` within 1e-9 of [`normal_pdf`], `Phi` within 5e-8 of
+//! [`normal_cdf`] and no farther from the true `Phi` than [`normal_cdf`] is.
+
+use std::sync::OnceLock;
 
 /// `1 / sqrt(2 pi)`.
 const INV_SQRT_2PI: f64 = 0.398_942_280_401_432_7;
@@ -33,9 +40,105 @@ pub(crate) fn normal_pdf(z: f64) -> f64 {
     INV_SQRT_2PI * (-0.5 * z * z).exp()
 }
 
+/// Half-width of the tabulated range of `z`; outside, the closed forms are used.
+const Z_MAX: f64 = 8.0;
+/// Table nodes per unit of `z`.
+const PER_UNIT: f64 = 64.0;
+/// Number of intervals of the table.
+const INTERVALS: usize = (2.0 * Z_MAX * PER_UNIT) as usize;
+
+/// `Phi` and `phi` tabulated on `z_k = -8 + k / 64`, interpolated by cubic Hermite
+/// polynomials through the values and the derivatives (`Phi' = phi`, `phi' = -z phi`):
+/// interpolation error below 3e-10 for `phi`; `Phi`'s nodes come from [`normal_cdf`], whose
+/// own error (1.2e-7 fractional) dominates.
+pub(crate) struct NormalTable {
+    /// `[Phi(z_k), phi(z_k)]`.
+    nodes: Vec<[f64; 2]>,
+}
+
+impl NormalTable {
+    /// The table (built once, on first use).
+    pub(crate) fn get() -> &'static NormalTable {
+        static TABLE: OnceLock<NormalTable> = OnceLock::new();
+        TABLE.get_or_init(|| NormalTable {
+            nodes: (0..=INTERVALS)
+                .map(|k| {
+                    let z = k as f64 / PER_UNIT - Z_MAX;
+                    [normal_cdf(z), normal_pdf(z)]
+                })
+                .collect(),
+        })
+    }
+
+    /// `(Phi(z), phi(z))`.
+    #[inline]
+    pub(crate) fn cdf_pdf(&self, z: f64) -> (f64, f64) {
+        let x = (z + Z_MAX) * PER_UNIT;
+        // Also catches NaN.
+        if !(x >= 0.0 && x < INTERVALS as f64) {
+            return (normal_cdf(z), normal_pdf(z));
+        }
+        let k = x as usize;
+        let t = x - k as f64;
+        let [c0, p0] = self.nodes[k];
+        let [c1, p1] = self.nodes[k + 1];
+        let h = 1.0 / PER_UNIT;
+        let z0 = k as f64 * h - Z_MAX;
+        let z1 = z0 + h;
+        let t1 = 1.0 - t;
+        let (h00, h10) = ((1.0 + 2.0 * t) * t1 * t1, t * t1 * t1 * h);
+        let (h01, h11) = (t * t * (3.0 - 2.0 * t), -t * t * t1 * h);
+        let cdf = h00 * c0 + h10 * p0 + h01 * c1 + h11 * p1;
+        let pdf = h00 * p0 - h10 * z0 * p0 + h01 * p1 - h11 * z1 * p1;
+        (cdf, pdf)
+    }
+
+    /// `Phi(z)`.
+    #[inline]
+    pub(crate) fn cdf(&self, z: f64) -> f64 {
+        self.cdf_pdf(z).0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `Phi(z)` to about 1e-14: Simpson's rule on `phi` from 0 (`Phi(0) = 1/2`).
+    fn reference_cdf(z: f64) -> f64 {
+        let n = 2 * ((z.abs() * 200.0).ceil() as usize).max(1);
+        let h = z / n as f64;
+        let mut s = normal_pdf(0.0) + normal_pdf(z);
+        for k in 1..n {
+            s += if k % 2 == 1 { 4.0 } else { 2.0 } * normal_pdf(k as f64 * h);
+        }
+        0.5 + s * h / 3.0
+    }
+
+    #[test]
+    fn table_matches_the_closed_forms() {
+        let t = NormalTable::get();
+        let (mut cdf_ref, mut cdf_closed, mut table_closed, mut pdf): (f64, f64, f64, f64) = (0.0, 0.0, 0.0, 0.0);
+        for i in -4000..=4000 {
+            let z = i as f64 * 2e-3 + 0.123_456_7e-4;
+            let (c, p) = t.cdf_pdf(z);
+            let r = reference_cdf(z);
+            cdf_ref = cdf_ref.max((c - r).abs());
+            cdf_closed = cdf_closed.max((normal_cdf(z) - r).abs());
+            table_closed = table_closed.max((c - normal_cdf(z)).abs());
+            pdf = pdf.max((p - normal_pdf(z)).abs());
+        }
+        // The table is as close to the true Phi as the closed form is (whose fractional error
+        // is below 1.2e-7), and within 5e-8 of the closed form; phi within 1e-9.
+        assert!(cdf_ref <= cdf_closed + 1e-9, "{cdf_ref:e} {cdf_closed:e}");
+        assert!(table_closed < 5e-8, "{table_closed:e}");
+        assert!(pdf < 1e-9, "{pdf:e}");
+        for z in [-40.0, -8.0, 7.999_999, 8.0, 12.0, f64::INFINITY] {
+            let (c, p) = t.cdf_pdf(z);
+            assert!((c - normal_cdf(z)).abs() < 5e-8 && (p - normal_pdf(z)).abs() < 1e-9, "{z}");
+        }
+        assert!(t.cdf(f64::NAN).is_nan());
+    }
 
     #[test]
     fn cdf_matches_known_values_and_pdf_is_its_derivative() {

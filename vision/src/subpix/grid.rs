@@ -2,6 +2,7 @@
 //! [`CheckerGrid`], the blurred-step fits, corner covariances and the noise estimate.
 
 use nalgebra::{Matrix2, Point2, Vector2};
+use rayon::prelude::*;
 
 use super::line::{LineFit, LineState, Sample, Segment};
 use super::{CheckerGrid, LineSupport, NoiseModel, NoiseSpec, RefineOptions, RefineSummary, RefinedCorner};
@@ -605,13 +606,14 @@ fn refine_grid_once(
             _ => None,
         });
     }
-    // Pass 1: unweighted.
-    let mut fitted: Vec<Option<FittedLine>> = jobs.iter().map(|j| fit_job(image, &coords, j, options)).collect();
+    // Pass 1: unweighted. The lines are independent: fitted in parallel, collected in order
+    // (every sum over lines below runs in the same order as on one thread).
+    let mut fitted: Vec<Option<FittedLine>> = jobs.par_iter().map(|j| fit_job(image, &coords, j, options)).collect();
     // Illumination (vignetting, uneven light): a smooth field fitted to the segments' light
     // levels gives each segment its fixed gradient across the edge; refit.
     if let Some(field) = IlluminationField::fit(&fitted, options.min_contrast_dn) {
-        for f in fitted.iter_mut() {
-            let Some(line) = f.as_mut() else { continue };
+        fitted.par_iter_mut().for_each(|f| {
+            let Some(line) = f.as_mut() else { return };
             let n = line.state.normal();
             let origin = line.origin;
             for seg in &mut line.state.segments {
@@ -621,16 +623,19 @@ fn refine_grid_once(
                 Some(fit) => line.fit = fit,
                 None => *f = None,
             }
-        }
+        });
     }
     // Noise model.
     let noise = match options.noise {
         NoiseSpec::Unweighted => None,
         NoiseSpec::Known(m) => Some(m),
         NoiseSpec::Estimate => {
+            // Per line in parallel, summed in line order.
+            let per_line: Vec<[f64; 5]> =
+                fitted.par_iter().flatten().map(|f| f.state.noise_sums(f.fit.n, f.fit.p)).collect();
             let mut s = [0.0f64; 5];
-            for f in fitted.iter().flatten() {
-                for (a, b) in s.iter_mut().zip(f.fit.noise_sums) {
+            for sums in per_line {
+                for (a, b) in s.iter_mut().zip(sums) {
                     *a += b;
                 }
             }
@@ -639,14 +644,14 @@ fn refine_grid_once(
     };
     // Pass 2: weighted.
     if let Some(nm) = &noise {
-        for f in fitted.iter_mut() {
-            let Some(line) = f.as_mut() else { continue };
+        fitted.par_iter_mut().for_each(|f| {
+            let Some(line) = f.as_mut() else { return };
             line.state.set_weights(Some(nm));
             match line.state.solve(options.max_iterations) {
                 Some(fit) => line.fit = fit,
                 None => *f = None,
             }
-        }
+        });
     }
     let lines_fitted = fitted.iter().filter(|f| f.is_some()).count();
     let (mut chi_sum, mut chi_n) = (0.0, 0.0);

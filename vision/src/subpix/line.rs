@@ -3,7 +3,9 @@
 
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 
-use super::erf::{normal_cdf, normal_pdf};
+#[cfg(test)]
+use super::erf::normal_cdf;
+use super::erf::NormalTable;
 use super::NoiseModel;
 
 /// Lower and upper bounds of `ln(blur)` (blur from 0.1 px to 15 px).
@@ -58,9 +60,6 @@ pub(crate) struct LineFit {
     pub p: usize,
     /// Inverse of the weighted normal matrix, the `(phi, d)` block.
     pub h_inv_line: Matrix2<f64>,
-    /// Unweighted residual statistics for the noise model: sums over pixels of
-    /// `1, m, m^2, r^2, m r^2` (model value `m`, residual `r`), scaled by `n / (n - p)`.
-    pub noise_sums: [f64; 5],
 }
 
 impl LineState {
@@ -90,58 +89,74 @@ impl LineState {
         }
     }
 
-    /// Weighted cost, and optionally the normal matrix and gradient.
-    fn evaluate(&self, with_jacobian: bool) -> (f64, Option<NormalEquations>) {
+    /// Weighted cost, normal matrix and gradient (one pass over the pixels).
+    fn evaluate(&self) -> (f64, NormalEquations) {
         let np = self.n_params();
-        let mut h = if with_jacobian { Some(DMatrix::<f64>::zeros(np, np)) } else { None };
-        let mut g = if with_jacobian { Some(DVector::<f64>::zeros(np)) } else { None };
+        let table = NormalTable::get();
+        let mut h = DMatrix::<f64>::zeros(np, np);
+        let mut g = DVector::<f64>::zeros(np);
         let (c, s) = (self.phi.cos(), self.phi.sin());
         let mut cost = 0.0;
         for (k, seg) in self.segments.iter().enumerate() {
             let sig = seg.ln_s.exp();
-            // Per-segment 5x5 accumulation (phi, d, a, b, ln_s), folded into h afterwards.
-            let mut hs = [[0.0f64; 5]; 5];
+            let inv_sig = 1.0 / sig;
+            let (sa, sb, sg, d) = (seg.a, seg.b, seg.g, self.d);
+            // Per-segment accumulation of the upper triangle of the 5x5 normal matrix and the
+            // gradient over (phi, d, a, b, ln_s), written out (folded into h afterwards).
+            let mut hs = [0.0f64; 15];
             let mut gs = [0.0f64; 5];
             for p in &seg.samples {
-                let u = c * p.x + s * p.y - self.d;
-                let z = u / sig;
-                let cdf = normal_cdf(z);
-                let q = 1.0 + seg.g * u;
-                let base = seg.a + seg.b * cdf;
+                let u = c * p.x + s * p.y - d;
+                let z = u * inv_sig;
+                let (cdf, pdf) = table.cdf_pdf(z);
+                let q = 1.0 + sg * u;
+                let base = sa + sb * cdf;
                 let r = p.v - base * q;
                 cost += p.w * r * r;
-                if with_jacobian {
-                    let pdf = normal_pdf(z);
-                    let t = -s * p.x + c * p.y;
-                    let gu = seg.b * pdf / sig * q + base * seg.g;
-                    let j = [gu * t, -gu, q, cdf * q, -seg.b * pdf * z * q];
-                    for a in 0..5 {
-                        let wa = p.w * j[a];
-                        gs[a] += wa * r;
-                        for b in a..5 {
-                            hs[a][b] += wa * j[b];
-                        }
-                    }
-                }
+                let t = -s * p.x + c * p.y;
+                let gu = sb * pdf * inv_sig * q + base * sg;
+                let j = [gu * t, -gu, q, cdf * q, -sb * pdf * z * q];
+                let wa = [p.w * j[0], p.w * j[1], p.w * j[2], p.w * j[3], p.w * j[4]];
+                gs[0] += wa[0] * r;
+                gs[1] += wa[1] * r;
+                gs[2] += wa[2] * r;
+                gs[3] += wa[3] * r;
+                gs[4] += wa[4] * r;
+                hs[0] += wa[0] * j[0];
+                hs[1] += wa[0] * j[1];
+                hs[2] += wa[0] * j[2];
+                hs[3] += wa[0] * j[3];
+                hs[4] += wa[0] * j[4];
+                hs[5] += wa[1] * j[1];
+                hs[6] += wa[1] * j[2];
+                hs[7] += wa[1] * j[3];
+                hs[8] += wa[1] * j[4];
+                hs[9] += wa[2] * j[2];
+                hs[10] += wa[2] * j[3];
+                hs[11] += wa[2] * j[4];
+                hs[12] += wa[3] * j[3];
+                hs[13] += wa[3] * j[4];
+                hs[14] += wa[4] * j[4];
             }
-            if let (Some(h), Some(g)) = (h.as_mut(), g.as_mut()) {
-                let idx = [0, 1, 2 + PS * k, 3 + PS * k, 4 + PS * k];
-                for a in 0..5 {
-                    g[idx[a]] += gs[a];
-                    for b in a..5 {
-                        h[(idx[a], idx[b])] += hs[a][b];
-                        if a != b {
-                            h[(idx[b], idx[a])] += hs[a][b];
-                        }
+            let idx = [0, 1, 2 + PS * k, 3 + PS * k, 4 + PS * k];
+            let mut m = 0;
+            for a in 0..5 {
+                g[idx[a]] += gs[a];
+                for b in a..5 {
+                    h[(idx[a], idx[b])] += hs[m];
+                    if a != b {
+                        h[(idx[b], idx[a])] += hs[m];
                     }
+                    m += 1;
                 }
             }
         }
-        (cost, h.zip(g))
+        (cost, (h, g))
     }
 
     /// Least-squares intensities `a`, `b` of every segment for the current line and blur.
     pub fn init_intensities(&mut self) {
+        let table = NormalTable::get();
         let (c, s) = (self.phi.cos(), self.phi.sin());
         let d = self.d;
         for seg in &mut self.segments {
@@ -150,7 +165,7 @@ impl LineState {
             for p in &seg.samples {
                 let u = c * p.x + s * p.y - d;
                 let q = 1.0 + seg.g * u;
-                let (e, f) = (q, normal_cdf(u / sig) * q);
+                let (e, f) = (q, table.cdf(u / sig) * q);
                 s00 += p.w * e * e;
                 s01 += p.w * e * f;
                 s11 += p.w * f * f;
@@ -171,6 +186,7 @@ impl LineState {
     /// Replaces every weight by the inverse variance of the noise model at the current model
     /// value (or 1 without a model).
     pub fn set_weights(&mut self, noise: Option<&NoiseModel>) {
+        let table = NormalTable::get();
         let (c, s) = (self.phi.cos(), self.phi.sin());
         let d = self.d;
         for seg in &mut self.segments {
@@ -179,7 +195,7 @@ impl LineState {
                 p.w = match noise {
                     Some(nm) => {
                         let u = c * p.x + s * p.y - d;
-                        let m = (seg.a + seg.b * normal_cdf(u / sig)) * (1.0 + seg.g * u);
+                        let m = (seg.a + seg.b * table.cdf(u / sig)) * (1.0 + seg.g * u);
                         1.0 / nm.variance_dn2(m)
                     }
                     None => 1.0,
@@ -189,6 +205,13 @@ impl LineState {
     }
 
     /// Levenberg-Marquardt; `None` when the normal matrix is singular or the fit diverges.
+    ///
+    /// Every trial point is evaluated with its normal equations (one pass over the pixels), so
+    /// an accepted step already holds the next iteration's system and, at the end, the one the
+    /// covariance comes from. The fit stops when a step is negligible (below 1e-7 px in `d`
+    /// and 1e-9 rad in `phi` with no real decrease), when the decrease the linear model predicts
+    /// for the next step is below 1e-12 of the cost (a step of about 1e-7 px: rounding would
+    /// decide whether it is taken), or when no damping gives a decrease.
     pub fn solve(&mut self, max_iterations: usize) -> Option<LineFit> {
         let n: usize = self.segments.iter().map(|s| s.samples.len()).sum();
         let np = self.n_params();
@@ -196,10 +219,8 @@ impl LineState {
             return None;
         }
         let mut lambda = 1e-3;
-        let (mut cost, _) = self.evaluate(false);
-        for _ in 0..max_iterations {
-            let (_, hg) = self.evaluate(true);
-            let (h, g) = hg?;
+        let (mut cost, (mut h, mut g)) = self.evaluate();
+        'outer: for _ in 0..max_iterations {
             let x0 = self.params();
             let mut improved = false;
             let mut small_step = false;
@@ -223,13 +244,19 @@ impl LineState {
                 if scale < 1.0 {
                     delta *= scale;
                 }
+                // Decrease of the cost the linear model predicts: 2 g.delta - delta' H delta.
+                let predicted = 2.0 * g.dot(&delta) - (&h * &delta).dot(&delta);
+                if predicted.abs() <= 1e-12 * cost {
+                    break 'outer;
+                }
                 let trial = &x0 + &delta;
                 let backup = self.clone_params();
                 self.set_params(&trial);
-                let (c_new, _) = self.evaluate(false);
+                let (c_new, (h_new, g_new)) = self.evaluate();
                 if c_new.is_finite() && c_new <= cost {
                     small_step = delta[1].abs() < 1e-7 && delta[0].abs() < 1e-9 && (cost - c_new) <= 1e-12 * cost;
                     cost = c_new;
+                    (h, g) = (h_new, g_new);
                     lambda = (lambda / 3.0).max(1e-9);
                     improved = true;
                     break;
@@ -241,8 +268,6 @@ impl LineState {
                 break;
             }
         }
-        let (cost, hg) = self.evaluate(true);
-        let (h, _) = hg?;
         if !cost.is_finite() {
             return None;
         }
@@ -251,7 +276,7 @@ impl LineState {
         if !(h_inv_line[(0, 0)] > 0.0 && h_inv_line[(1, 1)] > 0.0) {
             return None;
         }
-        Some(LineFit { chi2: cost, n, p: np, h_inv_line, noise_sums: self.noise_sums(n, np) })
+        Some(LineFit { chi2: cost, n, p: np, h_inv_line })
     }
 
     fn clone_params(&self) -> DVector<f64> {
@@ -262,7 +287,11 @@ impl LineState {
         self.set_params(x);
     }
 
-    fn noise_sums(&self, n: usize, np: usize) -> [f64; 5] {
+    /// Unweighted residual statistics for the noise model at the current parameters: sums over
+    /// pixels of `1, m, m^2, r^2, m r^2` (model value `m`, residual `r`), scaled by
+    /// `n / (n - p)` for a fit with `n` pixels and `p` parameters.
+    pub fn noise_sums(&self, n: usize, np: usize) -> [f64; 5] {
+        let table = NormalTable::get();
         let (c, s) = (self.phi.cos(), self.phi.sin());
         let corr = n as f64 / (n - np) as f64;
         let mut out = [0.0; 5];
@@ -270,7 +299,7 @@ impl LineState {
             let sig = seg.ln_s.exp();
             for p in &seg.samples {
                 let u = c * p.x + s * p.y - self.d;
-                let m = (seg.a + seg.b * normal_cdf(u / sig)) * (1.0 + seg.g * u);
+                let m = (seg.a + seg.b * table.cdf(u / sig)) * (1.0 + seg.g * u);
                 let r2 = (p.v - m).powi(2) * corr;
                 out[0] += 1.0;
                 out[1] += m;

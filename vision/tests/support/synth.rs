@@ -350,3 +350,31 @@ pub fn plate_scene(width: u32, height: u32, square_px: f64, pose: u64, blur_px: 
     s.layout = Layout::Plate { margin: 0.5 };
     s
 }
+
+/// Encodes an 8-bit image as JPEG of `quality` (1..=100) with the `image` crate and decodes it
+/// again: the block artefacts and ringing of a camera's compressed output.
+pub fn jpeg_roundtrip(img: &GrayImage, quality: u8) -> GrayImage {
+    let mut buf = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut buf, quality).encode_image(img).expect("JPEG encoding");
+    image::load_from_memory_with_format(&buf, image::ImageFormat::Jpeg).expect("JPEG decoding").to_luma8()
+}
+
+/// A 2 MP (1920 x 1080) tilted view of a 25 x 17 chessboard (425 inner corners, squares of
+/// about 42 to 56 px), blur 1 px, noise 2 DN.
+pub fn chessboard_2mp_scene() -> Scene {
+    let mut s = chessboard_scene(1920, 1080, 25, 17, 50.0, 0, 1.0, 2.0);
+    // Tilted by 18 degrees about the vertical axis and 6 about the horizontal, rolled by 4,
+    // board centred (the board's 18 field rows fill most of the 1080 lines).
+    let f = 1.2 * 1920.0;
+    let square_m = 0.025;
+    let dist = f * square_m / 50.0;
+    s.h = homography(f, 959.5, 539.5, (18, 26), square_m, dist, 4.0, 6.0, -18.0, (0.0, 0.0));
+    s
+}
+
+/// The 2 MP 425-corner scene rendered and passed through JPEG at quality 90.
+pub fn chessboard_2mp_jpeg() -> (Scene, GrayImage) {
+    let scene = chessboard_2mp_scene();
+    let img = jpeg_roundtrip(&render(&scene), 90);
+    (scene, img)
+}
