@@ -364,9 +364,27 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
         blur = new_blur.clamp(0.3, 8.0);
     }
     let fit = fitted?;
+    // A bend that lens distortion cannot give (a sagitta above MAX_SAGITTA_PX over the
+    // segments' reach: small, blurred squares where the curvature is not determined) falls
+    // back to the straight line.
+    if state.curved {
+        let reach = state
+            .segments
+            .iter()
+            .flat_map(|s| s.samples.iter())
+            .map(|p| state.tangent().dot(&Vector2::new(p.x, p.y)).abs())
+            .fold(0.0, f64::max);
+        if 0.5 * state.kappa.abs() * reach * reach > MAX_SAGITTA_PX {
+            return fit_job(img, coords, &LineJob { curved: false, ..job.clone() }, options);
+        }
+    }
     let pixels = state.segments.iter().map(|s| s.samples.len()).sum();
     Some(FittedLine { origin: job.origin, state, fit, pixels })
 }
+
+/// Largest sagitta (pixels) of a bent line over its segments' reach that is taken as lens
+/// distortion (see [`fit_job`]).
+const MAX_SAGITTA_PX: f64 = 0.5;
 
 /// Corner of two fitted lines, in fit coordinates, with the Jacobian blocks.
 fn intersect(l1: &FittedLine, l2: &FittedLine) -> Option<(Vector2<f64>, [nalgebra::Matrix2<f64>; 2])> {
