@@ -448,7 +448,7 @@ impl SupersampledRenderer {
         let h = self.camera.image_size.height_px;
         let expected = self.render_expected(t_cam_board, seed)?;
         let c = &self.config;
-        let mut rng = ChaCha8Rng::seed_from_u64(mix(seed ^ 0x5EED_0F_5E45_0125));
+        let mut rng = ChaCha8Rng::seed_from_u64(mix(seed ^ 0x005E_ED0F_5E45_0125));
         let read = Normal::new(0.0, c.read_noise_e.max(0.0)).map_err(|e| DatasetError::Render(e.to_string()))?;
         let mut bytes = Vec::with_capacity(expected.len());
         for &e in &expected {
