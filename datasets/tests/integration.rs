@@ -3,6 +3,7 @@
 
 #[path = "../../vision/tests/calib_support/mod.rs"]
 mod calib_support;
+mod calibration_study;
 mod camera_print_scale;
 mod corrected_commands;
 mod demo_checks;

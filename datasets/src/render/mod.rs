@@ -38,10 +38,12 @@
 
 pub mod apriltag;
 mod boards;
+pub mod calibration_study;
 pub mod corner_study;
 mod optics;
 mod raster;
 mod sensor;
+pub mod supersampled;
 pub mod target;
 
 #[cfg(test)]

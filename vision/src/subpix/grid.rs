@@ -75,6 +75,9 @@ struct LineJob {
     tangent: Vector2<f64>,
     segments: Vec<SegJob>,
     t_limit: Option<f64>,
+    /// Fit a parabola with its vertex at the origin instead of a straight line (the two
+    /// segments on either side of a corner, [`LineSupport::Local`]).
+    curved: bool,
 }
 
 /// A fitted line in fit coordinates.
@@ -282,11 +285,19 @@ fn snap_line(img: &GrayF32, coords: &Coords, job: &LineJob, state: &mut LineStat
     state.d = d0 / (1.0 + m * m).sqrt();
 }
 
+/// A job's line is bent only while it keeps a segment on either side of its corner.
+fn set_curved(state: &mut LineState, job: &LineJob) {
+    state.curved = job.curved && state.segments.len() == 2;
+    if !state.curved {
+        state.kappa = 0.0;
+    }
+}
+
 /// Fits one line job: band selection, fit, dropping segments without an edge, reselection
 /// when the line moved. Unweighted (pass 1).
 fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOptions) -> Option<FittedLine> {
     let phi0 = job.tangent.y.atan2(job.tangent.x) - std::f64::consts::FRAC_PI_2;
-    let mut state = LineState { phi: phi0, d: 0.0, segments: Vec::new() };
+    let mut state = LineState::straight(phi0, 0.0, Vec::new());
     snap_line(img, coords, job, &mut state, options);
     let phi0 = state.phi;
     let mut blur = options.initial_blur_px;
@@ -316,6 +327,7 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
         if state.segments.is_empty() {
             return None;
         }
+        set_curved(&mut state, job);
         if round == 0 {
             state.init_intensities();
         }
@@ -337,6 +349,7 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
             if state.segments.is_empty() {
                 return None;
             }
+            set_curved(&mut state, job);
             fit = state.solve(options.max_iterations)?;
         }
         let new_blur = state.segments.iter().map(|s| s.ln_s.exp()).fold(0.0, f64::max);
@@ -352,9 +365,27 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
         blur = new_blur.clamp(0.3, 8.0);
     }
     let fit = fitted?;
+    // A bend that lens distortion cannot give (a sagitta above MAX_SAGITTA_PX over the
+    // segments' reach: small, blurred squares where the curvature is not determined) falls
+    // back to the straight line.
+    if state.curved {
+        let reach = state
+            .segments
+            .iter()
+            .flat_map(|s| s.samples.iter())
+            .map(|p| state.tangent().dot(&Vector2::new(p.x, p.y)).abs())
+            .fold(0.0, f64::max);
+        if 0.5 * state.kappa.abs() * reach * reach > MAX_SAGITTA_PX {
+            return fit_job(img, coords, &LineJob { curved: false, ..job.clone() }, options);
+        }
+    }
     let pixels = state.segments.iter().map(|s| s.samples.len()).sum();
     Some(FittedLine { origin: job.origin, state, fit, pixels })
 }
+
+/// Largest sagitta (pixels) of a bent line over its segments' reach that is taken as lens
+/// distortion (see [`fit_job`]).
+const MAX_SAGITTA_PX: f64 = 0.5;
 
 /// Corner of two fitted lines, in fit coordinates, with the Jacobian blocks.
 fn intersect(l1: &FittedLine, l2: &FittedLine) -> Option<(Vector2<f64>, [nalgebra::Matrix2<f64>; 2])> {
@@ -367,7 +398,14 @@ fn intersect(l1: &FittedLine, l2: &FittedLine) -> Option<(Vector2<f64>, [nalgebr
     }
     let minv = m.try_inverse()?;
     let c = Vector2::new(n1.dot(&l1.origin) + l1.state.d, n2.dot(&l2.origin) + l2.state.d);
-    let p = minv * c;
+    let mut p = minv * c;
+    // Bent lines: the point of each parabola at the corner's tangential coordinate (a
+    // correction of kappa t^2 / 2, well below 1e-3 px for corners within a pixel of the origin).
+    if l1.state.kappa != 0.0 || l2.state.kappa != 0.0 {
+        let sag =
+            |l: &FittedLine, p: Vector2<f64>| 0.5 * l.state.kappa * l.state.tangent().dot(&(p - l.origin)).powi(2);
+        p = minv * (c + Vector2::new(sag(l1, p), sag(l2, p)));
+    }
     let mut blocks = [Matrix2::zeros(); 2];
     for (i, l) in [l1, l2].into_iter().enumerate() {
         let e = minv.column(i).into_owned();
@@ -568,7 +606,17 @@ fn refine_grid_once(
                     }
                     let t = pts.direction(ii, jj, si, sj);
                     let Some(t) = t else { continue };
-                    jobs.push(LineJob { origin: c, tangent: t, segments: segs, t_limit: Some(options.max_segment_px) });
+                    // A corner between two segments of a line bent by an unknown lens
+                    // distortion: its tangent through the corner, not the chord (see `line`).
+                    // With a camera model the lines are straight in the fit coordinates.
+                    let curved = segs.len() == 2 && options.camera.is_none();
+                    jobs.push(LineJob {
+                        origin: c,
+                        tangent: t,
+                        segments: segs,
+                        t_limit: Some(options.max_segment_px),
+                        curved,
+                    });
                     *slot = Some(jobs.len() - 1);
                 }
                 LineSupport::Global => {
@@ -594,7 +642,7 @@ fn refine_grid_once(
                         let origin = members.iter().sum::<Vector2<f64>>() / members.len() as f64;
                         let v = members[members.len() - 1] - members[0];
                         let tangent = v / v.norm().max(1e-12);
-                        jobs.push(LineJob { origin, tangent, segments: segs, t_limit: None });
+                        jobs.push(LineJob { origin, tangent, segments: segs, t_limit: None, curved: false });
                         Some(jobs.len() - 1)
                     });
                     *slot = *entry;

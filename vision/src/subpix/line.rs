@@ -1,5 +1,12 @@
-//! One straight edge line, possibly carrying several segments of either polarity, fitted to the
-//! pixels of a band around it with the blurred-step model (Levenberg-Marquardt).
+//! One edge line, possibly carrying several segments of either polarity, fitted to the pixels
+//! of a band around it with the blurred-step model (Levenberg-Marquardt). The line is straight,
+//! or, when [`LineState::curved`], a parabola with its vertex at the origin: the signed
+//! distance of `x` (relative to the origin) is `u = n . x - d - kappa (t . x)^2 / 2`. Lens
+//! distortion bends the image of a straight grid line; a straight line fitted to the two
+//! segments on either side of a corner then passes the corner at the mean sagitta (about
+//! `kappa L^2 / 6` for segments reaching `L` from it), a bias towards the centre of curvature
+//! that does not average out. The parabola is the second-order expansion of the bent line
+//! about the corner, so `(phi, d)` describe its tangent there without that bias.
 
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 
@@ -41,11 +48,16 @@ type NormalEquations = (DMatrix<f64>, DVector<f64>);
 /// Parameters per segment.
 const PS: usize = 3;
 
-/// A line `n . x = d`, `n = (cos phi, sin phi)`, `x` relative to the origin, with its segments.
+/// A line `n . x = d`, `n = (cos phi, sin phi)`, `x` relative to the origin, with its segments;
+/// when `curved`, bent by `kappa` (see the module documentation).
 #[derive(Clone, Debug)]
 pub(crate) struct LineState {
     pub phi: f64,
     pub d: f64,
+    /// Curvature, 1/px (fitted only when `curved`, else 0).
+    pub kappa: f64,
+    /// Whether `kappa` is a parameter of the fit.
+    pub curved: bool,
     pub segments: Vec<Segment>,
 }
 
@@ -63,18 +75,43 @@ pub(crate) struct LineFit {
 }
 
 impl LineState {
+    /// A straight line.
+    pub fn straight(phi: f64, d: f64, segments: Vec<Segment>) -> Self {
+        Self { phi, d, kappa: 0.0, curved: false, segments }
+    }
+
+    /// Parameters of the line itself: `phi, d` and, when curved, `kappa`.
+    fn line_params(&self) -> usize {
+        if self.curved {
+            3
+        } else {
+            2
+        }
+    }
+
     fn n_params(&self) -> usize {
-        2 + PS * self.segments.len()
+        self.line_params() + PS * self.segments.len()
+    }
+
+    /// The signed distance `u` of a point (relative to the origin) and `t . x`.
+    fn u_t(&self, cs: (f64, f64), x: f64, y: f64) -> (f64, f64) {
+        let (c, s) = cs;
+        let t = -s * x + c * y;
+        (c * x + s * y - self.d - 0.5 * self.kappa * t * t, t)
     }
 
     fn params(&self) -> DVector<f64> {
         let mut x = DVector::zeros(self.n_params());
         x[0] = self.phi;
         x[1] = self.d;
+        if self.curved {
+            x[2] = self.kappa;
+        }
+        let l = self.line_params();
         for (k, s) in self.segments.iter().enumerate() {
-            x[2 + PS * k] = s.a;
-            x[3 + PS * k] = s.b;
-            x[4 + PS * k] = s.ln_s;
+            x[l + PS * k] = s.a;
+            x[l + 1 + PS * k] = s.b;
+            x[l + 2 + PS * k] = s.ln_s;
         }
         x
     }
@@ -82,10 +119,14 @@ impl LineState {
     fn set_params(&mut self, x: &DVector<f64>) {
         self.phi = x[0];
         self.d = x[1];
+        if self.curved {
+            self.kappa = x[2];
+        }
+        let l = self.line_params();
         for (k, s) in self.segments.iter_mut().enumerate() {
-            s.a = x[2 + PS * k];
-            s.b = x[3 + PS * k];
-            s.ln_s = x[4 + PS * k].clamp(LN_BLUR_MIN, LN_BLUR_MAX);
+            s.a = x[l + PS * k];
+            s.b = x[l + 1 + PS * k];
+            s.ln_s = x[l + 2 + PS * k].clamp(LN_BLUR_MIN, LN_BLUR_MAX);
         }
     }
 
@@ -96,58 +137,53 @@ impl LineState {
         let mut h = DMatrix::<f64>::zeros(np, np);
         let mut g = DVector::<f64>::zeros(np);
         let (c, s) = (self.phi.cos(), self.phi.sin());
+        let l = self.line_params();
+        // Per-segment parameters: the line's, then a, b, ln_s.
+        let m = l + 3;
         let mut cost = 0.0;
         for (k, seg) in self.segments.iter().enumerate() {
             let sig = seg.ln_s.exp();
             let inv_sig = 1.0 / sig;
-            let (sa, sb, sg, d) = (seg.a, seg.b, seg.g, self.d);
-            // Per-segment accumulation of the upper triangle of the 5x5 normal matrix and the
-            // gradient over (phi, d, a, b, ln_s), written out (folded into h afterwards).
-            let mut hs = [0.0f64; 15];
-            let mut gs = [0.0f64; 5];
+            // Per-segment accumulation ((phi, d[, kappa], a, b, ln_s)), folded into h afterwards.
+            let mut hs = [[0.0f64; 6]; 6];
+            let mut gs = [0.0f64; 6];
             for p in &seg.samples {
-                let u = c * p.x + s * p.y - d;
+                let (u, t) = self.u_t((c, s), p.x, p.y);
                 let z = u * inv_sig;
                 let (cdf, pdf) = table.cdf_pdf(z);
-                let q = 1.0 + sg * u;
-                let base = sa + sb * cdf;
+                let q = 1.0 + seg.g * u;
+                let base = seg.a + seg.b * cdf;
                 let r = p.v - base * q;
                 cost += p.w * r * r;
-                let t = -s * p.x + c * p.y;
-                let gu = sb * pdf * inv_sig * q + base * sg;
-                let j = [gu * t, -gu, q, cdf * q, -sb * pdf * z * q];
-                let wa = [p.w * j[0], p.w * j[1], p.w * j[2], p.w * j[3], p.w * j[4]];
-                gs[0] += wa[0] * r;
-                gs[1] += wa[1] * r;
-                gs[2] += wa[2] * r;
-                gs[3] += wa[3] * r;
-                gs[4] += wa[4] * r;
-                hs[0] += wa[0] * j[0];
-                hs[1] += wa[0] * j[1];
-                hs[2] += wa[0] * j[2];
-                hs[3] += wa[0] * j[3];
-                hs[4] += wa[0] * j[4];
-                hs[5] += wa[1] * j[1];
-                hs[6] += wa[1] * j[2];
-                hs[7] += wa[1] * j[3];
-                hs[8] += wa[1] * j[4];
-                hs[9] += wa[2] * j[2];
-                hs[10] += wa[2] * j[3];
-                hs[11] += wa[2] * j[4];
-                hs[12] += wa[3] * j[3];
-                hs[13] += wa[3] * j[4];
-                hs[14] += wa[4] * j[4];
-            }
-            let idx = [0, 1, 2 + PS * k, 3 + PS * k, 4 + PS * k];
-            let mut m = 0;
-            for a in 0..5 {
-                g[idx[a]] += gs[a];
-                for b in a..5 {
-                    h[(idx[a], idx[b])] += hs[m];
-                    if a != b {
-                        h[(idx[b], idx[a])] += hs[m];
+                let gu = seg.b * pdf * inv_sig * q + base * seg.g;
+                // du/dphi = t + kappa t (n . x), du/dd = -1, du/dkappa = -t^2 / 2.
+                let du_dphi = t + self.kappa * t * (c * p.x + s * p.y);
+                let (ja, jb, js) = (q, cdf * q, -seg.b * pdf * z * q);
+                let j = if self.curved {
+                    [gu * du_dphi, -gu, -0.5 * gu * t * t, ja, jb, js]
+                } else {
+                    [gu * du_dphi, -gu, ja, jb, js, 0.0]
+                };
+                for a in 0..m {
+                    let wa = p.w * j[a];
+                    gs[a] += wa * r;
+                    for b in a..m {
+                        hs[a][b] += wa * j[b];
                     }
-                    m += 1;
+                }
+            }
+            let idx = if self.curved {
+                [0, 1, 2, l + PS * k, l + 1 + PS * k, l + 2 + PS * k]
+            } else {
+                [0, 1, l + PS * k, l + 1 + PS * k, l + 2 + PS * k, 0]
+            };
+            for a in 0..m {
+                g[idx[a]] += gs[a];
+                for b in a..m {
+                    h[(idx[a], idx[b])] += hs[a][b];
+                    if a != b {
+                        h[(idx[b], idx[a])] += hs[a][b];
+                    }
                 }
             }
         }
@@ -157,13 +193,14 @@ impl LineState {
     /// Least-squares intensities `a`, `b` of every segment for the current line and blur.
     pub fn init_intensities(&mut self) {
         let table = NormalTable::get();
-        let (c, s) = (self.phi.cos(), self.phi.sin());
-        let d = self.d;
+        let cs = (self.phi.cos(), self.phi.sin());
+        let line = Self::straight(self.phi, self.d, Vec::new());
+        let line = Self { kappa: self.kappa, ..line };
         for seg in &mut self.segments {
             let sig = seg.ln_s.exp();
             let (mut s00, mut s01, mut s11, mut t0, mut t1) = (0.0, 0.0, 0.0, 0.0, 0.0);
             for p in &seg.samples {
-                let u = c * p.x + s * p.y - d;
+                let (u, _) = line.u_t(cs, p.x, p.y);
                 let q = 1.0 + seg.g * u;
                 let (e, f) = (q, table.cdf(u / sig) * q);
                 s00 += p.w * e * e;
@@ -187,14 +224,14 @@ impl LineState {
     /// value (or 1 without a model).
     pub fn set_weights(&mut self, noise: Option<&NoiseModel>) {
         let table = NormalTable::get();
-        let (c, s) = (self.phi.cos(), self.phi.sin());
-        let d = self.d;
+        let cs = (self.phi.cos(), self.phi.sin());
+        let line = Self { kappa: self.kappa, ..Self::straight(self.phi, self.d, Vec::new()) };
         for seg in &mut self.segments {
             let sig = seg.ln_s.exp();
             for p in &mut seg.samples {
                 p.w = match noise {
                     Some(nm) => {
-                        let u = c * p.x + s * p.y - d;
+                        let (u, _) = line.u_t(cs, p.x, p.y);
                         let m = (seg.a + seg.b * table.cdf(u / sig)) * (1.0 + seg.g * u);
                         1.0 / nm.variance_dn2(m)
                     }
@@ -238,8 +275,13 @@ impl LineState {
                 let mut scale: f64 = 1.0;
                 scale = scale.min(0.05 / delta[0].abs().max(1e-300));
                 scale = scale.min(1.0 / delta[1].abs().max(1e-300));
+                if self.curved {
+                    // At most 1e-3 / px per step (a sagitta of 0.5 px over 32 px).
+                    scale = scale.min(1e-3 / delta[2].abs().max(1e-300));
+                }
+                let l = self.line_params();
                 for k in 0..self.segments.len() {
-                    scale = scale.min(0.5 / delta[4 + PS * k].abs().max(1e-300));
+                    scale = scale.min(0.5 / delta[l + 2 + PS * k].abs().max(1e-300));
                 }
                 if scale < 1.0 {
                     delta *= scale;
@@ -292,13 +334,13 @@ impl LineState {
     /// `n / (n - p)` for a fit with `n` pixels and `p` parameters.
     pub fn noise_sums(&self, n: usize, np: usize) -> [f64; 5] {
         let table = NormalTable::get();
-        let (c, s) = (self.phi.cos(), self.phi.sin());
+        let cs = (self.phi.cos(), self.phi.sin());
         let corr = n as f64 / (n - np) as f64;
         let mut out = [0.0; 5];
         for seg in &self.segments {
             let sig = seg.ln_s.exp();
             for p in &seg.samples {
-                let u = c * p.x + s * p.y - self.d;
+                let (u, _) = self.u_t(cs, p.x, p.y);
                 let m = (seg.a + seg.b * table.cdf(u / sig)) * (1.0 + seg.g * u);
                 let r2 = (p.v - m).powi(2) * corr;
                 out[0] += 1.0;
@@ -353,8 +395,7 @@ mod tests {
                 }
             }
         }
-        let mut line =
-            LineState { phi: 0.25, d: 0.0, segments: vec![Segment { a: 0.0, b: 0.0, ln_s: 0.0, g: 0.0, samples }] };
+        let mut line = LineState::straight(0.25, 0.0, vec![Segment { a: 0.0, b: 0.0, ln_s: 0.0, g: 0.0, samples }]);
         line.init_intensities();
         let fit = line.solve(50).unwrap();
         assert!((line.phi - phi).abs() < 1e-7, "{}", line.phi);
@@ -362,5 +403,35 @@ mod tests {
         assert!((line.segments[0].ln_s.exp() - sig).abs() < 1e-5);
         assert!((line.segments[0].b - b).abs() < 1e-4);
         assert!(fit.chi2 < 1e-8);
+    }
+
+    /// An edge bent by `kappa` through the corner at the origin, seen on either side of it (the
+    /// two segments of a chessboard line bent by lens distortion): the straight line passes the
+    /// corner at the mean sagitta, the parabola at the corner.
+    #[test]
+    fn a_bent_edge_is_fitted_at_its_tangent() {
+        let (d, kappa, sig) = (0.2f64, 2e-4, 1.0);
+        let segment = |sign: f64| {
+            let mut samples = Vec::new();
+            for i in 5..=60 {
+                for j in -6..=6 {
+                    let (x, y) = (sign * i as f64, j as f64);
+                    let u = y - d - 0.5 * kappa * x * x;
+                    samples.push(Sample { x, y, v: 30.0 + 150.0 * normal_cdf(u / sig), w: 1.0 });
+                }
+            }
+            Segment { a: 0.0, b: 0.0, ln_s: 0.0, g: 0.0, samples }
+        };
+        let phi = std::f64::consts::FRAC_PI_2;
+        let mut straight = LineState::straight(phi, 0.0, vec![segment(-1.0), segment(1.0)]);
+        straight.init_intensities();
+        straight.solve(60).unwrap();
+        // The mean sagitta over |x| in 5..60 is about kappa (60^3 - 5^3) / (6 * 55) = 0.13 px.
+        assert!(straight.d - d > 0.08, "straight line at {}", straight.d);
+        let mut bent = LineState { curved: true, ..LineState::straight(phi, 0.0, vec![segment(-1.0), segment(1.0)]) };
+        bent.init_intensities();
+        let fit = bent.solve(60).unwrap();
+        assert!((bent.d - d).abs() < 1e-5 && (bent.phi - phi).abs() < 1e-7, "{} {}", bent.d, bent.phi);
+        assert!((bent.kappa - kappa).abs() < 1e-8 && fit.p == 3 + 2 * PS && fit.chi2 < 1e-6, "{}", bent.kappa);
     }
 }

@@ -32,7 +32,11 @@
 //!
 //! *Line support.* With [`LineSupport::Local`] (default) each corner gets its own two lines,
 //! fitted on the segments that end at it (up to `max_segment_px` long): this is the right
-//! choice when lens distortion bends the grid lines and no camera model is given. With
+//! choice when lens distortion bends the grid lines and no camera model is given. A line with
+//! a segment on either side of the corner is then fitted as a parabola with its vertex at the
+//! corner (`n . x - d - kappa (t . x)^2 / 2`, one curvature per line), so that `(phi, d)` is its
+//! tangent at the corner rather than the chord, which would pass the corner at the mean
+//! sagitta (see `line`); with a camera model the lines stay straight. With
 //! [`LineSupport::Global`] every grid line is fitted once over its whole length and corners
 //! are intersections of whole lines: far more pixels per corner, but only valid for straight
 //! lines, i.e. an undistorted image or a camera model in [`RefineOptions::camera`] (the fit then

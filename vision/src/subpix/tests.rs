@@ -22,8 +22,7 @@ fn offset_variance_matches_the_closed_form() {
             samples.push(Sample { x: f64::from(x), y, v: 30.0 + b * erf::normal_cdf(u / s), w: 1.0 / (sigma * sigma) });
         }
     }
-    let mut line =
-        LineState { phi: 0.0, d: 0.3, segments: vec![Segment { a: 30.0, b, ln_s: s.ln(), g: 0.0, samples }] };
+    let mut line = LineState::straight(0.0, 0.3, vec![Segment { a: 30.0, b, ln_s: s.ln(), g: 0.0, samples }]);
     let fit = line.solve(20).unwrap();
     let fisher_sd = fit.h_inv_line[(1, 1)].sqrt();
     let closed = edge_offset_crb_px(len as f64, b, s, sigma);
