@@ -43,7 +43,7 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, Isometry3, Matrix2, Matrix6, Point2, Point3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
-use ferrocal_lsq::{so3, BlockId, Loss, LsqError, Problem, Residual, Se3};
+use ferrocal_lsq::{so3, BlockId, Loss, LsqError, Problem, Residual};
 use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
 use ferrocal_vision::camera::CameraModel;
 
@@ -53,6 +53,7 @@ use super::residual::{camera_with, chain_point, whitening};
 use super::{calibrate_hand_eye, HandEyeData, HandEyeOptions, HandEyeResult, Mount, TransformEstimate};
 use crate::error::{CalibError, Result};
 use crate::file::CalibrationFile;
+use crate::frames::exp6;
 use crate::kinematic::{identifiable_candidates, CalibratedModel, KinematicOptions, ParamResult, StateLayout};
 use crate::measurement::{PoseMeasurement, Split};
 
@@ -158,7 +159,7 @@ impl RobotMap {
     }
 
     /// `FK(q + dq; θ)` and its derivative (6 x n, rows `[dt; dw]` in the base frame, the
-    /// product chart of [`Se3`]: `t' = t + dt`, `R' = Exp(dw) R`) with respect to the block's
+    /// product chart of [`ferrocal_lsq::Se3`]: `t' = t + dt`, `R' = Exp(dw) R`) with respect to the block's
     /// coordinates: analytic for joint offsets and serial corrections, central differences
     /// for other model parameters.
     fn pose_jacobian(&self, v: &[f64], q: &[f64]) -> ferrocal_lsq::Result<(Isometry3<f64>, DMatrix<f64>)> {
@@ -225,10 +226,99 @@ impl RobotMap {
     }
 }
 
+/// A vector of which only some coordinates move: ambient `n` values, tangent = the coordinates
+/// in `free` (the others keep their values). How the frame and tool increments of the kinematic
+/// selection are held where the selection fixed them.
+#[derive(Clone, Debug)]
+struct Subspace {
+    n: usize,
+    free: Vec<usize>,
+}
+
+impl ferrocal_lsq::Manifold for Subspace {
+    fn name(&self) -> &'static str {
+        "subspace"
+    }
+    fn ambient_size(&self) -> usize {
+        self.n
+    }
+    fn tangent_size(&self) -> usize {
+        self.free.len()
+    }
+    fn plus(&self, x: &[f64], delta: &[f64], out: &mut [f64]) {
+        out.copy_from_slice(x);
+        for (k, &i) in self.free.iter().enumerate() {
+            out[i] += delta[k];
+        }
+    }
+    fn minus(&self, y: &[f64], x: &[f64], out: &mut [f64]) {
+        for (k, &i) in self.free.iter().enumerate() {
+            out[k] = y[i] - x[i];
+        }
+    }
+    fn plus_jacobian(&self, _x: &[f64]) -> DMatrix<f64> {
+        let mut j = DMatrix::zeros(self.n, self.free.len());
+        for (k, &i) in self.free.iter().enumerate() {
+            j[(i, k)] = 1.0;
+        }
+        j
+    }
+    fn contains(&self, x: &[f64]) -> bool {
+        x.len() == self.n && x.iter().all(|v| v.is_finite())
+    }
+    fn tangent_names(&self) -> Vec<String> {
+        self.free.iter().map(|i| format!("c{i}")).collect()
+    }
+}
+
+/// The device frame's increment `f` and the tool's `t` as in the kinematic calibration
+/// (`F = exp6(f) F0`, `X = X0 exp6(t)`), with `W = F^-1`, and the derivatives of `W` and `X` in
+/// the [`ferrocal_lsq::Se3`] chart with respect to `f` and `t` (6 x 6 each).
+struct FrameMap {
+    f0: Isometry3<f64>,
+    x0: Isometry3<f64>,
+    /// The free coordinates of `f` (the block's tangent; a residual's Jacobian has these columns).
+    frame_free: Vec<usize>,
+    /// The free coordinates of `t`.
+    tool_free: Vec<usize>,
+}
+
+impl FrameMap {
+    fn w_and_x(&self, f: &[f64], t: &[f64]) -> (Isometry3<f64>, Isometry3<f64>) {
+        ((exp6(f) * self.f0).inverse(), self.x0 * exp6(t))
+    }
+
+    /// `(dW/df, dX/dt)` in the `Se3` chart.
+    fn jacobians(&self, f: &[f64], t: &[f64]) -> (Matrix6<f64>, Matrix6<f64>) {
+        let big_f = exp6(f) * self.f0;
+        let rf = big_f.rotation.to_rotation_matrix().into_inner();
+        let tf = big_f.translation.vector;
+        let jl_f = so3::left_jacobian(&Vector3::new(f[3], f[4], f[5]));
+        // F in its chart: dt_F = df_t + (J_l df_r) x (t_F - f_t), dr_F = J_l df_r.
+        let mut m_f = Matrix6::identity();
+        let lever = tf - Vector3::new(f[0], f[1], f[2]);
+        m_f.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-lever.cross_matrix() * jl_f));
+        m_f.fixed_view_mut::<3, 3>(3, 3).copy_from(&jl_f);
+        // W = F^-1: dt_W = -R^T dt_F - R^T [t_F]x dr_F, dr_W = -R^T dr_F.
+        let mut m_inv = Matrix6::zeros();
+        m_inv.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-rf.transpose()));
+        m_inv.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-rf.transpose() * tf.cross_matrix()));
+        m_inv.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-rf.transpose()));
+        // X = X0 exp6(t): dt_X = R0 dt_t, dr_X = R0 J_l(t_r) dr_t.
+        let r0 = self.x0.rotation.to_rotation_matrix().into_inner();
+        let mut m_x = Matrix6::zeros();
+        m_x.fixed_view_mut::<3, 3>(0, 0).copy_from(&r0);
+        m_x.fixed_view_mut::<3, 3>(3, 3).copy_from(&(r0 * so3::left_jacobian(&Vector3::new(t[3], t[4], t[5]))));
+        (m_inv * m_f, m_x)
+    }
+}
+
 /// One corner predicted through the robot's kinematics (see the module documentation). Blocks:
-/// the robot coordinates (Euclidean), `X` and `W` (`Se3`), the camera (Euclidean).
+/// the robot coordinates (Euclidean), the device frame increment `f` and the tool increment `t`
+/// ([`FrameMap`]), the camera (Euclidean).
 struct RobotCorner {
     map: Arc<RobotMap>,
+    frames: Arc<FrameMap>,
     mount: Mount,
     q: Vec<f64>,
     point_m: Point3<f64>,
@@ -248,8 +338,7 @@ impl Residual for RobotCorner {
         residuals: &mut [f64],
         jacobians: Option<&mut [Option<DMatrix<f64>>]>,
     ) -> ferrocal_lsq::Result<()> {
-        let x = Se3::to_isometry(params[1]);
-        let w = Se3::to_isometry(params[2]);
+        let (w, x) = self.frames.w_and_x(params[1], params[2]);
         let camera = camera_with(&self.camera, params[3])?;
         let want_robot = jacobians.as_ref().is_some_and(|j| j[0].is_some());
         let (t, j_pose) = if want_robot {
@@ -275,8 +364,17 @@ impl Residual for RobotCorner {
                 j.copy_from_slice(m);
             }
         };
-        fill(&mut jacs[1], (sp * c.d_x).as_slice());
-        fill(&mut jacs[2], (sp * c.d_w).as_slice());
+        let (m_w, m_x) = self.frames.jacobians(params[1], params[2]);
+        let pick = |j: &mut Option<DMatrix<f64>>, full: nalgebra::Matrix2x6<f64>, free: &[usize]| {
+            if let Some(j) = j {
+                for (k, &i) in free.iter().enumerate() {
+                    j[(0, k)] = full[(0, i)];
+                    j[(1, k)] = full[(1, i)];
+                }
+            }
+        };
+        pick(&mut jacs[1], sp * c.d_w * m_w, &self.frames.frame_free);
+        pick(&mut jacs[2], sp * c.d_x * m_x, &self.frames.tool_free);
         fill(&mut jacs[3], (self.whiten * &proj.d_pixel_d_params).as_slice());
         Ok(())
     }
@@ -315,39 +413,57 @@ fn lsq_error(e: LsqError) -> CalibError {
 /// The blocks of the joint problem.
 struct Blocks {
     robot: BlockId,
-    x: BlockId,
-    w: BlockId,
+    frame: BlockId,
+    tool: BlockId,
     camera: BlockId,
 }
 
-#[allow(clippy::too_many_arguments)]
-fn build(
-    map: &Arc<RobotMap>,
-    data: &HandEyeData,
-    joints: &[Vec<f64>],
-    robot: &[f64],
-    chain: &Chain,
-    camera: &CameraModel,
-    options: &HandEyeOptions,
-    scales: &[f64],
-    loss: Loss,
-) -> Result<(Problem, Blocks)> {
+/// What every build of the problem shares.
+struct Setup<'a> {
+    map: Arc<RobotMap>,
+    frames: Arc<FrameMap>,
+    scales: Vec<f64>,
+    data: &'a HandEyeData,
+    joints: &'a [Vec<f64>],
+    options: &'a HandEyeOptions,
+}
+
+/// The values of the blocks.
+struct State {
+    robot: Vec<f64>,
+    frame: Vec<f64>,
+    tool: Vec<f64>,
+    camera: CameraModel,
+}
+
+fn build(setup: &Setup, state: &State, loss: Loss) -> Result<(Problem, Blocks)> {
     let mut p = Problem::new();
-    let rb = p.add_euclidean("robot", robot.to_vec()).map_err(lsq_error)?;
-    p.set_scales(rb, scales.to_vec()).map_err(lsq_error)?;
-    let x = p.add_block("hand_eye", Se3::from_isometry(&chain.x).to_vec(), Arc::new(Se3)).map_err(lsq_error)?;
-    let w = p.add_block("world", Se3::from_isometry(&chain.w).to_vec(), Arc::new(Se3)).map_err(lsq_error)?;
-    p.set_scales(x, vec![1e-3; 6]).map_err(lsq_error)?;
-    p.set_scales(w, vec![1e-3; 6]).map_err(lsq_error)?;
+    let rb = p.add_euclidean("robot", state.robot.clone()).map_err(lsq_error)?;
+    p.set_scales(rb, setup.scales.clone()).map_err(lsq_error)?;
+    let mut subspace = |name: &str, values: &[f64], free: &[usize]| -> Result<BlockId> {
+        let id =
+            p.add_block(name, values.to_vec(), Arc::new(Subspace { n: 6, free: free.to_vec() })).map_err(lsq_error)?;
+        if free.is_empty() {
+            p.set_constant(id, true).map_err(lsq_error)?;
+        } else {
+            p.set_scales(id, vec![1e-3; free.len()]).map_err(lsq_error)?;
+        }
+        Ok(id)
+    };
+    let frame = subspace("device_frame", &state.frame, &setup.frames.frame_free)?;
+    let tool = subspace("tool", &state.tool, &setup.frames.tool_free)?;
+    let camera = &state.camera;
     let cam = p.add_euclidean("camera", camera.parameter_values()).map_err(lsq_error)?;
     p.set_scales(cam, (0..camera.n_parameters()).map(|i| if i < 4 { 1.0 } else { 1e-3 }).collect())
         .map_err(lsq_error)?;
-    let fallback = whitening(&(Matrix2::identity() * options.fallback_corner_sigma_px.powi(2)))
+    let fallback = whitening(&(Matrix2::identity() * setup.options.fallback_corner_sigma_px.powi(2)))
         .ok_or_else(|| CalibError::Data("the fallback corner sigma must be positive".into()))?;
-    for (v, q) in data.views.iter().zip(joints).filter(|(v, _)| v.split == Split::Train) {
+    let data = setup.data;
+    for (v, q) in data.views.iter().zip(setup.joints).filter(|(v, _)| v.split == Split::Train) {
         for ((&id, px), cov) in v.point_ids.iter().zip(&v.corners_px).zip(&v.covariances_px2) {
             let r = RobotCorner {
-                map: map.clone(),
+                map: setup.map.clone(),
+                frames: setup.frames.clone(),
                 mount: data.mount,
                 q: q.clone(),
                 point_m: data.target_points_m[id],
@@ -355,10 +471,29 @@ fn build(
                 whiten: cov.and_then(|c| whitening(&c)).unwrap_or(fallback),
                 camera: *camera,
             };
-            p.add_residual(&format!("{}.c{id}", v.name), Box::new(r), &[rb, x, w, cam], loss).map_err(lsq_error)?;
+            p.add_residual(&format!("{}.c{id}", v.name), Box::new(r), &[rb, frame, tool, cam], loss)
+                .map_err(lsq_error)?;
         }
     }
-    Ok((p, Blocks { robot: rb, x, w, camera: cam }))
+    Ok((p, Blocks { robot: rb, frame, tool, camera: cam }))
+}
+
+fn read_back(p: &Problem, b: &Blocks, template: &CameraModel) -> Result<State> {
+    Ok(State {
+        robot: p.block(b.robot).values.clone(),
+        frame: p.block(b.frame).values.clone(),
+        tool: p.block(b.tool).values.clone(),
+        camera: camera_with(template, &p.block(b.camera).values)?,
+    })
+}
+
+/// The 6 x 6 covariance in the `Se3` chart of a transform whose increment coordinates `free`
+/// have covariance `c` and derivative `m` (6 x 6 over all increment coordinates).
+fn chart_covariance(m: &Matrix6<f64>, free: &[usize], c: Option<DMatrix<f64>>) -> Matrix6<f64> {
+    let Some(c) = c else { return Matrix6::zeros() };
+    let sub = DMatrix::from_fn(6, free.len(), |i, k| m[(i, free[k])]);
+    let full = &sub * c * sub.transpose();
+    Matrix6::from_fn(|i, j| full[(i, j)])
 }
 
 /// `1.4826 * median |r|` over the whitened residual components.
@@ -405,6 +540,28 @@ pub fn calibrate_joint(
         v.t_base_flange = model.forward(q).map_err(|e| CalibError::Data(format!("image {}: {e}", v.name)))?;
     }
     let start = calibrate_hand_eye(&nominal, &options.hand_eye)?;
+    calibrate_joint_from(model, data, joints, start, options)
+}
+
+/// [`calibrate_joint`] from a given hand-eye start (`X`, `W` and the camera of `start`, as
+/// [`calibrate_hand_eye`] gives it for the nominal robot's flange poses). The start also fixes
+/// the gauge: frame and tool coordinates the selection holds stay at the start's values, so
+/// two adjustments from the same start (of a noisy recording and of its noise-free truth, say)
+/// have comparable robot parameters.
+pub fn calibrate_joint_from(
+    model: &RobotModel,
+    data: &HandEyeData,
+    joints: &[Vec<f64>],
+    start: HandEyeResult,
+    options: &JointOptions,
+) -> Result<JointCalibration> {
+    if joints.len() != data.views.len() {
+        return Err(CalibError::Data(format!("{} joint readings for {} images", joints.len(), data.views.len())));
+    }
+    let mut nominal = data.clone();
+    for (v, q) in nominal.views.iter_mut().zip(joints) {
+        v.t_base_flange = model.forward(q).map_err(|e| CalibError::Data(format!("image {}: {e}", v.name)))?;
+    }
     // 2. The robot parameters: the kinematic calibration's own selection.
     let kin = KinematicOptions {
         estimate_device_frame: true,
@@ -432,18 +589,31 @@ pub fn calibrate_joint(
     let robot0: Vec<f64> = robot_idx.iter().map(|&i| start_values[i]).collect();
     let scales: Vec<f64> = robot_idx.iter().map(|&i| layout.scales[i]).collect();
     // 3. The solve: plain least squares, then the Huber loss.
-    let chain0 = Chain { x: start.hand_eye.transform, w: start.world.transform, scale: 1.0 };
+    let sub = |r: &std::ops::Range<usize>| -> Vec<usize> {
+        free_all.iter().filter(|&&i| r.contains(&i)).map(|i| i - r.start).collect()
+    };
+    let setup = Setup {
+        map: map.clone(),
+        frames: Arc::new(FrameMap {
+            f0: start.world.transform.inverse(),
+            x0: start.hand_eye.transform,
+            frame_free: sub(&layout.frame),
+            tool_free: sub(&layout.tool),
+        }),
+        scales,
+        data,
+        joints,
+        options: &options.hand_eye,
+    };
     let hopts = &options.hand_eye;
-    let (mut p, b) = build(&map, data, joints, &robot0, &chain0, &start.camera, hopts, &scales, Loss::Squared)?;
+    let state0 = State { robot: robot0, frame: vec![0.0; 6], tool: vec![0.0; 6], camera: start.camera };
+    let (mut p, b) = build(&setup, &state0, Loss::Squared)?;
     let first = p.solve(&hopts.solver).map_err(lsq_error)?;
     let mut iterations = first.summary.iterations;
     let mut summary = first.summary;
     if let Some(loss) = hopts.second_loss(robust_sigma(&p)?) {
-        let robot = p.block(b.robot).values.clone();
-        let chain =
-            Chain { x: Se3::to_isometry(&p.block(b.x).values), w: Se3::to_isometry(&p.block(b.w).values), scale: 1.0 };
-        let cam = camera_with(&start.camera, &p.block(b.camera).values)?;
-        let (p2, _) = build(&map, data, joints, &robot, &chain, &cam, hopts, &scales, loss)?;
+        let state = read_back(&p, &b, &start.camera)?;
+        let (p2, _) = build(&setup, &state, loss)?;
         p = p2;
         let second = p.solve(&hopts.solver).map_err(lsq_error)?;
         iterations += second.summary.iterations;
@@ -452,13 +622,15 @@ pub fn calibrate_joint(
     // 4. Covariance (the full inverse; each block's part is its marginal covariance).
     let cov = p.covariance().map_err(lsq_error)?;
     let block = |id| cov.block(id).ok_or_else(|| CalibError::Numeric("covariance block missing".into()));
-    let six = |m: DMatrix<f64>| Matrix6::from_fn(|i, j| m[(i, j)]);
-    let robot = p.block(b.robot).values.clone();
+    let state = read_back(&p, &b, &start.camera)?;
+    let robot = state.robot.clone();
     let robot_cov = block(b.robot)?;
     let cam_cov = block(b.camera)?;
-    let x = Se3::to_isometry(&p.block(b.x).values);
-    let w = Se3::to_isometry(&p.block(b.w).values);
-    let camera = camera_with(&start.camera, &p.block(b.camera).values)?;
+    let (w, x) = setup.frames.w_and_x(&state.frame, &state.tool);
+    let (m_w, m_x) = setup.frames.jacobians(&state.frame, &state.tool);
+    let world_cov = chart_covariance(&m_w, &setup.frames.frame_free, cov.block(b.frame));
+    let hand_eye_cov = chart_covariance(&m_x, &setup.frames.tool_free, cov.block(b.tool));
+    let camera = state.camera;
     // 5. The calibrated model and the figures.
     let (m, _) = map.apply(&robot, &vec![0.0; model.dof()]).map_err(lsq_error)?;
     let mut joint_offsets = vec![0.0; model.dof()];
@@ -512,8 +684,8 @@ pub fn calibrate_joint(
         calibrated,
         camera,
         camera_std: (0..cam_cov.nrows()).map(|i| cam_cov[(i, i)].max(0.0).sqrt()).collect(),
-        hand_eye: TransformEstimate { transform: x, covariance: six(block(b.x)?) },
-        world: TransformEstimate { transform: w, covariance: six(block(b.w)?) },
+        hand_eye: TransformEstimate { transform: x, covariance: hand_eye_cov },
+        world: TransformEstimate { transform: w, covariance: world_cov },
         layout,
         params,
         free,
@@ -615,8 +787,18 @@ mod tests {
                 Mount::EyeInHand => fk * x * t_cam_target,
                 Mount::EyeToHand => fk * x * t_cam_target.inverse(),
             };
+            // Off the start of both increments.
+            let f = vec![0.002, -0.001, 0.003, 0.01, -0.02, 0.015];
+            let t = vec![-0.001, 0.002, 0.001, -0.01, 0.02, 0.005];
+            let frames = Arc::new(FrameMap {
+                f0: exp6(&f).inverse() * w.inverse(),
+                x0: x * exp6(&t).inverse(),
+                frame_free: (0..6).collect(),
+                tool_free: (0..6).collect(),
+            });
             let r = RobotCorner {
                 map: map.clone(),
+                frames,
                 mount,
                 q: q.clone(),
                 point_m: Point3::new(0.05, 0.03, 0.0),
@@ -624,15 +806,14 @@ mod tests {
                 whiten: whitening(&Matrix2::new(0.04, 0.01, 0.01, 0.09)).unwrap(),
                 camera,
             };
-            let blocks: Vec<Vec<f64>> = vec![
-                v.clone(),
-                Se3::from_isometry(&x).to_vec(),
-                Se3::from_isometry(&w).to_vec(),
-                camera.parameter_values(),
-            ];
+            let blocks: Vec<Vec<f64>> = vec![v.clone(), f, t, camera.parameter_values()];
             let views: Vec<&[f64]> = blocks.iter().map(|b| b.as_slice()).collect();
-            let manifolds: Vec<Arc<dyn Manifold>> =
-                vec![Arc::new(Euclidean { n: map.n }), Arc::new(Se3), Arc::new(Se3), Arc::new(Euclidean { n: 9 })];
+            let manifolds: Vec<Arc<dyn Manifold>> = vec![
+                Arc::new(Euclidean { n: map.n }),
+                Arc::new(Euclidean { n: 6 }),
+                Arc::new(Euclidean { n: 6 }),
+                Arc::new(Euclidean { n: 9 }),
+            ];
             let scales = vec![
                 vec![1e-4; map.n],
                 vec![1e-3; 6],
