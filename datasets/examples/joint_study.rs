@@ -49,7 +49,7 @@ fn main() {
         match run_joint_study(&config, seed) {
             Ok(r) => {
                 println!(
-                    "{:>4} | {:>8.4} {:>8.4} {:>8.4} {:>8.4} | {:>6.2} {:>6.2} | {:>4}/{:<4} {:>4}/{:<4} {:>4}/{:<4} | {:>6.3} {:>5.3}  ({:.1} s; floor {:.4} mm; max z joint {:.2}; 2-step true camera {:.4})",
+                    "{:>4} | {:>8.4} {:>8.4} {:>8.4} {:>8.4} | {:>6.2} {:>6.2} | {:>4}/{:<4} {:>4}/{:<4} {:>4}/{:<4} | {:>6.3} {:>5.3}  ({:.1} s; floor {:.4} mm; max z joint {:.2}; 2-step true camera {:.4}; fx error joint {:+.2} +- {:.2} px, 2-step {:+.2} +- {:.2} px)",
                     r.seed,
                     r.tracker.rms_mm,
                     r.two_step.rms_mm,
@@ -69,6 +69,10 @@ fn main() {
                     r.noise_floor_mm,
                     r.joint_coverage.max_z,
                     r.two_step_true_camera.rms_mm,
+                    r.joint_fx_error_px,
+                    r.joint_fx_std_px,
+                    r.two_step_fx_error_px,
+                    r.two_step_fx_std_px,
                 );
                 runs.push(r);
             }

@@ -183,13 +183,14 @@ pub fn pose_row(pose: &ImagePose, q: &[f64]) -> PoseMeasurement {
     }
 }
 
+/// What [`measure_views`] returns: the camera, `(view index, pose)` for every view measured,
+/// and the views left out.
+pub type MeasuredViews = (RecordingCamera, Vec<(usize, ImagePose)>, Vec<Skipped>);
+
 /// Measures every view of `data` (see the module documentation): the camera given or
 /// calibrated from all of `data`'s views, and each view's pose with its covariance. Returns the
 /// camera, `(view index, pose)` for every view measured, and the views left out.
-pub fn measure_views(
-    data: &HandEyeData,
-    opts: &RecordingOptions,
-) -> Result<(RecordingCamera, Vec<(usize, ImagePose)>, Vec<Skipped>)> {
+pub fn measure_views(data: &HandEyeData, opts: &RecordingOptions) -> Result<MeasuredViews> {
     let target = PlanarTarget { points_m: data.target_points_m.clone(), reversible: false };
     let (camera, covariance) = match &opts.camera {
         Some(c) => (RecordingCamera { camera: *c, std: None, calibration_rms_px: None, calibration_views: 0 }, None),

@@ -58,7 +58,7 @@ use crate::kinematic::{identifiable_candidates, CalibratedModel, KinematicOption
 use crate::measurement::{PoseMeasurement, Split};
 
 /// Options of [`calibrate_joint`].
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct JointOptions {
     /// The robot parameters (model parameters, joint offsets) and the identifiability tolerance,
     /// exactly as the kinematic calibration reads them; frames, tool and effects do not apply
@@ -67,12 +67,6 @@ pub struct JointOptions {
     /// The hand-eye start, and the fallback corner sigma, Huber threshold and solver of the
     /// joint solve.
     pub hand_eye: HandEyeOptions,
-}
-
-impl Default for JointOptions {
-    fn default() -> Self {
-        Self { kinematic: KinematicOptions::default(), hand_eye: HandEyeOptions::default() }
-    }
 }
 
 /// The result of [`calibrate_joint`].
@@ -655,17 +649,17 @@ pub fn calibrate_joint_from(
     let figures = chain_figures(data.mount, &camera, &data.target_points_m, &views, &pnp, &Chain { x, w, scale: 1.0 });
     let mut params = Vec::new();
     let mut free = Vec::new();
-    for i in layout.offsets.start..layout.model.end {
+    for (i, &start_value) in start_values.iter().enumerate().take(layout.model.end).skip(layout.offsets.start) {
         let k = robot_idx.iter().position(|&r| r == i);
         let std = k.map(|k| robot_cov[(k, k)].max(0.0).sqrt());
-        let value = k.map_or(start_values[i], |k| robot[k]);
+        let value = k.map_or(start_value, |k| robot[k]);
         if k.is_some() {
             free.push(params.len());
         }
         params.push(ParamResult {
             name: layout.names[i].clone(),
             unit: layout.units[i],
-            start: start_values[i],
+            start: start_value,
             value,
             std,
             free: k.is_some(),
@@ -676,7 +670,7 @@ pub fn calibrate_joint_from(
                     "joint offsets not identified (option)".to_string()
                 }
             }),
-            nu: std.map(|s| (value - start_values[i]).abs() / s),
+            nu: std.map(|s| (value - start_value).abs() / s),
         });
     }
     Ok(JointCalibration {

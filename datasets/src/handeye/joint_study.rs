@@ -261,6 +261,12 @@ pub struct JointStudyRun {
     pub start_train_rms_px: f64,
     /// Error of the joint adjustment's focal length, pixels.
     pub joint_fx_error_px: f64,
+    /// Its standard deviation, pixels.
+    pub joint_fx_std_px: f64,
+    /// Error of the focal length the two-step path calibrated from the training images, pixels.
+    pub two_step_fx_error_px: f64,
+    /// Its standard deviation, pixels.
+    pub two_step_fx_std_px: f64,
 }
 
 impl JointStudyRun {
@@ -411,7 +417,7 @@ pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStud
         calibration: CalibrationOptions::default(),
         corner_sigma_px: config.corner_sigma_px,
     };
-    let (_, measured, _) = measure_views(&data, &rec_opts)?;
+    let (two_step_camera, measured, _) = measure_views(&data, &rec_opts)?;
     let cam_rows: Vec<PoseMeasurement> = measured.iter().map(|(k, pose)| pose_row(pose, &train_q[*k])).collect();
     let cam_refs: Vec<&PoseMeasurement> = cam_rows.iter().collect();
     let two_step = calibrate(&nominal, &cam_refs, &KinematicOptions::default()).map_err(fail)?;
@@ -461,6 +467,9 @@ pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStud
         joint_s0: joint.s0,
         start_train_rms_px: joint.start.figures.train_rms_px,
         joint_fx_error_px: joint.camera.intrinsics.fx_px - config.camera.intrinsics.fx_px,
+        joint_fx_std_px: joint.camera_std[0],
+        two_step_fx_error_px: two_step_camera.camera.intrinsics.fx_px - config.camera.intrinsics.fx_px,
+        two_step_fx_std_px: two_step_camera.std.as_ref().map_or(f64::NAN, |s| s[0]),
     })
 }
 
