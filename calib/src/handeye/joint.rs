@@ -58,7 +58,7 @@ use crate::kinematic::{identifiable_candidates, CalibratedModel, KinematicOption
 use crate::measurement::{PoseMeasurement, Split};
 
 /// Options of [`calibrate_joint`].
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct JointOptions {
     /// The robot parameters (model parameters, joint offsets) and the identifiability tolerance,
     /// exactly as the kinematic calibration reads them; frames, tool and effects do not apply
@@ -67,6 +67,24 @@ pub struct JointOptions {
     /// The hand-eye start, and the fallback corner sigma, Huber threshold and solver of the
     /// joint solve.
     pub hand_eye: HandEyeOptions,
+}
+
+impl Default for JointOptions {
+    /// The kinematic calibration's defaults, and a hand-eye start that takes the nominal robot's
+    /// flange poses as noisy measurements (0.1 mm and 0.1 mrad to start, the levels estimated by
+    /// variance components): the nominal robot is wrong by its kinematic errors, which the start
+    /// must not force into `X`, `W` and the camera.
+    fn default() -> Self {
+        Self {
+            kinematic: KinematicOptions::default(),
+            hand_eye: HandEyeOptions {
+                robot_sigma_m: 1e-4,
+                robot_sigma_rad: 1e-4,
+                estimate_noise: true,
+                ..HandEyeOptions::default()
+            },
+        }
+    }
 }
 
 /// The result of [`calibrate_joint`].
