@@ -125,17 +125,81 @@ pub fn measure_recording(
     // The flange poses are not needed to measure: identity placeholders.
     let flange = vec![Isometry3::identity(); table.rows.len()];
     let (data, mut skipped) = load_recording(images, table, &flange, pattern, opts.mount)?;
-    let target = PlanarTarget { points_m: data.target_points_m.clone(), reversible: false };
-    let (camera, covariance) = match &opts.camera {
-        Some(c) => (RecordingCamera { camera: *c, std: None, calibration_rms_px: None, calibration_views: 0 }, None),
-        None => calibrate_from_views(&data, &target, &opts.calibration)?,
-    };
-    let rig = CameraRig { cameras: vec![camera.camera], t_cam_cam0: vec![Isometry3::identity()], covariance };
+    let (camera, measured, more) = measure_views(&data, opts)?;
+    skipped.extend(more);
     let by_image: std::collections::HashMap<&str, usize> =
         table.rows.iter().enumerate().map(|(i, r)| (r.image.as_str(), i)).collect();
     let mut poses = Vec::new();
     let mut rows = Vec::new();
-    for v in &data.views {
+    for (k, pose) in measured {
+        let v = &data.views[k];
+        let row = &table.rows[by_image[v.name.as_str()]];
+        if let RobotReading::Joints(q) = &row.robot {
+            let mut m = pose_row(&pose, q);
+            m.pose_id = stem(&v.name);
+            m.split = Some(row.split);
+            m.source_line = Some(row.line);
+            rows.push(m);
+        }
+        poses.push(pose);
+    }
+    if poses.is_empty() {
+        return Err(DatasetError::Input(format!(
+            "no image of {} could be measured ({} left out; the first: {})",
+            table.file.display(),
+            skipped.len(),
+            skipped.first().map(|s| format!("{}: {}", s.what, s.reason)).unwrap_or_default()
+        )));
+    }
+    let rows = (!table.joint_units.is_empty()).then(|| MeasurementSet {
+        source: format!("camera measurement of the images of {}", table.file.display()),
+        rows,
+    });
+    Ok(RecordingMeasurement { camera, poses, rows, skipped, source: table.source.clone() })
+}
+
+/// The measurement-table row of one measured view with joint readings `q`: the measured pose
+/// with its full covariance (SI), `sigma_m` / `sigma_rad` the RMS of the position and rotation
+/// standard deviations; `pose_id` is the image's name, no split.
+pub fn pose_row(pose: &ImagePose, q: &[f64]) -> PoseMeasurement {
+    let cov = &pose.measured_covariance_mm_rad;
+    let sigma_mm = ((cov[(0, 0)] + cov[(1, 1)] + cov[(2, 2)]) / 3.0).sqrt();
+    let sigma_rad = ((cov[(3, 3)] + cov[(4, 4)] + cov[(5, 5)]) / 3.0).sqrt();
+    PoseMeasurement {
+        pose_id: pose.image.clone(),
+        q: q.to_vec(),
+        position_m: pose.measured.translation.vector,
+        orientation: Some(pose.measured.rotation),
+        sigma_m: Some(sigma_mm * 1e-3),
+        sigma_rad: Some(sigma_rad),
+        covariance: Some(PoseCovariance::from_mm_rad(cov)),
+        t_s: None,
+        temp_c: None,
+        payload_kg: None,
+        dir: None,
+        split: None,
+        source_line: None,
+        meta: Default::default(),
+    }
+}
+
+/// What [`measure_views`] returns: the camera, `(view index, pose)` for every view measured,
+/// and the views left out.
+pub type MeasuredViews = (RecordingCamera, Vec<(usize, ImagePose)>, Vec<Skipped>);
+
+/// Measures every view of `data` (see the module documentation): the camera given or
+/// calibrated from all of `data`'s views, and each view's pose with its covariance. Returns the
+/// camera, `(view index, pose)` for every view measured, and the views left out.
+pub fn measure_views(data: &HandEyeData, opts: &RecordingOptions) -> Result<MeasuredViews> {
+    let target = PlanarTarget { points_m: data.target_points_m.clone(), reversible: false };
+    let (camera, covariance) = match &opts.camera {
+        Some(c) => (RecordingCamera { camera: *c, std: None, calibration_rms_px: None, calibration_views: 0 }, None),
+        None => calibrate_from_views(data, &target, &opts.calibration)?,
+    };
+    let rig = CameraRig { cameras: vec![camera.camera], t_cam_cam0: vec![Isometry3::identity()], covariance };
+    let mut out = Vec::new();
+    let mut skipped = Vec::new();
+    for (k, v) in data.views.iter().enumerate() {
         let obs = RigObservation {
             camera: 0,
             point_ids: v.point_ids.clone(),
@@ -158,48 +222,18 @@ pub fn measure_recording(
             Mount::EyeToHand => (est.t_cam_target, est.covariance),
             Mount::EyeInHand => (est.t_cam_target.inverse(), inverse_covariance(&est.t_cam_target, &est.covariance)),
         };
-        let row = &table.rows[by_image[v.name.as_str()]];
-        if let RobotReading::Joints(q) = &row.robot {
-            let sigma_mm = ((cov[(0, 0)] + cov[(1, 1)] + cov[(2, 2)]) / 3.0).sqrt();
-            let sigma_rad = ((cov[(3, 3)] + cov[(4, 4)] + cov[(5, 5)]) / 3.0).sqrt();
-            rows.push(PoseMeasurement {
-                pose_id: stem(&v.name),
-                q: q.clone(),
-                position_m: measured.translation.vector,
-                orientation: Some(measured.rotation),
-                sigma_m: Some(sigma_mm * 1e-3),
-                sigma_rad: Some(sigma_rad),
-                covariance: Some(PoseCovariance::from_mm_rad(&cov)),
-                t_s: None,
-                temp_c: None,
-                payload_kg: None,
-                dir: None,
-                split: Some(row.split),
-                source_line: Some(row.line),
-                meta: Default::default(),
-            });
-        }
-        poses.push(ImagePose {
-            image: v.name.clone(),
-            split: v.split,
-            estimate: est,
-            measured,
-            measured_covariance_mm_rad: cov,
-        });
+        out.push((
+            k,
+            ImagePose {
+                image: v.name.clone(),
+                split: v.split,
+                estimate: est,
+                measured,
+                measured_covariance_mm_rad: cov,
+            },
+        ));
     }
-    if poses.is_empty() {
-        return Err(DatasetError::Input(format!(
-            "no image of {} could be measured ({} left out; the first: {})",
-            table.file.display(),
-            skipped.len(),
-            skipped.first().map(|s| format!("{}: {}", s.what, s.reason)).unwrap_or_default()
-        )));
-    }
-    let rows = (!table.joint_units.is_empty()).then(|| MeasurementSet {
-        source: format!("camera measurement of the images of {}", table.file.display()),
-        rows,
-    });
-    Ok(RecordingMeasurement { camera, poses, rows, skipped, source: table.source.clone() })
+    Ok((camera, out, skipped))
 }
 
 fn views_of(data: &HandEyeData) -> Vec<View> {

@@ -38,6 +38,7 @@
 pub mod closed;
 pub mod evaluate;
 pub mod geometry;
+pub mod joint;
 pub mod opencv;
 mod refine;
 pub mod residual;
@@ -52,6 +53,7 @@ use ferrocal_vision::camera::{CameraModel, ImageSize};
 pub use closed::{ClosedForm, PosePair};
 pub use evaluate::{chain_figures, chain_residuals_px, Chain, ChainFigures, ViewFigures};
 pub use geometry::{MotionGeometry, MIN_ROTATION_DEG};
+pub use joint::{calibrate_joint, calibrate_joint_from, JointCalibration, JointOptions};
 pub use refine::{calibrate_hand_eye, MAX_NOISE_ITERATIONS, MIN_TRAIN_VIEWS, NOISE_TOLERANCE};
 
 use crate::measurement::Split;

@@ -261,7 +261,7 @@ impl StateLayout {
 
     /// Start values of every candidate: zero increments of frames, tool, offsets and effects,
     /// and the model's own values of its parameters.
-    fn start_values(&self, model: &RobotModel) -> Vec<f64> {
+    pub fn start_values(&self, model: &RobotModel) -> Vec<f64> {
         let params = model.parameters();
         let mut start = vec![0.0; self.len()];
         for (k, &pi) in self.model_index.iter().enumerate() {
@@ -401,29 +401,7 @@ pub fn calibrate(
         }
     }
     let layout = StateLayout::new(model, tool_dim, &opts.model_params, &opts.effects);
-    // Start: register the nominal model's positions to the measurements.
-    let mut nominal = Vec::with_capacity(rows.len());
-    for r in rows {
-        nominal.push(model.forward(&r.q).map_err(|e| row_error(r, e))?);
-    }
-    let nominal_pts: Vec<Point3<f64>> = nominal.iter().map(|t| Point3::from(t.translation.vector)).collect();
-    let measured: Vec<Point3<f64>> = rows.iter().map(|r| Point3::from(r.position_m)).collect();
-    let (f0, tool0) = match opts.fixed_device_frame {
-        Some(f) => (f, Isometry3::identity()),
-        None => {
-            let rigid = (fit_rigid(&nominal_pts, &measured)?, Isometry3::identity());
-            // With measured orientations, the device frame and the whole tool frame also follow in
-            // closed form (AX = ZB): needed when the target sits far from the flange on a robot
-            // whose flange origin hardly moves (a positioner). The start that fits the training
-            // positions better is taken, so the positions-only start stays where it serves.
-            match use_ori.then(|| pose_start(&nominal, rows)).flatten() {
-                Some(closed) if start_rms(&nominal, &measured, &closed) < start_rms(&nominal, &measured, &rigid) => {
-                    closed
-                }
-                _ => rigid,
-            }
-        }
-    };
+    let (f0, tool0) = start_frames(model, rows, opts, use_ori)?;
     let sigma_pos: Vec<f64> = rows.iter().map(|r| r.sigma_m.unwrap_or(opts.sigma_position_m)).collect();
     let sigma_ori: Vec<f64> = rows.iter().map(|r| r.sigma_rad.unwrap_or(opts.sigma_orientation_rad)).collect();
     if sigma_pos.iter().chain(&sigma_ori).any(|s| !(s.is_finite() && *s > 0.0)) {
@@ -451,40 +429,8 @@ pub fn calibrate(
     let train_before = problem.calibrated(&start)?.evaluate(rows)?;
 
     // Structural identifiability at the start, on the scaled Jacobian.
-    let scaled = |jac: &DMatrix<f64>| {
-        let mut s = jac.clone();
-        for (c, sc) in layout.scales.iter().enumerate() {
-            s.column_mut(c).scale_mut(*sc);
-        }
-        s
-    };
-    let mut fixed_reason: Vec<Option<String>> = vec![None; layout.len()];
-    if !opts.estimate_device_frame {
-        for i in layout.frame.clone() {
-            fixed_reason[i] = Some("device frame given".into());
-        }
-    }
-    if !opts.estimate_tool {
-        for i in layout.tool.clone() {
-            fixed_reason[i] = Some("tool offset given".into());
-        }
-    }
-    if !opts.joint_offsets {
-        for i in layout.offsets.clone() {
-            fixed_reason[i] = Some("joint offsets not identified (option)".into());
-        }
-    }
-    // Structural identifiability at the start over the candidates the options leave free.
-    let allowed: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
-    if allowed.is_empty() {
-        return Err(CalibError::Data("nothing to identify: every parameter is fixed by the options".into()));
-    }
-    let j0 = problem.full_jacobian(&start)?;
-    let id_before = analyze_subset(&scaled(&j0), &layout.names, &allowed, opts.rank_tolerance)?;
-    for &i in &id_before.fixed {
-        fixed_reason[allowed[i]] =
-            Some("not identifiable from these measurements (redundant with the kept parameters)".into());
-    }
+    let scaled = |jac: &DMatrix<f64>| scale_columns(jac, &layout);
+    let (mut fixed_reason, allowed, id_before) = structural_selection(&problem, &layout, &start, opts)?;
     let mut free: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
     if rows.len() * problem.block() <= free.len() {
         return Err(CalibError::TooFew(format!(
@@ -574,6 +520,140 @@ pub fn calibrate(
         used_orientation: use_ori,
         advice,
     })
+}
+
+/// The candidates [`calibrate`] would identify from `rows` with `opts`: its candidate layout,
+/// and the indices (into the layout) of the candidates its structural identifiability analysis
+/// at the start keeps free, with that analysis. The same selection `calibrate` makes before
+/// it solves (no practical-identifiability reduction, which needs the solution); other
+/// adjustments that estimate the same robot from other observations (the joint adjustment of
+/// robot and camera, [`crate::handeye::joint`]) take their robot parameters from it.
+pub fn identifiable_candidates(
+    model: &RobotModel,
+    rows: &[&PoseMeasurement],
+    opts: &KinematicOptions,
+) -> Result<(StateLayout, Vec<usize>, Identifiability)> {
+    if rows.is_empty() {
+        return Err(CalibError::TooFew("no measured poses to select parameters from".into()));
+    }
+    if let Some(r) = rows.iter().find(|r| r.q.len() != model.dof()) {
+        return Err(row_error(r, format!("{} joint values, the model has {}", r.q.len(), model.dof())));
+    }
+    let use_ori = opts.use_orientation && rows.iter().all(|r| r.orientation.is_some());
+    let layout = StateLayout::new(model, if use_ori { 6 } else { 3 }, &opts.model_params, &opts.effects);
+    let (f0, tool0) = start_frames(model, rows, opts, use_ori)?;
+    let sigma_pos: Vec<f64> = rows.iter().map(|r| r.sigma_m.unwrap_or(opts.sigma_position_m)).collect();
+    let sigma_ori: Vec<f64> = rows.iter().map(|r| r.sigma_rad.unwrap_or(opts.sigma_orientation_rad)).collect();
+    if sigma_pos.iter().chain(&sigma_ori).any(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(CalibError::Data("every standard deviation must be positive".into()));
+    }
+    let whiten = whitening_matrices(rows, use_ori, &sigma_ori, opts.use_covariance, opts.cost)?;
+    let start = layout.start_values(model);
+    let problem = KinProblem {
+        base_model: model.clone(),
+        rows,
+        layout: &layout,
+        f0,
+        tool0,
+        use_ori,
+        start: start.clone(),
+        free: (0..layout.len()).collect(),
+        sigma_pos,
+        sigma_ori,
+        whiten,
+        effects: opts.effects.clone(),
+        cost: opts.cost,
+        n_legs: model.parallel().and_then(|p| p.mechanism().ok()).map_or(0, |m| m.legs.len()),
+    };
+    let (fixed_reason, _, id) = structural_selection(&problem, &layout, &start, opts)?;
+    let free = (0..layout.len()).filter(|i| fixed_reason[*i].is_none()).collect();
+    Ok((layout, free, id))
+}
+
+/// The start of the device frame and the tool frame: the given device frame, else the rigid
+/// registration of the nominal model's positions to the measured ones, or (with orientations)
+/// the closed form of `AX = ZB` when it fits the training positions better.
+fn start_frames(
+    model: &RobotModel,
+    rows: &[&PoseMeasurement],
+    opts: &KinematicOptions,
+    use_ori: bool,
+) -> Result<(Isometry3<f64>, Isometry3<f64>)> {
+    // Start: register the nominal model's positions to the measurements.
+    let mut nominal = Vec::with_capacity(rows.len());
+    for r in rows {
+        nominal.push(model.forward(&r.q).map_err(|e| row_error(r, e))?);
+    }
+    let nominal_pts: Vec<Point3<f64>> = nominal.iter().map(|t| Point3::from(t.translation.vector)).collect();
+    let measured: Vec<Point3<f64>> = rows.iter().map(|r| Point3::from(r.position_m)).collect();
+    Ok(match opts.fixed_device_frame {
+        Some(f) => (f, Isometry3::identity()),
+        None => {
+            let rigid = (fit_rigid(&nominal_pts, &measured)?, Isometry3::identity());
+            // With measured orientations, the device frame and the whole tool frame also follow in
+            // closed form (AX = ZB): needed when the target sits far from the flange on a robot
+            // whose flange origin hardly moves (a positioner). The start that fits the training
+            // positions better is taken, so the positions-only start stays where it serves.
+            match use_ori.then(|| pose_start(&nominal, rows)).flatten() {
+                Some(closed) if start_rms(&nominal, &measured, &closed) < start_rms(&nominal, &measured, &rigid) => {
+                    closed
+                }
+                _ => rigid,
+            }
+        }
+    })
+}
+
+/// `jac` with every column multiplied by its candidate's typical scale.
+fn scale_columns(jac: &DMatrix<f64>, layout: &StateLayout) -> DMatrix<f64> {
+    let mut s = jac.clone();
+    for (c, sc) in layout.scales.iter().enumerate() {
+        s.column_mut(c).scale_mut(*sc);
+    }
+    s
+}
+
+/// The structural identifiability at the start: which candidates the options fix, and, over
+/// the others, the pivoted QR of the scaled Jacobian (see [`analyze_subset`]). Returns the
+/// reason every fixed candidate is fixed, the candidates the options leave free and the
+/// analysis.
+#[allow(clippy::type_complexity)]
+fn structural_selection(
+    problem: &KinProblem,
+    layout: &StateLayout,
+    start: &[f64],
+    opts: &KinematicOptions,
+) -> Result<(Vec<Option<String>>, Vec<usize>, Identifiability)> {
+    let all: Vec<usize> = (0..layout.len()).collect();
+    let scaled = |jac: &DMatrix<f64>| scale_columns(jac, layout);
+    let mut fixed_reason: Vec<Option<String>> = vec![None; layout.len()];
+    if !opts.estimate_device_frame {
+        for i in layout.frame.clone() {
+            fixed_reason[i] = Some("device frame given".into());
+        }
+    }
+    if !opts.estimate_tool {
+        for i in layout.tool.clone() {
+            fixed_reason[i] = Some("tool offset given".into());
+        }
+    }
+    if !opts.joint_offsets {
+        for i in layout.offsets.clone() {
+            fixed_reason[i] = Some("joint offsets not identified (option)".into());
+        }
+    }
+    // Structural identifiability at the start over the candidates the options leave free.
+    let allowed: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
+    if allowed.is_empty() {
+        return Err(CalibError::Data("nothing to identify: every parameter is fixed by the options".into()));
+    }
+    let j0 = problem.full_jacobian(start)?;
+    let id_before = analyze_subset(&scaled(&j0), &layout.names, &allowed, opts.rank_tolerance)?;
+    for &i in &id_before.fixed {
+        fixed_reason[allowed[i]] =
+            Some("not identifiable from these measurements (redundant with the kept parameters)".into());
+    }
+    Ok((fixed_reason, allowed, id_before))
 }
 
 /// The Jacobian of the predicted target positions (device frame, 3 rows per row, each divided

@@ -1,10 +1,12 @@
 //! Hand-eye recordings: the poses table of `ferrocal handeye` ([`poses`]), the importer of
 //! ROS-Industrial industrial_calibration sets ([`ic`]), images and poses to a recording with the
-//! camera files `--intrinsics` reads ([`recording`]), and simulated recordings with the Monte
-//! Carlo study of the hand-eye covariance ([`sim`]).
+//! camera files `--intrinsics` reads ([`recording`]), simulated recordings with the Monte
+//! Carlo study of the hand-eye covariance ([`sim`]), and the study of the camera-based robot
+//! calibration (two-step and joint adjustment) against a tracker's ([`joint_study`]).
 
 pub mod ic;
 pub mod ic_kinematic;
+pub mod joint_study;
 pub mod poses;
 pub mod recording;
 pub mod sim;

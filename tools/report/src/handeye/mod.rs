@@ -13,7 +13,9 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_calib::handeye::opencv::{best_baseline, opencv_baselines};
-use ferrocal_calib::handeye::{calibrate_hand_eye, HandEyeOptions, IntrinsicsMode, Mount};
+use ferrocal_calib::handeye::{
+    calibrate_hand_eye, calibrate_joint_from, HandEyeOptions, IntrinsicsMode, JointOptions, Mount,
+};
 use ferrocal_datasets::handeye::{coverage_study, load_recording, read_camera_file, read_handeye_poses};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_robot::RobotModel;
@@ -86,6 +88,11 @@ pub struct HandeyeArgs {
     /// Huber threshold in robust standard deviations (0: plain least squares).
     #[arg(long, default_value_t = 3.0)]
     pub huber: f64,
+    /// With --robot and joint readings: adjust the robot's kinematic parameters together with
+    /// the camera, W and X (the joint adjustment) and write the calibrated robot here, in the
+    /// format `evaluate` reads (device frame: W^-1, the camera's frame for eye-to-hand; tool: X).
+    #[arg(long, requires = "robot")]
+    pub out: Option<PathBuf>,
 }
 
 /// `ferrocal handeye <command>`.
@@ -208,6 +215,31 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
         write_atomic(h, rep.to_html().as_bytes())?;
     }
     print_summary(&result, best_baseline(&baselines), source);
+    if let (Some(out), Some(model), Some(spec)) = (&a.out, &robot, &a.robot) {
+        let rows: std::collections::HashMap<&str, &ferrocal_datasets::handeye::PoseRow> =
+            table.rows.iter().map(|r| (r.image.as_str(), r)).collect();
+        let joints = data
+            .views
+            .iter()
+            .map(|v| match rows.get(v.name.as_str()).map(|r| &r.robot) {
+                Some(ferrocal_datasets::handeye::RobotReading::Joints(q)) => Ok(q.clone()),
+                _ => bail!("handeye --out: image {} has no joint readings in the poses table", v.name),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let joint_options = JointOptions { hand_eye: options.clone(), ..JointOptions::default() };
+        let joint = calibrate_joint_from(model, &data, &joints, result.clone(), &joint_options)
+            .context("handeye: the joint adjustment of robot and camera")?;
+        write_atomic(out, serde_json::to_string_pretty(&joint.file(spec))?.as_bytes())?;
+        let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
+        println!(
+            "joint adjustment: {} robot parameters, chain RMS train {:.4} px, held-out {} px, s0 {:.3}; calibration written to {}",
+            joint.free.len(),
+            joint.figures.train_rms_px,
+            opt(joint.figures.heldout_rms_px),
+            joint.s0,
+            out.display()
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 
