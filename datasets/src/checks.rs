@@ -221,8 +221,8 @@ pub fn intrinsics(ours: [f64; 4], reference: &IntrinsicsReference) -> Check {
 }
 
 /// How much lower the held-out reprojection error of the default (own) corners must be than
-/// that of OpenCV's recipe on the same split (measured on the OpenCV sample: 0.164 against 0.540
-/// px on the left camera, 0.162 against 0.554 px on the right).
+/// that of OpenCV's recipe on the same split (measured on the OpenCV sample: 0.173 against 0.540
+/// px on the left camera, 0.172 against 0.554 px on the right).
 pub const HELD_OUT_CORNER_RATIO: f64 = 1.5;
 
 /// The own corners' held-out reprojection error is at least [`HELD_OUT_CORNER_RATIO`] times lower
