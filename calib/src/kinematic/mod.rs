@@ -401,31 +401,9 @@ pub fn calibrate(
         }
     }
     let layout = StateLayout::new(model, tool_dim, &opts.model_params, &opts.effects);
-    let (f0, tool0) = start_frames(model, rows, opts, use_ori)?;
-    let sigma_pos: Vec<f64> = rows.iter().map(|r| r.sigma_m.unwrap_or(opts.sigma_position_m)).collect();
-    let sigma_ori: Vec<f64> = rows.iter().map(|r| r.sigma_rad.unwrap_or(opts.sigma_orientation_rad)).collect();
-    if sigma_pos.iter().chain(&sigma_ori).any(|s| !(s.is_finite() && *s > 0.0)) {
-        return Err(CalibError::Data("every standard deviation must be positive".into()));
-    }
-    let whiten = whitening_matrices(rows, use_ori, &sigma_ori, opts.use_covariance, opts.cost)?;
-    let start = layout.start_values(model);
-    let all: Vec<usize> = (0..layout.len()).collect();
-    let mut problem = KinProblem {
-        base_model: model.clone(),
-        rows,
-        layout: &layout,
-        f0,
-        tool0,
-        use_ori,
-        start: start.clone(),
-        free: all.clone(),
-        sigma_pos,
-        sigma_ori,
-        whiten,
-        effects: opts.effects.clone(),
-        cost: opts.cost,
-        n_legs: model.parallel().and_then(|p| p.mechanism().ok()).map_or(0, |m| m.legs.len()),
-    };
+    let mut problem = start_problem(model, rows, opts, &layout, use_ori)?;
+    let start = problem.start.clone();
+    let all = problem.free.clone();
     let train_before = problem.calibrated(&start)?.evaluate(rows)?;
 
     // Structural identifiability at the start, on the scaled Jacobian.
@@ -541,6 +519,22 @@ pub fn identifiable_candidates(
     }
     let use_ori = opts.use_orientation && rows.iter().all(|r| r.orientation.is_some());
     let layout = StateLayout::new(model, if use_ori { 6 } else { 3 }, &opts.model_params, &opts.effects);
+    let problem = start_problem(model, rows, opts, &layout, use_ori)?;
+    let (fixed_reason, _, id) = structural_selection(&problem, &layout, &problem.start, opts)?;
+    let free = (0..layout.len()).filter(|i| fixed_reason[*i].is_none()).collect();
+    Ok((layout, free, id))
+}
+
+/// The kinematic problem at its start, every candidate of `layout` free: the start frames, each
+/// row's standard deviations (checked positive) and whitening. [`calibrate`] and
+/// [`identifiable_candidates`] both begin here, so they select from the same problem.
+fn start_problem<'a>(
+    model: &RobotModel,
+    rows: &'a [&'a PoseMeasurement],
+    opts: &KinematicOptions,
+    layout: &'a StateLayout,
+    use_ori: bool,
+) -> Result<KinProblem<'a>> {
     let (f0, tool0) = start_frames(model, rows, opts, use_ori)?;
     let sigma_pos: Vec<f64> = rows.iter().map(|r| r.sigma_m.unwrap_or(opts.sigma_position_m)).collect();
     let sigma_ori: Vec<f64> = rows.iter().map(|r| r.sigma_rad.unwrap_or(opts.sigma_orientation_rad)).collect();
@@ -548,15 +542,14 @@ pub fn identifiable_candidates(
         return Err(CalibError::Data("every standard deviation must be positive".into()));
     }
     let whiten = whitening_matrices(rows, use_ori, &sigma_ori, opts.use_covariance, opts.cost)?;
-    let start = layout.start_values(model);
-    let problem = KinProblem {
+    Ok(KinProblem {
         base_model: model.clone(),
         rows,
-        layout: &layout,
+        layout,
         f0,
         tool0,
         use_ori,
-        start: start.clone(),
+        start: layout.start_values(model),
         free: (0..layout.len()).collect(),
         sigma_pos,
         sigma_ori,
@@ -564,10 +557,7 @@ pub fn identifiable_candidates(
         effects: opts.effects.clone(),
         cost: opts.cost,
         n_legs: model.parallel().and_then(|p| p.mechanism().ok()).map_or(0, |m| m.legs.len()),
-    };
-    let (fixed_reason, _, id) = structural_selection(&problem, &layout, &start, opts)?;
-    let free = (0..layout.len()).filter(|i| fixed_reason[*i].is_none()).collect();
-    Ok((layout, free, id))
+    })
 }
 
 /// The start of the device frame and the tool frame: the given device frame, else the rigid
