@@ -64,6 +64,23 @@ pub struct ImagePose {
     pub measured_covariance_mm_rad: Matrix6<f64>,
 }
 
+impl ImagePose {
+    /// Standard deviations of the measured position, mm per axis.
+    pub fn sigma_position_mm(&self) -> [f64; 3] {
+        [0, 1, 2].map(|i| self.measured_covariance_mm_rad[(i, i)].max(0.0).sqrt())
+    }
+
+    /// Standard deviations of the measured orientation, degrees per axis.
+    pub fn sigma_rotation_deg(&self) -> [f64; 3] {
+        [3, 4, 5].map(|i| self.measured_covariance_mm_rad[(i, i)].max(0.0).sqrt().to_degrees())
+    }
+
+    /// The RMS of the three position standard deviations, mm.
+    pub fn sigma_position_rms_mm(&self) -> f64 {
+        (self.sigma_position_mm().iter().map(|s| s * s).sum::<f64>() / 3.0).sqrt()
+    }
+}
+
 /// The camera a recording was measured with.
 #[derive(Clone, Debug, Serialize)]
 pub struct RecordingCamera {

@@ -132,8 +132,8 @@ pub fn run(
                 "n_corners": p.estimate.n_corners,
                 "t_cam_target": crate::handeye::json::transform_json(&p.estimate.t_cam_target),
                 "measured": crate::handeye::json::transform_json(&p.measured),
-                "sigma_position_mm": ([0, 1, 2].map(|i| p.measured_covariance_mm_rad[(i, i)].sqrt())),
-                "sigma_rotation_deg": ([3, 4, 5].map(|i| p.measured_covariance_mm_rad[(i, i)].sqrt().to_degrees())),
+                "sigma_position_mm": p.sigma_position_mm(),
+                "sigma_rotation_deg": p.sigma_rotation_deg(),
             })).collect::<Vec<_>>(),
         });
         write_atomic(j, serde_json::to_string_pretty(&v)?.as_bytes())?;
@@ -165,11 +165,7 @@ fn print_summary(m: &RecordingMeasurement) {
         ),
         _ => println!("camera given: fx {:.2}, fy {:.2} px", c.camera.intrinsics.fx_px, c.camera.intrinsics.fy_px),
     }
-    let mut sig: Vec<f64> = m
-        .poses
-        .iter()
-        .map(|p| ((0..3).map(|i| p.measured_covariance_mm_rad[(i, i)]).sum::<f64>() / 3.0).sqrt())
-        .collect();
+    let mut sig: Vec<f64> = m.poses.iter().map(|p| p.sigma_position_rms_mm()).collect();
     sig.sort_by(f64::total_cmp);
     let rms: Vec<f64> = m.poses.iter().map(|p| p.estimate.rms_px).collect();
     println!(
@@ -226,11 +222,7 @@ pub fn demo_section(data: &std::path::Path, work: &std::path::Path) -> Result<cr
         let source = ic.camera.map(|c| c.intrinsics);
         let rms: Vec<f64> = m.poses.iter().map(|p| p.estimate.rms_px).collect();
         let max_rms = rms.iter().cloned().fold(0.0, f64::max);
-        let mut sig: Vec<f64> = m
-            .poses
-            .iter()
-            .map(|p| ((0..3).map(|i| p.measured_covariance_mm_rad[(i, i)]).sum::<f64>() / 3.0).sqrt())
-            .collect();
+        let mut sig: Vec<f64> = m.poses.iter().map(|p| p.sigma_position_rms_mm()).collect();
         sig.sort_by(f64::total_cmp);
         for p in &m.poses {
             bars.push((p.image.clone(), folder.to_string(), p.estimate.rms_px));
@@ -257,7 +249,7 @@ pub fn demo_section(data: &std::path::Path, work: &std::path::Path) -> Result<cr
         data_json.push(json!({"set": folder, "pattern": pattern_text, "camera": m.camera, "skipped": m.skipped,
             "per_image": m.poses.iter().map(|p| json!({"image": p.image, "rms_px": p.estimate.rms_px,
             "s0": p.estimate.s0, "measured": crate::handeye::json::transform_json(&p.measured),
-            "sigma_position_mm": ([0, 1, 2].map(|i| p.measured_covariance_mm_rad[(i, i)].sqrt()))})).collect::<Vec<_>>()}));
+            "sigma_position_mm": p.sigma_position_mm()})).collect::<Vec<_>>()}));
     }
     s.text("Each set is a folder of images and the robot's flange poses (imported with `ferrocal import ic-handeye`), measured as `ferrocal measure --images DIR --poses P.csv --pattern P --json R` does: the project's detector on every image (in parallel), the camera calibrated from the same images, each image's target pose weighted by the corners' covariances, with the camera's uncertainty propagated and the corners' part scaled by s0^2 where they scatter more than stated. Rows are T_camera_target (eye-to-hand) or T_target_camera (eye-in-hand). These sets report flange poses, not joints, so the poses go to the JSON; with joints the same command writes a measurement table (docs/session-format.md).");
     s.table(
