@@ -1,13 +1,14 @@
 //! A calibration in the formats the ecosystem reads: the calibrated serial robot as a URDF with
 //! corrected joint origins, the device frame as its root link and the measured target as its
-//! tip link (`ferrocal export --urdf`).
+//! tip link (`ferrocal export --urdf`), and as a modified Denavit-Hartenberg table with
+//! Hayati's angle for parallel axes (`ferrocal export --dh`).
 //!
 //! What a URDF cannot hold: physical effects (compliance, backlash, periodic errors, ...). They
 //! stay in the companion calibration file written beside the URDF, which `evaluate` reads with
 //! the URDF as the robot model: identity device frame and tool, zero joint offsets, and the
 //! effects.
 
-use ferrocal_robot::serial::{parse_urdf_str, to_urdf, UrdfFrames, UrdfOptions};
+use ferrocal_robot::serial::{parse_urdf_str, to_urdf, MdhTable, UrdfFrames, UrdfOptions};
 use ferrocal_robot::{Kinematics, RobotModel};
 
 use crate::error::{CalibError, Result};
@@ -45,6 +46,27 @@ pub fn export_urdf(cm: &CalibratedModel, robot_spec: &str, urdf_name: &str, comm
     let back = parse_urdf_str(&urdf, &UrdfOptions { tip_link: Some("target".into()) })?;
     let back = RobotModel::Serial(back);
     // The check: the URDF read back against the calibrated model (without effects).
+    let worst = worst_difference(cm, |q| Ok(back.forward(q)?))?;
+    let mut for_urdf = CalibratedModel::nominal(back);
+    for_urdf.orientation_calibrated = cm.orientation_calibrated;
+    for_urdf.effects = cm.effects.clone();
+    // Effects take their loads from the nominal geometry of the original model, as when they
+    // were identified (the URDF holds the calibrated link frames).
+    for_urdf.load_model = cm.load_model.clone();
+    let mut companion = CalibrationFile::new(urdf_name, &for_urdf);
+    if !cm.effects.is_empty() {
+        companion.load_model = Some(robot_spec.to_string());
+    }
+    Ok(UrdfExport { urdf, companion, roundtrip_m_rad: worst })
+}
+
+/// The largest difference between the calibrated model `cm` (without effects) and another
+/// model's forward kinematics `other`, over 200 configurations spread within the joint limits
+/// (+-3 rad or m where a limit is open): position (m) and orientation (rad).
+fn worst_difference(
+    cm: &CalibratedModel,
+    other: impl Fn(&[f64]) -> Result<nalgebra::Isometry3<f64>>,
+) -> Result<(f64, f64)> {
     let limits = cm.model.joint_limits();
     let mut worst = (0.0f64, 0.0f64);
     for s in 0..200usize {
@@ -59,19 +81,38 @@ pub fn export_urdf(cm: &CalibratedModel, robot_spec: &str, urdf_name: &str, comm
             })
             .collect();
         let want = cm.predict(&q)?;
-        let got = back.forward(&q)?;
+        let got = other(&q)?;
         worst.0 = worst.0.max((got.translation.vector - want.translation.vector).norm());
         worst.1 = worst.1.max(got.rotation.angle_to(&want.rotation));
     }
-    let mut for_urdf = CalibratedModel::nominal(back);
-    for_urdf.orientation_calibrated = cm.orientation_calibrated;
-    for_urdf.effects = cm.effects.clone();
-    // Effects take their loads from the nominal geometry of the original model, as when they
-    // were identified (the URDF holds the calibrated link frames).
-    for_urdf.load_model = cm.load_model.clone();
-    let mut companion = CalibrationFile::new(urdf_name, &for_urdf);
-    if !cm.effects.is_empty() {
-        companion.load_model = Some(robot_spec.to_string());
-    }
-    Ok(UrdfExport { urdf, companion, roundtrip_m_rad: worst })
+    Ok(worst)
+}
+
+/// A modified DH export and what it was checked against.
+#[derive(Clone, Debug)]
+pub struct MdhExport {
+    /// The table: base = the device frame times the robot's base, tool = the measured target.
+    pub table: MdhTable,
+    /// Largest difference, over 200 configurations, between the table's forward kinematics and
+    /// the calibrated model (without effects): position (m) and orientation (rad).
+    pub roundtrip_m_rad: (f64, f64),
+}
+
+/// Exports `cm` (a serial robot) as a modified DH table with Hayati's angle for parallel axes
+/// ([`ferrocal_robot::serial::MdhTable`]): the calibrated corrections and joint zero offsets
+/// become the table's lengths, twists and offsets, the device frame goes into `base` and the
+/// measured target into `tool`. Effects are not in the table (the calibration file keeps them).
+pub fn export_mdh(cm: &CalibratedModel) -> Result<MdhExport> {
+    let RobotModel::Serial(chain) = &cm.model else {
+        return Err(CalibError::Data(format!(
+            "a DH table is for serial robots; '{}' is a parallel robot (its calibration file is its export)",
+            cm.model.name()
+        )));
+    };
+    let mut chain = chain.clone();
+    chain.base = cm.device_frame * chain.base;
+    chain.tool *= cm.tool;
+    let table = chain.to_mdh_table(&cm.joint_offsets)?;
+    let roundtrip_m_rad = worst_difference(cm, |q| Ok(table.forward(q)?))?;
+    Ok(MdhExport { table, roundtrip_m_rad })
 }

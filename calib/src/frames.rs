@@ -19,6 +19,18 @@ pub fn fit_rigid(from: &[Point3<f64>], to: &[Point3<f64>]) -> Result<Isometry3<f
             from.len().min(to.len())
         )));
     }
+    if let Some(k) = from
+        .iter()
+        .zip(to)
+        .position(|(a, b)| !(a.coords.iter().chain(b.coords.iter()).all(|v| v.is_finite() && v.abs() < 1e12)))
+    {
+        return Err(CalibError::Numeric(format!(
+            "a rigid registration got a point that is not a finite number of plausible size (pair {}: {:?} -> {:?})",
+            k + 1,
+            from[k].coords.as_slice(),
+            to[k].coords.as_slice()
+        )));
+    }
     let n = from.len() as f64;
     let ca = from.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
     let cb = to.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
@@ -35,7 +47,12 @@ pub fn fit_rigid(from: &[Point3<f64>], to: &[Point3<f64>]) -> Result<Isometry3<f
         d[(2, 2)] = -1.0;
     }
     let r = vt.transpose() * d * u.transpose();
-    let rot = UnitQuaternion::from_matrix(&r);
+    // `r` is orthonormal (from the SVD): converted directly. nalgebra's iterative projection
+    // (`from_matrix`) is slow to converge far from its guess and never ends on a non-finite matrix.
+    if !r.iter().all(|v| v.is_finite()) {
+        return Err(CalibError::Numeric("the rigid registration's rotation is not finite".into()));
+    }
+    let rot = UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r));
     let t = cb - rot * ca;
     Ok(Isometry3::from_parts(Translation3::from(t), rot))
 }
@@ -58,5 +75,11 @@ mod tests {
         assert!(est.rotation.angle_to(&t.rotation) < 1e-12);
         let back = exp6(log6(&t).as_slice());
         assert!(back.rotation.angle_to(&t.rotation) < 1e-12);
+        // A huge or non-finite coordinate is an error, not an endless iteration.
+        let mut bad = moved.clone();
+        bad[3].x = 1e300;
+        assert!(fit_rigid(&pts, &bad).unwrap_err().to_string().contains("pair 4"));
+        bad[3].x = f64::NAN;
+        assert!(fit_rigid(&pts, &bad).is_err());
     }
 }

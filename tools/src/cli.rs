@@ -55,7 +55,8 @@ pub enum Command {
     Handeye(ferrocal_report::handeye::HandeyeArgs),
     /// Predict a measurement table with a calibrated model and report the position errors.
     Evaluate(crate::commands::calibrate::EvaluateArgs),
-    /// Export a calibration for other tools: the calibrated serial robot as a URDF.
+    /// Export a calibration for other tools: the calibrated serial robot as a URDF and as a
+    /// modified DH table.
     Export(crate::commands::calibrate::ExportArgs),
     /// Force-sensor models and dynamics of parallel machines: identification from quasi-static
     /// poses and excitation trajectories, experiment design, studies.

@@ -1,4 +1,5 @@
-//! Program writers for a planned path: ABB RAPID, joint-target CSV and G-code.
+//! Program writers for a planned path: ABB RAPID, Universal Robots URScript, KUKA KRL,
+//! joint-target CSV and G-code.
 
 use std::fmt::Write as _;
 
@@ -43,6 +44,27 @@ pub struct ProgramSettings {
     /// A G-code line written after the dwell at every measurement (e.g. `M64 P0`).
     #[serde(default)]
     pub gcode_trigger: Option<String>,
+    /// URScript program (function) name.
+    #[serde(default = "default_urscript_name")]
+    pub urscript_name: String,
+    /// URScript `movej` joint speed, rad/s.
+    #[serde(default = "default_urscript_speed")]
+    pub urscript_speed_rad_s: f64,
+    /// URScript `movej` joint acceleration, rad/s^2.
+    #[serde(default = "default_urscript_accel")]
+    pub urscript_accel_rad_s2: f64,
+    /// A URScript statement run after the wait at every measurement (e.g. `set_digital_out(0, True)`).
+    #[serde(default)]
+    pub urscript_trigger: Option<String>,
+    /// KUKA KRL program name (the `DEF` name; the file should carry the same name).
+    #[serde(default = "default_krl_name")]
+    pub krl_name: String,
+    /// KUKA KRL axis velocity, percent of the maximum (`$VEL_AXIS`), 1-100.
+    #[serde(default = "default_krl_velocity")]
+    pub krl_velocity_percent: f64,
+    /// A KRL statement run after the wait at every measurement (e.g. `$OUT[1]=TRUE`).
+    #[serde(default)]
+    pub krl_trigger: Option<String>,
 }
 
 fn default_module() -> String {
@@ -63,6 +85,21 @@ fn default_feed() -> f64 {
 fn default_step() -> f64 {
     5.0
 }
+fn default_urscript_name() -> String {
+    "ferrocal_plan".into()
+}
+fn default_urscript_speed() -> f64 {
+    0.5
+}
+fn default_urscript_accel() -> f64 {
+    1.0
+}
+fn default_krl_name() -> String {
+    "ferrocal_plan".into()
+}
+fn default_krl_velocity() -> f64 {
+    20.0
+}
 
 impl Default for ProgramSettings {
     fn default() -> Self {
@@ -77,6 +114,13 @@ impl Default for ProgramSettings {
             gcode_feed_mm_min: default_feed(),
             gcode_max_step_mm: default_step(),
             gcode_trigger: None,
+            urscript_name: default_urscript_name(),
+            urscript_speed_rad_s: default_urscript_speed(),
+            urscript_accel_rad_s2: default_urscript_accel(),
+            urscript_trigger: None,
+            krl_name: default_krl_name(),
+            krl_velocity_percent: default_krl_velocity(),
+            krl_trigger: None,
         }
     }
 }
@@ -129,6 +173,7 @@ pub fn rapid_module<R: SafetyBody + ?Sized>(
     rapid_identifier(&settings.rapid_speed, "rapid_speed")?;
     rapid_identifier(&settings.rapid_zone, "rapid_zone")?;
     rapid_identifier(&settings.rapid_tool, "rapid_tool")?;
+    dwell_range(dwell_s)?;
     let kinds = model.joint_kinds();
     if kinds.len() > 12 {
         return Err(RobotError::Safety(format!("a RAPID jointtarget holds 12 axes; the robot has {}", kinds.len())));
@@ -167,13 +212,7 @@ pub fn rapid_module<R: SafetyBody + ?Sized>(
     let _ = writeln!(s, "  PROC main()");
     let mut n_meas = 0;
     for (k, st) in path.steps.iter().enumerate() {
-        let what = match (st.kind, st.pose) {
-            (StepKind::Home, _) => "home".to_string(),
-            (StepKind::Approach, Some(p)) => format!("approach pose {}", p + 1),
-            (StepKind::Measure, Some(p)) => format!("measure pose {}", p + 1),
-            (StepKind::Via, _) => "via".to_string(),
-            (_, None) => String::new(),
-        };
+        let what = step_label(st);
         let _ = writeln!(
             s,
             "    MoveAbsJ jt{:04}, {}, {}, {}; ! {what}",
@@ -255,6 +294,7 @@ pub fn gcode<R: SafetyBody + ?Sized>(
     settings: &ProgramSettings,
     header: &[String],
 ) -> Result<GcodeProgram> {
+    dwell_range(dwell_s)?;
     let kinds = model.joint_kinds();
     let feed = settings.gcode_feed_mm_min;
     if !(feed.is_finite() && feed > 0.0) {
@@ -369,4 +409,162 @@ pub fn gcode<R: SafetyBody + ?Sized>(
     }
     let _ = writeln!(s, "M2");
     Ok(GcodeProgram { text: s, moves, max_chord_deviation_mm: worst_dev })
+}
+
+/// What a step is for, in words (the comments of the program writers).
+fn step_label(st: &super::PathStep) -> String {
+    match (st.kind, st.pose) {
+        (StepKind::Home, _) => "home".to_string(),
+        (StepKind::Approach, Some(p)) => format!("approach pose {}", p + 1),
+        (StepKind::Measure, Some(p)) => format!("measure pose {}", p + 1),
+        (StepKind::Via, _) => "via".to_string(),
+        (_, None) => String::new(),
+    }
+}
+
+/// A program identifier for URScript and KRL: a letter, then letters, digits or `_`, at most
+/// `max` characters.
+fn plain_identifier(s: &str, what: &str, max: usize) -> Result<()> {
+    let ok = !s.is_empty()
+        && s.len() <= max
+        && s.chars().next().is_some_and(|c| c.is_ascii_alphabetic())
+        && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if ok {
+        Ok(())
+    } else {
+        Err(RobotError::Safety(format!(
+            "program settings: {what} '{s}' is not an identifier (a letter, then letters, digits or '_', at most {max})"
+        )))
+    }
+}
+
+/// A finite joint value for a program line, or an error naming the step and joint.
+fn finite_joint(v: f64, step: usize, joint: usize) -> Result<f64> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(RobotError::Safety(format!("program step {}: joint {} is not a finite number ({v})", step + 1, joint + 1)))
+    }
+}
+
+/// A Universal Robots URScript program that visits the path: one function with a `movej` per
+/// step (joint positions in radians, the settings' joint speed and acceleration) and at every
+/// measurement a `sleep` of the dwell time (then the trigger statement, if any), called at the
+/// end of the file. URScript moves the six revolute arm joints: any other robot is refused.
+pub fn urscript<R: SafetyBody + ?Sized>(
+    model: &R,
+    path: &PlannedPath,
+    dwell_s: f64,
+    settings: &ProgramSettings,
+    header: &[String],
+) -> Result<String> {
+    plain_identifier(&settings.urscript_name, "urscript_name", 63)?;
+    let kinds = model.joint_kinds();
+    if kinds.len() != 6 || kinds.iter().any(|k| *k != JointKind::Revolute) {
+        return Err(RobotError::Safety(format!(
+            "URScript moves six revolute joints; this robot has {} joints ({} linear)",
+            kinds.len(),
+            kinds.iter().filter(|k| **k == JointKind::Prismatic).count()
+        )));
+    }
+    let (v, a) = (settings.urscript_speed_rad_s, settings.urscript_accel_rad_s2);
+    if !(v.is_finite() && v > 0.0 && v <= 3.15) || !(a.is_finite() && a > 0.0 && a <= 40.0) {
+        return Err(RobotError::Safety(format!(
+            "program settings: urscript_speed_rad_s must be in (0, 3.15] and urscript_accel_rad_s2 in (0, 40]; got {v} and {a}"
+        )));
+    }
+    dwell_range(dwell_s)?;
+    let mut s = String::new();
+    for h in header {
+        let _ = writeln!(s, "# {}", h.replace('\n', " "));
+    }
+    let _ = writeln!(s, "# {} steps, {} measurements; joints in rad", path.steps.len(), path.measurements());
+    let _ = writeln!(s, "def {}():", settings.urscript_name);
+    let mut n_meas = 0;
+    for (k, st) in path.steps.iter().enumerate() {
+        let q: Vec<String> =
+            st.q.iter()
+                .enumerate()
+                .map(|(j, x)| finite_joint(*x, k, j).map(|x| format!("{x:.7}")))
+                .collect::<Result<_>>()?;
+        let _ = writeln!(s, "  movej([{}], a={a:.3}, v={v:.3})  # step {}: {}", q.join(", "), k + 1, step_label(st));
+        if st.kind == StepKind::Measure {
+            n_meas += 1;
+            let _ = writeln!(s, "  sleep({dwell_s:.2})  # measurement {n_meas}");
+            if let Some(t) = &settings.urscript_trigger {
+                let _ = writeln!(s, "  {t}");
+            }
+        }
+    }
+    let _ = writeln!(s, "end");
+    let _ = writeln!(s, "{}()", settings.urscript_name);
+    Ok(s)
+}
+
+/// A KUKA KRL program (`.src`) that visits the path: `DEF name()`, the usual `BAS(#INITMOV,0)`
+/// initialisation, the settings' axis velocity, a `PTP {AXIS: A1 .. A6}` per step (degrees for
+/// revolute and millimetres for linear axes; joints beyond six as external axes `E1 ..`), and at
+/// every measurement `WAIT SEC` for the dwell time (then the trigger statement, if any).
+pub fn krl<R: SafetyBody + ?Sized>(
+    model: &R,
+    path: &PlannedPath,
+    dwell_s: f64,
+    settings: &ProgramSettings,
+    header: &[String],
+) -> Result<String> {
+    plain_identifier(&settings.krl_name, "krl_name", 24)?;
+    let kinds = model.joint_kinds();
+    if kinds.len() > 12 {
+        return Err(RobotError::Safety(format!("a KRL AXIS/E6AXIS holds 12 axes; the robot has {}", kinds.len())));
+    }
+    let vel = settings.krl_velocity_percent;
+    if !(vel.is_finite() && vel >= 1.0 && vel <= 100.0) {
+        return Err(RobotError::Safety(format!(
+            "program settings: krl_velocity_percent must be in [1, 100], got {vel}"
+        )));
+    }
+    dwell_range(dwell_s)?;
+    let mut s = String::new();
+    let _ = writeln!(s, "DEF {}( )", settings.krl_name);
+    for h in header {
+        let _ = writeln!(s, "; {}", h.replace('\n', " "));
+    }
+    let _ = writeln!(
+        s,
+        "; {} steps, {} measurements; axes in deg (revolute) and mm (linear)",
+        path.steps.len(),
+        path.measurements()
+    );
+    let _ = writeln!(s, "BAS (#INITMOV,0 )");
+    let _ = writeln!(s, "FOR I=1 TO 6");
+    let _ = writeln!(s, "  $VEL_AXIS[I]={vel:.0}");
+    let _ = writeln!(s, "ENDFOR");
+    let mut n_meas = 0;
+    for (k, st) in path.steps.iter().enumerate() {
+        let mut words = Vec::with_capacity(st.q.len());
+        for (j, (v, kind)) in st.q.iter().zip(&kinds).enumerate() {
+            let u = user_value(finite_joint(*v, k, j)?, *kind);
+            let name = if j < 6 { format!("A{}", j + 1) } else { format!("E{}", j - 5) };
+            words.push(format!("{name} {u:.4}"));
+        }
+        let _ = writeln!(s, "PTP {{AXIS: {}}} ; step {}: {}", words.join(", "), k + 1, step_label(st));
+        if st.kind == StepKind::Measure {
+            n_meas += 1;
+            let _ = writeln!(s, "WAIT SEC {dwell_s:.2} ; measurement {n_meas}");
+            if let Some(t) = &settings.krl_trigger {
+                let _ = writeln!(s, "{t}");
+            }
+        }
+    }
+    let _ = writeln!(s, "END");
+    Ok(s)
+}
+
+/// The dwell time a program may wait at a measurement: finite, 0 to one hour.
+fn dwell_range(dwell_s: f64) -> Result<()> {
+    if dwell_s.is_finite() && (0.0..=3600.0).contains(&dwell_s) {
+        Ok(())
+    } else {
+        Err(RobotError::Safety(format!("the dwell time must be 0 to 3600 s, got {dwell_s}")))
+    }
 }

@@ -28,7 +28,7 @@ use crate::safety::{SafetyBody, SafetyChecker};
 
 mod export;
 
-pub use export::{gcode, path_csv, rapid_module, GcodeAxes, GcodeProgram, ProgramSettings};
+pub use export::{gcode, krl, path_csv, rapid_module, urscript, GcodeAxes, GcodeProgram, ProgramSettings};
 
 /// From which side each measured pose is approached.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -1,8 +1,10 @@
 //! Serial chains: DH, modified DH and URDF joints behind one type.
 
+mod dh_write;
 mod urdf;
 mod urdf_write;
 
+pub use dh_write::{MdhRow, MdhTable, PARALLEL_RAD};
 pub use urdf::{parse_urdf, parse_urdf_str, UrdfOptions};
 pub use urdf_write::{to_urdf, UrdfFrames};
 

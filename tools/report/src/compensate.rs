@@ -120,6 +120,22 @@ pub struct CorrectArgs {
     /// Match positions only (the smallest joint change that does), not orientations.
     #[arg(long)]
     pub positions_only: bool,
+    /// Also write the corrected program as an ABB RAPID module (`MoveAbsJ` per command).
+    #[arg(long, value_name = "FILE.mod")]
+    pub rapid: Option<std::path::PathBuf>,
+    /// Also write it as G-code (one axis letter per joint, `G1` per command).
+    #[arg(long, value_name = "FILE.ngc")]
+    pub gcode: Option<std::path::PathBuf>,
+    /// Also write it as a Universal Robots URScript (`movej` per command; six revolute joints).
+    #[arg(long, value_name = "FILE.script")]
+    pub urscript: Option<std::path::PathBuf>,
+    /// Also write it as a KUKA KRL program (`PTP {AXIS: ..}` per command); the `DEF` name is the
+    /// file's stem.
+    #[arg(long, value_name = "FILE.src")]
+    pub krl: Option<std::path::PathBuf>,
+    /// Wait at every command of the written programs, seconds (0: move on once in position).
+    #[arg(long, default_value_t = 0.0)]
+    pub dwell_s: f64,
 }
 
 /// Runs `ferrocal correct`: every command is corrected through the calibrated model so that it
@@ -128,6 +144,15 @@ pub struct CorrectArgs {
 pub fn run_correct(a: &CorrectArgs) -> Result<std::process::ExitCode> {
     use anyhow::Context;
     use ferrocal_calib::kinematic::correct::{correct_program, CorrectOptions};
+    for input in [&a.program, &a.calibration] {
+        if crate::report::same_file(input, &a.out) {
+            anyhow::bail!(
+                "--out {} would overwrite the input {}; choose another file",
+                a.out.display(),
+                input.display()
+            );
+        }
+    }
     let model = RobotModel::load(&a.robot)?;
     let file = ferrocal_calib::file::CalibrationFile::read(&a.calibration)?;
     let cm = file.apply(&model).with_context(|| format!("applying {}", a.calibration.display()))?;
@@ -160,7 +185,12 @@ pub fn run_correct(a: &CorrectArgs) -> Result<std::process::ExitCode> {
         out.push_str(&format!(",{:.6},{:.6}\n", c.nominal_error_m * 1e3, c.residual_m * 1e3));
         removed.push(c.nominal_error_m * 1e3);
     }
+    let programs = corrected_programs(a, &model, &program.set.rows, &corrected)?;
     crate::report::write_atomic(&a.out, out.as_bytes())?;
+    for (path, text) in &programs {
+        crate::report::write_atomic(path, text.as_bytes())?;
+        println!("corrected program written to {}", path.display());
+    }
     let mean = removed.iter().sum::<f64>() / removed.len().max(1) as f64;
     println!(
         "{} commands corrected; the calibrated model predicts the uncorrected ones {mean:.4} mm off on average; written to {}",
@@ -168,6 +198,77 @@ pub fn run_correct(a: &CorrectArgs) -> Result<std::process::ExitCode> {
         a.out.display()
     );
     Ok(std::process::ExitCode::SUCCESS)
+}
+
+/// The corrected commands as the robot programs `a` asks for (path, text), all composed before
+/// anything is written: one measure step per command, in the program's order, with its approach
+/// directions when the program has them. An output that names an input is refused.
+fn corrected_programs(
+    a: &CorrectArgs,
+    model: &RobotModel,
+    rows: &[ferrocal_calib::measurement::PoseMeasurement],
+    corrected: &[ferrocal_calib::kinematic::correct::CorrectedCommand],
+) -> Result<Vec<(std::path::PathBuf, String)>> {
+    use anyhow::Context;
+    use ferrocal_robot::program::{
+        gcode, krl, rapid_module, urscript, PathStep, PlannedPath, ProgramSettings, StepKind,
+    };
+    let outputs: Vec<(&str, &std::path::PathBuf)> =
+        [("rapid", &a.rapid), ("gcode", &a.gcode), ("urscript", &a.urscript), ("krl", &a.krl)]
+            .into_iter()
+            .filter_map(|(k, p)| p.as_ref().map(|p| (k, p)))
+            .collect();
+    let inputs = [&a.program, &a.calibration, &a.out];
+    for (_, p) in &outputs {
+        if let Some(i) = inputs.iter().find(|i| crate::report::same_file(i, p)) {
+            anyhow::bail!("output {} would overwrite {}; choose another file", p.display(), i.display());
+        }
+    }
+    let steps: Vec<PathStep> = rows
+        .iter()
+        .zip(corrected)
+        .enumerate()
+        .map(|(k, (r, c))| PathStep {
+            q: c.q.clone(),
+            kind: StepKind::Measure,
+            pose: Some(k),
+            dir: r.dir.clone().unwrap_or_else(|| vec![0; c.q.len()]),
+        })
+        .collect();
+    let path = PlannedPath {
+        order: (0..steps.len()).collect(),
+        steps,
+        travel_s: 0.0,
+        dwell_s: a.dwell_s * rows.len() as f64,
+        nearest_neighbour_s: 0.0,
+        ordered_s: 0.0,
+        detours: 0,
+        checked_segments: 0,
+    };
+    let header = vec![
+        format!("corrected by ferrocal {} ({})", env!("CARGO_PKG_VERSION"), chrono::Utc::now().to_rfc3339()),
+        format!("program {}; calibration {}; robot {}", a.program.display(), a.calibration.display(), a.robot),
+        "joint commands for the calibrated robot to reach the poses the nominal model meant; the path between them is not checked against safety zones".into(),
+    ];
+    let mut out = Vec::new();
+    for (kind, p) in outputs {
+        let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("ferrocal_corrected").replace(['-', '.', ' '], "_");
+        let settings = ProgramSettings {
+            rapid_module: stem.clone(),
+            urscript_name: stem.clone(),
+            krl_name: stem.clone(),
+            ..ProgramSettings::default()
+        };
+        let text = match kind {
+            "rapid" => rapid_module(model, &path, a.dwell_s, &settings, &header),
+            "gcode" => gcode(model, &path, a.dwell_s, &settings, &header).map(|g| g.text),
+            "urscript" => urscript(model, &path, a.dwell_s, &settings, &header),
+            _ => krl(model, &path, a.dwell_s, &settings, &header),
+        }
+        .with_context(|| format!("writing the corrected program {}", p.display()))?;
+        out.push((p.clone(), text));
+    }
+    Ok(out)
 }
 
 /// The demo's corrected-program section: the simulated check of `ferrocal correct`.

@@ -13,7 +13,9 @@ use ferrocal_calib::design::flow::{plan_design, PlanDesign};
 use ferrocal_calib::design::kinematic::{monte_carlo, predict, MonteCarloReport};
 use ferrocal_datasets::formats::plan_file::{device, measure_steps, session_plan_toml, PlanFile};
 use ferrocal_datasets::sim::{random_subsets, DatasetsSimulator};
-use ferrocal_robot::program::{gcode, path_csv, plan_path, rapid_module, verify_path, PlannedPath, StepKind};
+use ferrocal_robot::program::{
+    gcode, krl, path_csv, plan_path, rapid_module, urscript, verify_path, PlannedPath, StepKind,
+};
 use ferrocal_robot::safety::SafetyChecker;
 use ferrocal_robot::{Kinematics, RobotModel};
 use nalgebra::Vector3;
@@ -124,6 +126,16 @@ pub fn run(args: &PlanRequest, log: &dyn Fn(&str), on_run: &dyn Fn(usize, usize)
     write_atomic(&args.out.join("program.mod"), rapid.as_bytes())?;
     let g = gcode(&model, &path, plan.path.dwell_s, &plan.program, &header)?;
     write_atomic(&args.out.join("program.ngc"), g.text.as_bytes())?;
+    let krl_file = format!("{}.src", plan.program.krl_name);
+    write_atomic(&args.out.join(&krl_file), krl(&model, &path, plan.path.dwell_s, &plan.program, &header)?.as_bytes())?;
+    // URScript only for a six-joint revolute arm; other machines get no script (said in the report).
+    let ur_script = match urscript(&model, &path, plan.path.dwell_s, &plan.program, &header) {
+        Ok(text) => {
+            write_atomic(&args.out.join("program.script"), text.as_bytes())?;
+            None
+        }
+        Err(e) => Some(e.to_string()),
+    };
     let session = session_plan_toml(&design.map.home, &path, plan.path.dwell_s);
     write_atomic(&args.out.join("session_plan.toml"), session.as_bytes())?;
 
@@ -144,7 +156,7 @@ pub fn run(args: &PlanRequest, log: &dyn Fn(&str), on_run: &dyn Fn(usize, usize)
     rep.sections.push(workspace_section(&model, &design));
     rep.sections.push(selection_section(&design, random, args.random_subsets));
     rep.sections.push(prediction_section(&design, mc.as_ref()));
-    rep.sections.push(path_section(&model, &path, &plan, g.max_chord_deviation_mm));
+    rep.sections.push(path_section(&model, &path, &plan, g.max_chord_deviation_mm, &krl_file, ur_script.as_deref()));
     let html = rep.write(&args.out)?;
     Ok(PlanOutcome { passed: design.passed, measurements: path.measurements(), html })
 }
@@ -524,7 +536,14 @@ fn prediction_section(d: &PlanDesign, mc: Option<&MonteCarloReport>) -> Section 
     s
 }
 
-fn path_section(model: &RobotModel, path: &PlannedPath, plan: &PlanFile, chord_mm: f64) -> Section {
+fn path_section(
+    model: &RobotModel,
+    path: &PlannedPath,
+    plan: &PlanFile,
+    chord_mm: f64,
+    krl_file: &str,
+    ur_script: Option<&str>,
+) -> Section {
     let mut s = Section::new("path", "Path and programs");
     s.text(format!(
         "Nearest neighbour from home then 2-opt under the time metric max_i |dq_i| / v_i: {:.0} s -> {:.0} s between the measured poses; with approach and via moves {:.0} s of travel, {:.0} s of measuring. Approach: {:?}. Every configuration and every straight joint-space segment between consecutive steps ({} segments checked, {} detour(s) through safe via configurations) passed the safety checker.",
@@ -567,6 +586,14 @@ fn path_section(model: &RobotModel, path: &PlannedPath, plan: &PlanFile, chord_m
                     plan.program.gcode_feed_mm_min,
                     if chord_mm > 0.0 { format!(", largest chord deviation {chord_mm:.3} mm") } else { String::new() }
                 ),
+            ],
+            vec![krl_file.to_string(), format!("KUKA KRL program {} (PTP AXIS, WAIT SEC)", plan.program.krl_name)],
+            vec![
+                "program.script".into(),
+                match ur_script {
+                    None => format!("URScript {} (movej, sleep)", plan.program.urscript_name),
+                    Some(why) => format!("not written: {why}"),
+                },
             ],
             vec!["session_plan.toml".into(), "the poses as a [plan] table for ferrocal simulate".into()],
         ],

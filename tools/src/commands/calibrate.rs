@@ -265,32 +265,65 @@ pub struct ExportArgs {
     /// Write the calibrated serial robot as a URDF here (root link `device`, tip link `target`),
     /// and beside it `<name>.calibration.json`, the calibration `evaluate` takes with the URDF as
     /// the robot model (it keeps the effects a URDF cannot hold).
+    #[arg(long, required_unless_present = "dh")]
+    pub urdf: Option<PathBuf>,
+    /// Write the calibrated serial robot as a modified DH table (CSV, Craig's convention with
+    /// Hayati's angle for parallel axes; base and tool transforms in its comments).
     #[arg(long)]
-    pub urdf: PathBuf,
+    pub dh: Option<PathBuf>,
 }
 
 pub fn run_export(args: &ExportArgs) -> Result<ExitCode> {
     let model = RobotModel::load(&args.robot).with_context(|| format!("cannot load robot model '{}'", args.robot))?;
     let file = CalibrationFile::read(&args.calibration)?;
     let cm = file.apply(&model).with_context(|| format!("applying {}", args.calibration.display()))?;
-    let companion_path = args.urdf.with_extension("calibration.json");
-    for out in [&args.urdf, &companion_path] {
+    let companion_path = args.urdf.as_ref().map(|u| u.with_extension("calibration.json"));
+    for out in [args.urdf.as_ref(), companion_path.as_ref(), args.dh.as_ref()].into_iter().flatten() {
         if std::fs::canonicalize(out).ok() == std::fs::canonicalize(&args.calibration).ok() && out.exists() {
             bail!("{}: would overwrite the input calibration", out.display());
         }
     }
+    // Everything is composed first, then written.
+    let mut outputs: Vec<(PathBuf, String)> = Vec::new();
+    if let Some(dh) = &args.dh {
+        let ex = ferrocal_calib::export::export_mdh(&cm)?;
+        let comment = vec![
+            format!("written by ferrocal {} from {} (robot {})", env!("CARGO_PKG_VERSION"), args.calibration.display(), args.robot),
+            "the measuring device's frame is in 'base', the measured target in 'tool'; effects (if any) stay in the calibration file".into(),
+            format!(
+                "checked: the table's forward kinematics differ from the calibrated model by at most {:.2e} mm and {:.2e} deg over 200 configurations",
+                ex.roundtrip_m_rad.0 * 1e3,
+                ex.roundtrip_m_rad.1.to_degrees()
+            ),
+        ];
+        outputs.push((dh.clone(), ex.table.to_csv(&comment)));
+    }
+    let Some(urdf) = &args.urdf else {
+        for (p, text) in &outputs {
+            write_atomic(p, text.as_bytes())?;
+            eprintln!("wrote {}", p.display());
+        }
+        return Ok(ExitCode::SUCCESS);
+    };
+    let companion_path = companion_path.expect("set with the URDF");
     let comment = format!(
         "written by ferrocal {} from {} (robot {}); joint origins include the calibrated corrections and zero offsets; the measured target is link 'target', the measuring device's frame is link 'device'",
         env!("CARGO_PKG_VERSION"),
         args.calibration.display(),
         args.robot
     );
-    let ex = ferrocal_calib::export::export_urdf(&cm, &args.robot, &args.urdf.display().to_string(), &comment)?;
-    write_atomic(&args.urdf, ex.urdf.as_bytes())?;
-    write_atomic(&companion_path, serde_json::to_string_pretty(&ex.companion)?.as_bytes())?;
+    let ex = ferrocal_calib::export::export_urdf(&cm, &args.robot, &urdf.display().to_string(), &comment)?;
+    outputs.push((urdf.clone(), ex.urdf.clone()));
+    outputs.push((companion_path.clone(), serde_json::to_string_pretty(&ex.companion)?));
+    for (p, text) in &outputs {
+        write_atomic(p, text.as_bytes())?;
+    }
+    if let Some(dh) = &args.dh {
+        eprintln!("wrote {}", dh.display());
+    }
     eprintln!(
         "wrote {} and {} (read back: {:.2e} mm, {:.2e} deg from the calibrated model{})",
-        args.urdf.display(),
+        urdf.display(),
         companion_path.display(),
         ex.roundtrip_m_rad.0 * 1e3,
         ex.roundtrip_m_rad.1.to_degrees(),
