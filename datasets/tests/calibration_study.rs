@@ -39,14 +39,12 @@ fn own_corners_calibrate_closer_than_opencv_and_within_three_sigma() {
         // correlated) cover the truth too, and stay within a factor of 3 of the
         // independent-corner sigmas (not absurdly pessimistic or optimistic).
         for (name, std) in [("jackknife", o.std_jackknife_px), ("sandwich", o.std_sandwich_px)] {
-            for i in 0..4 {
+            for (i, ((err, s), s_ind)) in o.abs_error_px.iter().zip(std).zip(o.std_independent_px).enumerate() {
                 assert!(
-                    o.abs_error_px[i] <= 3.0 * std[i],
-                    "seed {seed} {name}: error {:.4} px beyond 3 sigma ({:.4} px), parameter {i}",
-                    o.abs_error_px[i],
-                    std[i]
+                    *err <= 3.0 * s,
+                    "seed {seed} {name}: error {err:.4} px beyond 3 sigma ({s:.4} px), parameter {i}"
                 );
-                let r = std[i] / o.std_independent_px[i];
+                let r = s / s_ind;
                 assert!((1.0 / 3.0..3.0).contains(&r), "seed {seed} {name}: sigma {r:.2} x independent, parameter {i}");
             }
         }
