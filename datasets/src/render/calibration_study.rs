@@ -668,5 +668,10 @@ mod tests {
         // fx of seed 1 is 4 sigma off: 11 of 12 within 3 sigma.
         assert!((s.ours_coverage_3_sigma - 11.0 / 12.0).abs() < 1e-12);
         assert!(markdown(&[r(0, 1.0, 2.0)], &s).contains("| 0 | 10/10 |"));
+        // Coverage: one value 3.5 sigma off, three 1 sigma off; sigmas twice the reference.
+        let c = coverage(&[[3.5, 1.0, 1.0, 1.0]], &[[1.0; 4]], &[[0.5; 4]]);
+        assert_eq!((c.n, c.within_3_sigma, c.beyond_2_sigma), (4, 3, 1));
+        assert!((c.z_rms - ((3.5f64 * 3.5 + 3.0) / 4.0).sqrt()).abs() < 1e-12);
+        assert!((c.sigma_ratio - 2.0).abs() < 1e-12);
     }
 }
