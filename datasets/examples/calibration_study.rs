@@ -4,7 +4,8 @@
 //!
 //! `cargo run --release -p ferrocal-datasets --example calibration_study -- --seeds 10`
 //! options: `--seeds N` (10), `--first-seed S` (0), `--views N` (18), `--size WxH` (1280x960),
-//! `--subsamples S` (8), `--psf SIGMA` (0.8), `--jpeg Q` (off), `--keep DIR` (keep the PNG files),
+//! `--subsamples S` (8), `--psf SIGMA` (0.8), `--jpeg Q` (off), `--keep DIR` (keep the PNG files;
+//! with `--reuse` files already there are used instead of rendering them again),
 //! `--json FILE` (the per-seed results).
 
 use ferrocal_datasets::render::calibration_study::{markdown, run_seed, summarize, StudySettings};
@@ -24,6 +25,7 @@ fn main() {
     settings.render.subsamples = num("--subsamples", 8.0) as u32;
     settings.render.psf_sigma_px = num("--psf", settings.render.psf_sigma_px);
     settings.render.jpeg_quality = value("--jpeg").map(|q| q.parse().expect("--jpeg"));
+    settings.reuse_renders = args.iter().any(|a| a == "--reuse");
     let tmp = tempfile::tempdir().expect("temporary folder");
     let dir = value("--keep").map_or_else(|| tmp.path().to_path_buf(), std::path::PathBuf::from);
     println!("{settings:?}");

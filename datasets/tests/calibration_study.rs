@@ -22,8 +22,8 @@ fn own_corners_calibrate_closer_than_opencv_and_within_three_sigma() {
         let r = run_seed(&settings, seed, dir.path()).unwrap();
         let (o, c) = (&r.ours, &r.opencv);
         eprintln!(
-            "seed {seed}: ours err {:?} std {:?} ({} views, corners {:.4} px); OpenCV err {:?} ({} views, corners {:.4} px); ratio {:.2}",
-            o.abs_error_px, o.std_px, o.views, o.corner_rms_px, c.abs_error_px, c.views, c.corner_rms_px, r.ratio
+            "seed {seed}: ours err {:?} std {:?} (jackknife {:?}, sandwich {:?}; {} views, corners {:.4} px); OpenCV err {:?} ({} views, corners {:.4} px); ratio {:.2}",
+            o.abs_error_px, o.std_px, o.std_jackknife_px, o.std_sandwich_px, o.views, o.corner_rms_px, c.abs_error_px, c.views, c.corner_rms_px, r.ratio
         );
         // Every view is found by both sides (the whole board is always in view).
         assert_eq!((o.views, c.views), (12, 12), "seed {seed}");
@@ -35,5 +35,18 @@ fn own_corners_calibrate_closer_than_opencv_and_within_three_sigma() {
             o.abs_error_px,
             o.std_px.map(|s| 3.0 * s)
         );
+        // The view-clustered covariances (views independent, corners of a view possibly
+        // correlated) cover the truth too, and stay within a factor of 3 of the
+        // independent-corner sigmas (not absurdly pessimistic or optimistic).
+        for (name, std) in [("jackknife", o.std_jackknife_px), ("sandwich", o.std_sandwich_px)] {
+            for (i, ((err, s), s_ind)) in o.abs_error_px.iter().zip(std).zip(o.std_independent_px).enumerate() {
+                assert!(
+                    *err <= 3.0 * s,
+                    "seed {seed} {name}: error {err:.4} px beyond 3 sigma ({s:.4} px), parameter {i}"
+                );
+                let r = s / s_ind;
+                assert!((1.0 / 3.0..3.0).contains(&r), "seed {seed} {name}: sigma {r:.2} x independent, parameter {i}");
+            }
+        }
     }
 }

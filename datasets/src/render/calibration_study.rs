@@ -16,7 +16,7 @@
 //! OpenCV / ours, and whether each truth value lies within 3 reported sigmas; [`summarize`]
 //! aggregates over seeds.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
@@ -28,7 +28,7 @@ use crate::error::{DatasetError, Result};
 use ferrocal_vision::calib::corners::{
     chessboard_corners_opencv_with, detect_pattern_views, CornerMethod, SubpixWindow,
 };
-use ferrocal_vision::calib::{calibrate_pattern, CalibrationOptions, CalibrationPattern, View};
+use ferrocal_vision::calib::{calibrate_pattern, CalibrationOptions, CalibrationPattern, CovarianceMethod, View};
 use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
 
 /// The study's settings.
@@ -44,6 +44,9 @@ pub struct StudySettings {
     pub render: SupersampledConfig,
     /// The printed chessboard.
     pub board: PrintedChessboard,
+    /// Keep a view's PNG file when it already exists instead of rendering it again (for
+    /// re-runs of the calibrations on the same renders; see [`render_seed`]).
+    pub reuse_renders: bool,
 }
 
 impl Default for StudySettings {
@@ -56,6 +59,7 @@ impl Default for StudySettings {
             height: 960,
             render: SupersampledConfig::default(),
             board: PrintedChessboard { inner_cols: 9, inner_rows: 6, square_m: 0.03, margin_m: 0.02 },
+            reuse_renders: false,
         }
     }
 }
@@ -71,8 +75,16 @@ pub struct SideResult {
     pub reprojection_rms_px: f64,
     /// Estimated `fx fy cx cy`, pixels.
     pub intrinsics_px: [f64; 4],
-    /// Their reported standard deviations, pixels.
+    /// Their reported standard deviations, pixels (ours: `camera calibrate`'s default
+    /// covariance, [`CalibrationOptions::covariance`]).
     pub std_px: [f64; 4],
+    /// Ours only (NaN for OpenCV): the standard deviations with corners taken as independent,
+    /// `s0^2 (J^T J)^-1` ([`CovarianceMethod::Independent`]), pixels.
+    pub std_independent_px: [f64; 4],
+    /// Ours only: the leave-one-view-out jackknife ([`CovarianceMethod::ViewJackknife`]), pixels.
+    pub std_jackknife_px: [f64; 4],
+    /// Ours only: the view-clustered sandwich ([`CovarianceMethod::ViewSandwich`]), pixels.
+    pub std_sandwich_px: [f64; 4],
     /// `|estimate - truth|` of `fx fy cx cy`, pixels.
     pub abs_error_px: [f64; 4],
     /// RMS over the four errors, pixels.
@@ -115,6 +127,49 @@ pub struct Summary {
     pub ours_rms_error_px: f64,
     /// RMS over seeds of OpenCV's RMS intrinsic error, pixels.
     pub opencv_rms_error_px: f64,
+    /// Ours' errors against the independent-corner standard deviations.
+    pub ours_independent: Coverage,
+    /// Ours' errors against the leave-one-view-out jackknife's.
+    pub ours_jackknife: Coverage,
+    /// Ours' errors against the view-clustered sandwich's.
+    pub ours_sandwich: Coverage,
+    /// OpenCV's errors against its `stdDeviationsIntrinsics`.
+    pub opencv: Coverage,
+}
+
+/// How well reported standard deviations describe the errors, over the four intrinsics of
+/// every seed.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Coverage {
+    /// Values compared (4 per seed).
+    pub n: usize,
+    /// Truth within 3 sigma.
+    pub within_3_sigma: usize,
+    /// Truth beyond 2 sigma (about 4.6 % expected).
+    pub beyond_2_sigma: usize,
+    /// RMS of `error / sigma` (1 when the sigmas are right).
+    pub z_rms: f64,
+    /// Geometric mean of the sigmas relative to the independent-corner ones (ours; 1 for
+    /// OpenCV).
+    pub sigma_ratio: f64,
+}
+
+/// The coverage of `std` (per seed) against the errors `err` (per seed), and their sizes
+/// against `reference`.
+pub fn coverage(err: &[[f64; 4]], std: &[[f64; 4]], reference: &[[f64; 4]]) -> Coverage {
+    let (mut n, mut w3, mut b2, mut z2, mut lr) = (0, 0, 0, 0.0, 0.0);
+    for ((e, s), r) in err.iter().zip(std).zip(reference) {
+        for i in 0..4 {
+            let z = e[i].abs() / s[i];
+            n += 1;
+            w3 += usize::from(z <= 3.0);
+            b2 += usize::from(z > 2.0);
+            z2 += z * z;
+            lr += (s[i] / r[i]).ln();
+        }
+    }
+    let nf = n.max(1) as f64;
+    Coverage { n, within_3_sigma: w3, beyond_2_sigma: b2, z_rms: (z2 / nf).sqrt(), sigma_ratio: (lr / nf).exp() }
 }
 
 /// The truth camera of a seed for a `width x height` image (see the module documentation).
@@ -265,6 +320,9 @@ fn side(
         reprojection_rms_px,
         intrinsics_px: est,
         std_px: std,
+        std_independent_px: [f64::NAN; 4],
+        std_jackknife_px: [f64::NAN; 4],
+        std_sandwich_px: [f64::NAN; 4],
         abs_error_px,
         rms_error_px,
         within_3_sigma,
@@ -317,9 +375,26 @@ fn opencv_calibrate(views: &[View], board: &PrintedChessboard, size: ImageSize) 
     Ok((k, sd, rms))
 }
 
-/// Runs one seed: renders the views into `dir` (PNG files), calibrates both ways, compares
-/// with the truth.
-pub fn run_seed(settings: &StudySettings, seed: u64, dir: &Path) -> Result<SeedResult> {
+/// A seed's rendered views ([`render_seed`]).
+#[derive(Clone, Debug)]
+pub struct RenderedSeed {
+    /// The seed.
+    pub seed: u64,
+    /// The truth camera.
+    pub truth: CameraModel,
+    /// `T_cam_board` of every view (board frame of [`super::supersampled`]).
+    pub poses: Vec<Isometry3<f64>>,
+    /// The PNG file of every view.
+    pub paths: Vec<PathBuf>,
+    /// The true image positions of every view's inner corners, row by row from the board's
+    /// top-left ([`PrintedChessboard::inner_corners`]), pixels.
+    pub truth_px: Vec<Vec<Point2<f64>>>,
+}
+
+/// Renders a seed's views into `dir` (PNG files `seedSSS_viewVV.png`); with
+/// [`StudySettings::reuse_renders`] a file that already exists is kept (it must come from the
+/// same settings: the file name holds only the seed and the view).
+pub fn render_seed(settings: &StudySettings, seed: u64, dir: &Path) -> Result<RenderedSeed> {
     let truth = truth_camera(seed, settings.width, settings.height)?;
     let renderer = SupersampledRenderer::new(truth, settings.board, settings.render.clone())?;
     let poses = board_poses(&renderer, settings.views, seed)?;
@@ -327,57 +402,113 @@ pub fn run_seed(settings: &StudySettings, seed: u64, dir: &Path) -> Result<SeedR
     let mut paths = Vec::new();
     let mut truth_px: Vec<Vec<Point2<f64>>> = Vec::new();
     for (k, pose) in poses.iter().enumerate() {
-        let img = renderer.render(pose, seed.wrapping_mul(1_000_003).wrapping_add(k as u64))?;
         let path = dir.join(format!("seed{seed:03}_view{k:02}.png"));
-        img.save(&path).map_err(|e| DatasetError::Render(format!("{}: {e}", path.display())))?;
+        if !(settings.reuse_renders && path.is_file()) {
+            let img = renderer.render(pose, seed.wrapping_mul(1_000_003).wrapping_add(k as u64))?;
+            img.save(&path).map_err(|e| DatasetError::Render(format!("{}: {e}", path.display())))?;
+        }
         paths.push(path);
         let corners = settings.board.inner_corners();
         truth_px.push(corners.iter().filter_map(|c| renderer.project(pose, c)).collect());
     }
-    let b = &settings.board;
-    let pattern =
-        CalibrationPattern::Chessboard { inner_cols: b.inner_cols, inner_rows: b.inner_rows, square_m: b.square_m };
-    let t = truth.intrinsics;
-    let index_of = |name: &str| paths.iter().position(|p| p.display().to_string() == name);
-    let corner_error = |views: &[View]| {
-        let mut found = Vec::new();
-        let mut sq = 0.0;
+    Ok(RenderedSeed { seed, truth, poses, paths, truth_px })
+}
+
+impl RenderedSeed {
+    /// The index of the view whose file is `name`.
+    pub fn view_index(&self, name: &str) -> Option<usize> {
+        self.paths.iter().position(|p| p.display().to_string() == name)
+    }
+
+    /// RMS distance of the views' corners to their nearest true corner, pixels.
+    pub fn corner_error_rms(&self, views: &[View]) -> f64 {
+        let (mut sq, mut n) = (0.0, 0usize);
         for v in views {
-            if let Some(i) = index_of(&v.name) {
-                let e = corner_rms(&v.corners_px, &truth_px[i]);
+            if let Some(i) = self.view_index(&v.name) {
+                let e = corner_rms(&v.corners_px, &self.truth_px[i]);
                 sq += e * e * v.corners_px.len() as f64;
-                found.push(v.corners_px.len());
+                n += v.corners_px.len();
             }
         }
-        (sq / found.iter().sum::<usize>().max(1) as f64).sqrt()
-    };
+        (sq / n.max(1) as f64).sqrt()
+    }
+}
+
+/// The calibration pattern of the study's board.
+pub fn study_pattern(board: &PrintedChessboard) -> CalibrationPattern {
+    CalibrationPattern::Chessboard {
+        inner_cols: board.inner_cols,
+        inner_rows: board.inner_rows,
+        square_m: board.square_m,
+    }
+}
+
+/// The project's own corners of every view where the board was found
+/// (`detect_pattern_views(.., CornerMethod::Own)`, the default of `camera calibrate`).
+pub fn own_views(settings: &StudySettings, rendered: &RenderedSeed) -> Vec<View> {
+    let found = detect_pattern_views(&rendered.paths, &study_pattern(&settings.board), CornerMethod::Own);
+    found.slots.into_iter().flatten().collect()
+}
+
+/// OpenCV's corners (`findChessboardCorners` + `cornerSubPix` 11 x 11) of every view where
+/// the board was found.
+pub fn opencv_views(settings: &StudySettings, rendered: &RenderedSeed) -> Vec<View> {
+    let b = &settings.board;
+    rendered
+        .paths
+        .iter()
+        .filter_map(|p| chessboard_corners_opencv_with(p, b.inner_cols, b.inner_rows, SubpixWindow::OpenCv).ok())
+        .map(|c| View::new(c.image.display().to_string(), c.image_size, c.corners_px))
+        .collect()
+}
+
+/// The options of `camera calibrate`'s default with the given covariance.
+fn options_with(covariance: CovarianceMethod) -> CalibrationOptions {
+    CalibrationOptions { covariance, ..CalibrationOptions::default() }
+}
+
+/// Runs one seed: renders the views into `dir` (PNG files), calibrates both ways, compares
+/// with the truth.
+pub fn run_seed(settings: &StudySettings, seed: u64, dir: &Path) -> Result<SeedResult> {
+    let rendered = render_seed(settings, seed, dir)?;
+    let truth = rendered.truth;
+    let b = &settings.board;
+    let pattern = study_pattern(b);
+    let t = truth.intrinsics;
 
     // (a) The project's default: own corners, calibrate_pattern.
-    let found = detect_pattern_views(&paths, &pattern, CornerMethod::Own);
-    let ours_views: Vec<View> = found.slots.into_iter().flatten().collect();
-    let pc = calibrate_pattern(&ours_views, &pattern, found.circle_radii_m, &CalibrationOptions::default())?;
+    let ours_views = own_views(settings, &rendered);
+    let pc = calibrate_pattern(&ours_views, &pattern, None, &CalibrationOptions::default())?;
     let c = &pc.calibration;
     let k = c.camera.intrinsics;
-    let ours = side(
+    let mut ours = side(
         &t,
         [k.fx_px, k.fy_px, k.cx_px, k.cy_px],
         [c.std[0], c.std[1], c.std[2], c.std[3]],
         ours_views.len(),
-        corner_error(&ours_views),
+        rendered.corner_error_rms(&ours_views),
         c.rms_px,
     );
+    for (method, out) in [
+        (CovarianceMethod::Independent, &mut ours.std_independent_px),
+        (CovarianceMethod::ViewJackknife, &mut ours.std_jackknife_px),
+        (CovarianceMethod::ViewSandwich, &mut ours.std_sandwich_px),
+    ] {
+        let s = if method == CalibrationOptions::default().covariance {
+            c.std.clone()
+        } else {
+            calibrate_pattern(&ours_views, &pattern, None, &options_with(method))?.calibration.std
+        };
+        *out = [s[0], s[1], s[2], s[3]];
+    }
 
     // (b) OpenCV: findChessboardCorners + cornerSubPix 11 x 11, calibrateCamera.
-    let cv_views: Vec<View> = paths
-        .iter()
-        .filter_map(|p| chessboard_corners_opencv_with(p, b.inner_cols, b.inner_rows, SubpixWindow::OpenCv).ok())
-        .map(|c| View::new(c.image.display().to_string(), c.image_size, c.corners_px))
-        .collect();
+    let cv_views = opencv_views(settings, &rendered);
     if cv_views.len() < 3 {
         return Err(DatasetError::Render(format!("seed {seed}: OpenCV found the board in {} views", cv_views.len())));
     }
     let (cv_k, cv_std, cv_rms) = opencv_calibrate(&cv_views, b, truth.image_size)?;
-    let opencv = side(&t, cv_k, cv_std, cv_views.len(), corner_error(&cv_views), cv_rms);
+    let opencv = side(&t, cv_k, cv_std, cv_views.len(), rendered.corner_error_rms(&cv_views), cv_rms);
     let ratio = opencv.rms_error_px / ours.rms_error_px;
     Ok(SeedResult { seed, truth, ours, opencv, ratio })
 }
@@ -404,6 +535,9 @@ pub fn summarize(results: &[SeedResult]) -> Summary {
         results.iter().map(|r| f(r).iter().filter(|w| **w).count()).sum::<usize>() as f64 / (4.0 * n)
     };
     let rms = |f: &dyn Fn(&SeedResult) -> f64| (results.iter().map(|r| f(r).powi(2)).sum::<f64>() / n).sqrt();
+    let of = |f: &dyn Fn(&SeedResult) -> [f64; 4]| results.iter().map(f).collect::<Vec<_>>();
+    let err = of(&|r| r.ours.abs_error_px);
+    let indep = of(&|r| r.ours.std_independent_px);
     Summary {
         seeds: results.len(),
         median_ratio: median(&ratios),
@@ -413,6 +547,10 @@ pub fn summarize(results: &[SeedResult]) -> Summary {
         opencv_coverage_3_sigma: cover(&|r| r.opencv.within_3_sigma),
         ours_rms_error_px: rms(&|r| r.ours.rms_error_px),
         opencv_rms_error_px: rms(&|r| r.opencv.rms_error_px),
+        ours_independent: coverage(&err, &indep, &indep),
+        ours_jackknife: coverage(&err, &of(&|r| r.ours.std_jackknife_px), &indep),
+        ours_sandwich: coverage(&err, &of(&|r| r.ours.std_sandwich_px), &indep),
+        opencv: coverage(&of(&|r| r.opencv.abs_error_px), &of(&|r| r.opencv.std_px), &of(&|r| r.opencv.std_px)),
     }
 }
 
@@ -440,6 +578,37 @@ pub fn markdown(results: &[SeedResult], summary: &Summary) -> String {
             four(r.ours.std_px),
         ));
     }
+    s.push_str(
+        "\n| seed | ours abs err fx fy cx cy (px) | std independent | std jackknife | std sandwich | within 3 sigma indep / jack / sandwich |\n|---|---|---|---|---|---|\n",
+    );
+    for r in results {
+        let o = &r.ours;
+        let count = |std: [f64; 4]| (0..4).filter(|&i| o.abs_error_px[i] <= 3.0 * std[i]).count();
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {}/4 {}/4 {}/4 |\n",
+            r.seed,
+            four(o.abs_error_px),
+            four(o.std_independent_px),
+            four(o.std_jackknife_px),
+            four(o.std_sandwich_px),
+            count(o.std_independent_px),
+            count(o.std_jackknife_px),
+            count(o.std_sandwich_px),
+        ));
+    }
+    let cov = |c: &Coverage| {
+        format!(
+            "{}/{} within 3 sigma, {} beyond 2 sigma, RMS error/sigma {:.2}, sigma x{:.2} of independent",
+            c.within_3_sigma, c.n, c.beyond_2_sigma, c.z_rms, c.sigma_ratio
+        )
+    };
+    s.push_str(&format!(
+        "\ncoverage ours independent: {}\ncoverage ours jackknife: {}\ncoverage ours sandwich: {}\ncoverage OpenCV: {}\n",
+        cov(&summary.ours_independent),
+        cov(&summary.ours_jackknife),
+        cov(&summary.ours_sandwich),
+        cov(&summary.opencv)
+    ));
     s.push_str(&format!(
         "\nseeds {}: median ratio {:.2} (min {:.2}), ratio >= 1.5 in {:.0} % of the seeds; RMS intrinsic error ours {:.3} px, OpenCV {:.3} px; 3-sigma coverage ours {:.1} % (OpenCV {:.1} %)\n",
         summary.seeds,
@@ -499,5 +668,10 @@ mod tests {
         // fx of seed 1 is 4 sigma off: 11 of 12 within 3 sigma.
         assert!((s.ours_coverage_3_sigma - 11.0 / 12.0).abs() < 1e-12);
         assert!(markdown(&[r(0, 1.0, 2.0)], &s).contains("| 0 | 10/10 |"));
+        // Coverage: one value 3.5 sigma off, three 1 sigma off; sigmas twice the reference.
+        let c = coverage(&[[3.5, 1.0, 1.0, 1.0]], &[[1.0; 4]], &[[0.5; 4]]);
+        assert_eq!((c.n, c.within_3_sigma, c.beyond_2_sigma), (4, 3, 1));
+        assert!((c.z_rms - ((3.5f64 * 3.5 + 3.0) / 4.0).sqrt()).abs() < 1e-12);
+        assert!((c.sigma_ratio - 2.0).abs() < 1e-12);
     }
 }

@@ -38,6 +38,7 @@
 
 pub mod apriltag;
 mod boards;
+pub mod calibration_errors;
 pub mod calibration_study;
 pub mod corner_study;
 mod optics;

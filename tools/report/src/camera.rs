@@ -51,7 +51,9 @@ pub fn camera_json(cal: &CameraCalibration) -> Value {
         "std": {
             "fx": cal.std[0], "fy": cal.std[1], "cx": cal.std[2], "cy": cal.std[3],
             "distortion": cal.std[4..].to_vec(),
+            "method": cal.summary.covariance_method.name(),
         },
+        "std_independent": cal.summary.std_independent,
         "outlier_corners": outliers,
         "summary": {
             "n_views_used": cal.views.iter().filter(|v| v.used).count(),

@@ -20,7 +20,7 @@ use ferrocal_vision::calib::corners::{
 use ferrocal_vision::calib::heldout::held_out_reprojection;
 use ferrocal_vision::calib::{
     calibrate_pattern, calibrate_stereo, compare::compare_with_opencv, CalibrationOptions, CalibrationPattern,
-    CameraCalibration, PlanarTarget, RobustLoss, MIN_VIEWS,
+    CameraCalibration, CovarianceMethod, PlanarTarget, RobustLoss, MIN_VIEWS,
 };
 use ferrocal_vision::camera::{io, DistortionKind};
 use serde_json::{json, Value};
@@ -87,6 +87,35 @@ pub struct SolveArgs {
     /// recipe) or `adaptive` (shrunk where the squares are smaller than the window).
     #[arg(long, value_enum, default_value = "opencv")]
     pub subpix_window: WindowArg,
+    /// Covariance of the camera parameters (one camera): `independent` (every corner an
+    /// independent measurement, s0^2 (J^T J)^-1, as OpenCV), `jackknife` (leave one view out;
+    /// the corners of a view may be correlated) or `sandwich` (view-clustered sandwich).
+    #[arg(long, value_enum, default_value = "independent")]
+    pub covariance: CovarianceArg,
+}
+
+/// How the covariance of the camera parameters is computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum CovarianceArg {
+    /// Corners independent.
+    #[value(name = "independent")]
+    Independent,
+    /// Leave-one-view-out jackknife.
+    #[value(name = "jackknife")]
+    Jackknife,
+    /// View-clustered sandwich.
+    #[value(name = "sandwich")]
+    Sandwich,
+}
+
+impl CovarianceArg {
+    fn method(self) -> CovarianceMethod {
+        match self {
+            CovarianceArg::Independent => CovarianceMethod::Independent,
+            CovarianceArg::Jackknife => CovarianceMethod::ViewJackknife,
+            CovarianceArg::Sandwich => CovarianceMethod::ViewSandwich,
+        }
+    }
 }
 
 /// Where the chessboard corners come from.
@@ -136,6 +165,7 @@ impl SolveArgs {
             fix_aspect: self.fix_aspect,
             loss: RobustLoss::parse(&self.loss)?,
             reject_outliers: self.reject_outliers,
+            covariance: self.covariance.method(),
             ..CalibrationOptions::default()
         };
         options.validate()?;
@@ -249,6 +279,17 @@ fn print_camera(label: &str, cal: &CameraCalibration) {
         cal.rms_px,
         cal.views.iter().filter(|v| v.used).count()
     );
+    if cal.summary.covariance_method != CovarianceMethod::Independent {
+        let s = &cal.summary.std_independent;
+        println!(
+            "{label}: standard deviations by {} covariance; with corners independent: fx {:.3}, fy {:.3}, cx {:.3}, cy {:.3} px",
+            cal.summary.covariance_method.name(),
+            s[0],
+            s[1],
+            s[2],
+            s[3]
+        );
+    }
     for w in &cal.summary.warnings {
         eprintln!("ferrocal: warning: {w}");
     }

@@ -21,7 +21,7 @@
 //! in the global covariance. Measurements: one residual block per corner and camera, `projected -
 //! observed` in pixels (two rows), with the robust loss applied to its squared length.
 
-use nalgebra::{DMatrix, Matrix2x3, Matrix2xX, Matrix6, Point2, Point3, Rotation3, Vector2};
+use nalgebra::{DMatrix, DVector, Matrix2x3, Matrix2xX, Matrix6, Point2, Point3, Rotation3, Vector2, Vector6};
 
 use super::deform::TargetDeformation;
 use super::RobustLoss;
@@ -241,6 +241,35 @@ pub(crate) struct GlobalCovariance {
     pub s0_px: f64,
     /// Condition number of the correlation-scaled Schur complement.
     pub condition: f64,
+    /// Per view with observations, the view's score in the global parameters with its pose
+    /// marginalised, `sum_i w_i J_gi^T r_i - N_gv N_vv^-1 sum_i w_i J_vi^T r_i` (the second
+    /// term is zero at an exact optimum), for the view-clustered sandwich
+    /// ([`GlobalCovariance::view_sandwich`]).
+    pub view_scores: Vec<DVector<f64>>,
+    /// Measurements (residual rows) and unknowns of the adjustment.
+    pub dof: (usize, usize),
+}
+
+impl GlobalCovariance {
+    /// The view-clustered sandwich covariance `S^-1 (c sum_v g_v g_v^T) S^-1` of the global
+    /// parameters, `S` the Schur complement (so `S^-1 = covariance / s0^2`), `g_v` the views'
+    /// [`GlobalCovariance::view_scores`], `c = G / (G - 1) (m - 1) / (m - n)` the usual
+    /// small-sample factor of clustered sandwiches (`G` views, `m` measurements, `n`
+    /// unknowns). It makes no assumption about how the corners of one view are correlated,
+    /// only that views are independent.
+    pub fn view_sandwich(&self) -> DMatrix<f64> {
+        let ng = self.covariance.nrows();
+        let s_inv = &self.covariance / (self.s0_px * self.s0_px);
+        let mut meat = DMatrix::<f64>::zeros(ng, ng);
+        for g in &self.view_scores {
+            meat += g * g.transpose();
+        }
+        let n_views = self.view_scores.len() as f64;
+        let (m, n) = (self.dof.0 as f64, self.dof.1 as f64);
+        let c = n_views / (n_views - 1.0).max(1.0) * (m - 1.0) / (m - n).max(1.0);
+        let cov = &s_inv * (meat * c) * &s_inv;
+        0.5 * (&cov + cov.transpose())
+    }
 }
 
 /// Weight `rho'(s)` of a residual with squared length `s` under the loss.
@@ -438,6 +467,8 @@ impl Bundle {
         let mut n_gv: Vec<DMatrix<f64>> = vec![DMatrix::zeros(ng, 6); nv];
         let mut n_vv: Vec<Matrix6<f64>> = vec![Matrix6::zeros(); nv];
         let mut used = vec![0usize; nv];
+        let mut score_g: Vec<DVector<f64>> = vec![DVector::zeros(ng); nv];
+        let mut score_v: Vec<Vector6<f64>> = vec![Vector6::zeros(); nv];
         let mut sum_wr2 = 0.0;
         let mut m = 0usize;
         for o in &self.obs {
@@ -474,6 +505,8 @@ impl Bundle {
             let jv = DMatrix::from_column_slice(2, 6, ob.d_view.as_slice());
             n_gv[o.view] += w * &jgt * &jv;
             n_vv[o.view] += w * ob.d_view.transpose() * ob.d_view;
+            score_g[o.view] += w * &jgt * ob.residual;
+            score_v[o.view] += w * ob.d_view.transpose() * ob.residual;
         }
         let active = used.iter().filter(|&&u| u > 0).count();
         let n = ng + 6 * active;
@@ -485,6 +518,7 @@ impl Bundle {
             });
         }
         let mut s = n_gg;
+        let mut view_scores = Vec::with_capacity(active);
         for v in 0..nv {
             if used[v] == 0 {
                 continue;
@@ -492,6 +526,8 @@ impl Bundle {
             let inv = n_vv[v].try_inverse().ok_or_else(|| VisionError::DegenerateViews {
                 detail: format!("view {v}: its corners do not determine the target pose"),
             })?;
+            let pose_step = DVector::from_column_slice((inv * score_v[v]).as_slice());
+            view_scores.push(&score_g[v] - &n_gv[v] * pose_step);
             let inv = DMatrix::from_column_slice(6, 6, inv.as_slice());
             s -= &n_gv[v] * inv * n_gv[v].transpose();
         }
@@ -537,6 +573,6 @@ impl Bundle {
                 cov[(i, j)] *= s0_sq / (d[i] * d[j]).sqrt();
             }
         }
-        Ok(GlobalCovariance { covariance: cov, s0_px: s0_sq.sqrt(), condition })
+        Ok(GlobalCovariance { covariance: cov, s0_px: s0_sq.sqrt(), condition, view_scores, dof: (m, n) })
     }
 }

@@ -4,7 +4,9 @@ use nalgebra::{DMatrix, Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::bundle::{Bundle, CameraLayout, Obs};
-use super::{calibrate_camera, median, CalibrationOptions, CameraCalibration, PlanarTarget, View, ViewReport};
+use super::{
+    calibrate_camera, median, CalibrationOptions, CameraCalibration, CovarianceMethod, PlanarTarget, View, ViewReport,
+};
 use crate::error::{Result, VisionError};
 use crate::pose::{so3, CameraRig, LocalPose};
 
@@ -199,12 +201,13 @@ pub fn calibrate_rig(
             ),
         });
     }
-    // 1. Every camera alone.
+    // 1. Every camera alone (its covariance is replaced by the joint adjustment's).
+    let mono_options = CalibrationOptions { covariance: CovarianceMethod::Independent, ..options.clone() };
     let mut mono: Vec<CameraCalibration> = Vec::with_capacity(nc);
     let mut slots: Vec<Vec<Option<usize>>> = Vec::with_capacity(nc); // view slot -> index in mono views
     for (k, cam_views) in views.iter().enumerate() {
         let present: Vec<View> = cam_views.iter().flatten().cloned().collect();
-        let cal = calibrate_camera(&present, target, options).map_err(|e| match e {
+        let cal = calibrate_camera(&present, target, &mono_options).map_err(|e| match e {
             VisionError::TooFewViews { usable, needed, detail } => {
                 VisionError::TooFewViews { usable, needed, detail: format!("camera {k}: {detail}") }
             }

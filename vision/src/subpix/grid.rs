@@ -384,8 +384,11 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
 }
 
 /// Largest sagitta (pixels) of a bent line over its segments' reach that is taken as lens
-/// distortion (see [`fit_job`]).
-const MAX_SAGITTA_PX: f64 = 0.5;
+/// distortion (see [`fit_job`]). 0.5 px fell back to the straight chord in the image corners of
+/// a strong barrel lens (k1 = -0.195 at 1280 x 960, calibration study seed 15: outer-third
+/// radial corner bias -0.038 px, fx off by 0.19 px); 1.0 px keeps those bends and still
+/// rejects the spurious ones of small blurred squares (OpenCV's stereo sample).
+const MAX_SAGITTA_PX: f64 = 1.0;
 
 /// Corner of two fitted lines, in fit coordinates, with the Jacobian blocks.
 fn intersect(l1: &FittedLine, l2: &FittedLine) -> Option<(Vector2<f64>, [nalgebra::Matrix2<f64>; 2])> {
@@ -431,15 +434,16 @@ impl Points<'_> {
         self.fit[(i * c + j) as usize]
     }
 
-    /// The point, or its linear extrapolation from the two next along `(di, dj)` (either
-    /// direction).
+    /// The point, or its extrapolation from the next ones along `(di, dj)` (either
+    /// direction): projective from three ([`extrapolate_projective`]), linear from two.
     fn get_or_extrapolate(&self, i: isize, j: isize, di: isize, dj: isize) -> Option<Vector2<f64>> {
         if let Some(p) = self.get(i, j) {
             return Some(p);
         }
         for s in [1, -1] {
             if let (Some(p1), Some(p2)) = (self.get(i + s * di, j + s * dj), self.get(i + 2 * s * di, j + 2 * s * dj)) {
-                return Some(p1 * 2.0 - p2);
+                let p3 = self.get(i + 3 * s * di, j + 3 * s * dj);
+                return Some(p3.and_then(|p3| extrapolate_projective(p1, p2, p3)).unwrap_or(p1 * 2.0 - p2));
             }
         }
         None
@@ -498,6 +502,34 @@ impl Points<'_> {
         }
         room
     }
+}
+
+/// The point one step before `p1` on a line of equally spaced points `p1, p2, p3` seen in
+/// perspective: along the line the 1D homography `x(k) = (a k + b) / (c k + 1)` through the
+/// three (a board's squares shrink or grow from one to the next in a tilted view, so the
+/// linear extrapolation `2 p1 - p2` misplaces the board's outer grid points by up to several
+/// pixels), on the line through `p1` and `p2`. `None` when the three do not determine a plausible point (the
+/// caller extrapolates linearly).
+fn extrapolate_projective(p1: Vector2<f64>, p2: Vector2<f64>, p3: Vector2<f64>) -> Option<Vector2<f64>> {
+    let d = p2 - p1;
+    let len = d.norm();
+    if len < 1e-9 {
+        return None;
+    }
+    let u = d / len;
+    let x = [0.0, len, u.dot(&(p3 - p1))];
+    // a k + b - c k x_k = x_k for k = 1, 2, 3.
+    let m = nalgebra::Matrix3::from_fn(|r, c| {
+        let k = (r + 1) as f64;
+        [k, 1.0, -k * x[r]][c]
+    });
+    let sol = m.lu().solve(&nalgebra::Vector3::new(x[0], x[1], x[2]))?;
+    let b = sol[1]; // x(0), relative to p1
+                    // The linear step is -len; a plausible perspective step lies within a factor of 2 of it.
+    if !(b.is_finite() && b < -0.5 * len && b > -2.0 * len) {
+        return None;
+    }
+    Some(p1 + u * b)
 }
 
 fn segment_job(pts: &Points, i: isize, j: isize, dir: usize) -> Option<SegJob> {
@@ -840,4 +872,25 @@ pub(super) fn estimate_noise(s: &[f64; 5]) -> Option<NoiseModel> {
         offset = min_var;
     }
     Some(NoiseModel { offset_dn2: offset, slope_dn: slope })
+}
+
+#[cfg(test)]
+mod extrapolation_tests {
+    use super::*;
+
+    #[test]
+    fn the_outer_grid_point_is_extrapolated_in_perspective() {
+        // Equally spaced board points under a 1D homography: x(k) = (60 k + 5) / (0.08 k + 1)
+        // pixels along a tilted line; the step shrinks from 60 to about 40 px.
+        let x = |k: f64| (60.0 * k + 5.0) / (0.08 * k + 1.0);
+        let u = Vector2::new(0.6, 0.8);
+        let o = Vector2::new(100.0, 50.0);
+        let at = |k: f64| o + u * x(k);
+        let p = extrapolate_projective(at(1.0), at(2.0), at(3.0)).unwrap();
+        assert!((p - at(0.0)).norm() < 1e-9, "{:?} vs {:?}", p, at(0.0));
+        // The linear extrapolation is several pixels off here.
+        assert!((at(1.0) * 2.0 - at(2.0) - at(0.0)).norm() > 3.0);
+        // Implausible input: the linear fallback.
+        assert!(extrapolate_projective(at(1.0), at(1.0), at(3.0)).is_none());
+    }
 }
