@@ -23,7 +23,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use diagnose_support::{example_urdf, simulate_with_truth, Payload, Scenario};
+use diagnose_support::{example_urdf, simulate_with_truth, Order, Payload, Scenario};
 use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions};
 use ferrocal_calib::kinematic::{calibrate, KinematicOptions};
 use ferrocal_datasets::sim::Effect;
@@ -53,6 +53,8 @@ struct Rec {
     detected: bool,
     first_correct: bool,
     wrong: bool,
+    /// Kinds of other findings on the true joint (look-alikes).
+    confused: String,
     findings: String,
     seconds: f64,
 }
@@ -77,6 +79,10 @@ fn main() {
     let mut out = PathBuf::from("out/diagnose_study");
     let mut per_cell = 4usize;
     let mut seed = 1u64;
+    let mut order = Order::Random;
+    let mut kinds: Vec<String> = KINDS.iter().map(|k| k.to_string()).collect();
+    let mut robot_filter: Option<Vec<String>> = None;
+    let mut ratios: Vec<f64> = RATIOS.to_vec();
     let args: Vec<String> = std::env::args().collect();
     let mut i = 1;
     while i < args.len() {
@@ -85,12 +91,30 @@ fn main() {
             "--out" => out = PathBuf::from(v),
             "--per-cell" => per_cell = v.parse().expect("--per-cell N"),
             "--seed" => seed = v.parse().expect("--seed S"),
+            "--order" => {
+                order = match v.as_str() {
+                    "random" => Order::Random,
+                    "planned" => Order::Planned,
+                    "from-home" => Order::FromHome,
+                    o => panic!("--order random|planned|from-home, got {o}"),
+                }
+            }
+            "--kinds" => kinds = v.split(',').map(str::to_string).collect(),
+            "--robots" => robot_filter = Some(v.split(',').map(str::to_string).collect()),
+            "--ratios" => ratios = v.split(',').map(|x| x.parse().expect("--ratios R,R,..")).collect(),
             a => panic!("unknown argument {a}"),
         }
         i += 2;
     }
     std::fs::create_dir_all(&out).expect("output folder");
-    let robots = ["ur5".to_string(), "ur10".to_string(), example_urdf()];
+    let robots: Vec<String> = ["ur5".to_string(), "ur10".to_string(), example_urdf()]
+        .into_iter()
+        .filter(|r| {
+            robot_filter
+                .as_ref()
+                .is_none_or(|f| f.iter().any(|x| r.rsplit('/').next().unwrap_or(r).starts_with(x.as_str())))
+        })
+        .collect();
     let opts = DiagnoseOptions::default();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut recs: Vec<Rec> = Vec::new();
@@ -100,13 +124,15 @@ fn main() {
     for robot in &robots {
         let short = robot.rsplit('/').next().unwrap_or(robot).trim_end_matches(".urdf").to_string();
         let mut jobs: Vec<(String, f64)> = Vec::new();
-        for _ in 0..per_cell * RATIOS.len() {
-            jobs.push(("none".into(), 0.0));
+        if kinds.iter().any(|k| k == "none") {
+            for _ in 0..per_cell * ratios.len() {
+                jobs.push(("none".into(), 0.0));
+            }
         }
-        for k in KINDS {
-            for r in RATIOS {
+        for k in kinds.iter().filter(|k| *k != "none") {
+            for &r in &ratios {
                 for _ in 0..per_cell {
-                    jobs.push((k.to_string(), r));
+                    jobs.push((k.clone(), r));
                 }
             }
         }
@@ -129,6 +155,7 @@ fn main() {
             sc.noise_scale = noise;
             sc.payload = payload;
             sc.with_sigma = true;
+            sc.order = order;
             // Size the effect: a unit-size run gives the displacement per unit.
             let unit = match kind.as_str() {
                 "joint_compliance" | "link_compliance" => 1e-5,
@@ -199,6 +226,13 @@ fn main() {
             let detected = rep.findings.iter().any(is_true);
             let first_correct = rep.findings.first().is_some_and(is_true);
             let wrong = rep.findings.iter().any(|f| !is_true(f));
+            let confused = rep
+                .findings
+                .iter()
+                .filter(|f| f.effect != kind && !want_joints.is_empty() && f.joints == want_joints)
+                .map(|f| f.effect.clone())
+                .collect::<Vec<_>>()
+                .join(" ");
             let findings =
                 rep.findings.iter().map(|f| format!("{}{:?}", f.effect, f.joints)).collect::<Vec<_>>().join(" ");
             eprintln!(
@@ -254,6 +288,7 @@ fn main() {
                 detected,
                 first_correct,
                 wrong,
+                confused,
                 findings,
                 seconds: secs,
             });
@@ -312,7 +347,7 @@ fn main() {
     );
     let mut header = String::from("| effect |");
     let mut sep = String::from("| --- |");
-    for r in RATIOS {
+    for r in &ratios {
         let _ = write!(header, " rho {r} |");
         sep.push_str(" --- |");
     }
@@ -320,10 +355,11 @@ fn main() {
         writeln!(md, "Detection rate (true effect found, in %; wrong claims in brackets; n recordings; - none: the size would have been unphysical), by size:\n\n{header}\n{sep}");
     let mut sum_csv = String::from("effect,rho,n,detected,first_correct,wrong_claim\n");
     let mut curves: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-    for k in KINDS {
+    for k in kinds.iter().filter(|k| *k != "none") {
+        let k = k.as_str();
         let mut line = format!("| {k} |");
         let mut pts = Vec::new();
-        for r in RATIOS {
+        for &r in &ratios {
             let v: Vec<&Rec> = recs.iter().filter(|x| x.kind == k && x.ratio == r).collect();
             let (d, n) = rate(&v, &|x| x.detected);
             let (w, _) = rate(&v, &|x| x.wrong);
@@ -357,6 +393,18 @@ fn main() {
         "\nExactly the true effect and nothing else, rho >= 1: {d} of {n} = {:.1} %",
         100.0 * d as f64 / n.max(1) as f64
     );
+    // Look-alikes: a finding of another kind on the true joint (e.g. backlash named as a scale
+    // error), per kind, at rho >= 1.
+    let _ = writeln!(md, "\nNamed as another effect on the true joint (rho >= 1):\n\n| effect | recordings | other kind on its joint | which |\n| --- | --- | --- | --- |");
+    for k in kinds.iter().filter(|k| *k != "none") {
+        let v: Vec<&Rec> = big.iter().copied().filter(|x| &x.kind == k).collect();
+        let conf: Vec<&Rec> = v.iter().copied().filter(|x| !x.confused.is_empty()).collect();
+        let mut which: Vec<String> = conf.iter().map(|x| x.confused.clone()).collect();
+        which.sort();
+        which.dedup();
+        let _ = writeln!(md, "| {k} | {} | {} | {} |", v.len(), conf.len(), which.join(", "));
+    }
+    let _ = writeln!(md, "\nApproach directions: {order:?} order.");
     if !timing_400.is_empty() {
         let mean = timing_400.iter().sum::<f64>() / timing_400.len() as f64;
         let max = timing_400.iter().copied().fold(0.0, f64::max);
