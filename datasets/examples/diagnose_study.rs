@@ -30,13 +30,14 @@ use ferrocal_datasets::sim::Effect;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-const KINDS: [&str; 6] = [
+const KINDS: [&str; 7] = [
     "joint_compliance",
     "link_compliance",
     "backlash",
     "joint_scale_error",
     "periodic_joint_error",
     "thermal_expansion",
+    "coupled_transmission",
 ];
 const RATIOS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 
@@ -60,7 +61,8 @@ struct Rec {
 }
 
 /// The effect of `kind` on `joint` with its size parameter `x` (for thermal: the temperature rise).
-fn effect(kind: &str, joint: usize, x: f64, period: f64, phase: f64) -> Option<Effect> {
+/// `driver`: the driving joint of a coupled transmission.
+fn effect(kind: &str, joint: usize, driver: usize, x: f64, period: f64, phase: f64) -> Option<Effect> {
     Some(match kind {
         "joint_compliance" => Effect::JointCompliance { joint, compliance_si: x },
         // `joint` is the link's number here (link k joins joints k and k + 1).
@@ -71,6 +73,7 @@ fn effect(kind: &str, joint: usize, x: f64, period: f64, phase: f64) -> Option<E
             Effect::PeriodicJointError { joint, amplitude_si: x, period_si: period, phase_rad: phase }
         }
         "thermal_expansion" => Effect::ThermalExpansion { alpha_per_k: 23e-6, reference_temp_c: 20.0 },
+        "coupled_transmission" => Effect::CoupledTransmission { joint, driver, ratio: x },
         _ => return None,
     })
 }
@@ -143,6 +146,17 @@ fn main() {
                 "thermal_expansion" | "none" => 0,
                 _ => rng.random_range(1..=5),
             };
+            // A coupled transmission's driving joint: another of joints 1 to 6.
+            let driver = if kind == "coupled_transmission" {
+                let k = rng.random_range(1..=5);
+                if k >= joint {
+                    k + 1
+                } else {
+                    k
+                }
+            } else {
+                0
+            };
             let periods = [std::f64::consts::TAU, 1.0, 0.3, std::f64::consts::TAU / 50.0];
             let period = periods[rng.random_range(0..periods.len())];
             let phase = rng.random_range(0.0..std::f64::consts::TAU);
@@ -168,7 +182,7 @@ fn main() {
                 if kind == "thermal_expansion" {
                     sc.temp_c = (20.0, 20.0 + unit);
                 }
-                sc.effect = effect(&kind, joint, unit, period, phase);
+                sc.effect = effect(&kind, joint, driver, unit, period, phase);
                 // Noise-free run: what a geometric calibration cannot absorb is the visible size.
                 let tiny = 1e-6;
                 sc.noise_scale = tiny;
@@ -200,7 +214,7 @@ fn main() {
                 if kind == "thermal_expansion" {
                     sc.temp_c = (20.0, 20.0 + x);
                 } else {
-                    sc.effect = effect(&kind, joint, x, period, phase);
+                    sc.effect = effect(&kind, joint, driver, x, period, phase);
                 }
             }
             sc.with_sigma = sigma_col;
@@ -220,6 +234,7 @@ fn main() {
             let want_joints: Vec<usize> = match (kind.as_str(), joint) {
                 (_, 0) => vec![],
                 ("link_compliance", k) => vec![k, k + 1],
+                ("coupled_transmission", j) => vec![j, driver],
                 (_, j) => vec![j],
             };
             let is_true = |f: &ferrocal_calib::diagnose::Finding| f.effect == kind && f.joints == want_joints;

@@ -128,6 +128,22 @@ fn backlash_and_scale_error_told_apart_when_direction_follows_the_angle() {
 }
 
 #[test]
+fn coupled_transmission_on_the_right_pair_of_joints() {
+    // Joint J turns by c per radian of joint K (the elbow driven through the shoulder, and the
+    // shoulder through the elbow on the other arm): the finding names J and K in that order and
+    // recovers c.
+    let arm = example_urdf();
+    for (robot, joint, driver, ratio, seed) in [("ur5", 3, 2, 4e-4, 101), (arm.as_str(), 2, 3, -3e-4, 102)] {
+        let mut s = Scenario::new(robot, Some(Effect::CoupledTransmission { joint, driver, ratio }), seed);
+        s.n_poses = 200;
+        let rep = run(&s);
+        assert_only(&rep, "coupled_transmission", &[joint, driver]);
+        let c = rep.findings[0].parameters["coupling"];
+        assert!((c - ratio).abs() < 0.15 * ratio.abs(), "{robot}: coupling {c:e} against {ratio:e}");
+    }
+}
+
+#[test]
 fn thermal_expansion_from_the_warm_up() {
     let mut s = Scenario::new(
         &example_urdf(),

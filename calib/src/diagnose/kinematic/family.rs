@@ -59,6 +59,9 @@ impl Cand {
             Cand::Fixed(EffectSpec::LinkCompliance { link }) => {
                 format!("link_compliance on link {link} (between joints {link} and {})", link + 1)
             }
+            Cand::Fixed(EffectSpec::CoupledTransmission { joint, driver }) => {
+                format!("coupled_transmission on joint {joint} (driven by joint {driver})")
+            }
             c => format!("{} on joint {}", c.name(), c.joints().first().copied().unwrap_or(0)),
         }
     }
@@ -75,6 +78,11 @@ impl Cand {
         }
         if let (Cand::Fixed(EffectSpec::LinkCompliance { link }), EffectSpec::LinkCompliance { link: l }) = (self, s) {
             return link == l;
+        }
+        if let (Cand::Fixed(a @ EffectSpec::CoupledTransmission { .. }), b @ EffectSpec::CoupledTransmission { .. }) =
+            (self, s)
+        {
+            return a == b;
         }
         match self {
             Cand::Fixed(c) => {
