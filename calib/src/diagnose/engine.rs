@@ -16,7 +16,11 @@
 //! 3. the candidates are examined in the order of the [`Selection`]: the overlap with the base
 //!    model (the sine of the angle between the effect's columns and the base model's, when the
 //!    family measures it), plausibility of sign and size, stability over the folds, and, when the
-//!    family has one, a confirmation by full refits that is tested again;
+//!    family has one, a confirmation by full refits that is tested again; with ranked
+//!    examination, before the confirmation, a joint comparison with the candidate's look-alikes
+//!    ([`Family::look_alikes`], [`Family::screen_together`]): a candidate that adds nothing to
+//!    a look-alike which still adds to it is rejected, and two that add nothing to each other are
+//!    both left unclaimed ([`Verdict::Explained`], [`Verdict::NotSeparable`]);
 //! 4. the first candidate that passes is accepted and added to the family's model, and the
 //!    search repeats; a family may also retire an earlier effect that later ones made
 //!    unnecessary ([`StepStart::Pruned`]).
@@ -630,8 +634,9 @@ pub const SEPARATION_LEVEL: f64 = 0.05;
 /// The candidate stands against a look-alike when it adds a significant improvement to it
 /// (`p <` [`SEPARATION_LEVEL`]); otherwise it is rejected as explained by the look-alike when the look-alike
 /// adds a significant one to it (`p < alpha` over the look-alikes, Bonferroni). When neither
-/// adds anything, a look-alike with more parameters does not stand in the way (parsimony); one
-/// with as many or fewer makes the two not separable, and the candidate is not claimed.
+/// adds anything, the two are not separable and the candidate is not claimed. A look-alike with
+/// more parameters than the candidate never stands in its way (parsimony: the simpler reading
+/// is examined first and stands).
 /// `None`: it stands against every look-alike.
 fn separate<F: Family>(family: &mut F, policy: &Policy, entries: &[Entry<F>], idx: usize) -> Result<Option<Verdict>> {
     let scored: Vec<usize> = significant(policy, entries).into_iter().filter(|&i| i != idx).collect();
@@ -658,13 +663,17 @@ fn separate<F: Family>(family: &mut F, policy: &Policy, entries: &[Entry<F>], id
         }
         let p_rival_added = bonferroni(paired_test(&rival_added).p_value, m);
         let with = entries[r].row.label.clone();
+        // Parsimony: a look-alike with more parameters than the candidate does not displace it
+        // (its extra freedom, e.g. a searched period, can mimic a simpler effect's shape); the
+        // simpler reading stands, as in the examination order.
+        if entries[r].describe.n_params > entries[idx].describe.n_params {
+            continue;
+        }
         if p_rival_added < policy.alpha {
             return Ok(Some(Verdict::Explained { by: with, p_added, p_rival_added }));
         }
-        // Neither adds to the other: the reading with fewer parameters takes precedence
-        // (parsimony, as in the examination order), so a look-alike with more parameters does
-        // not stand in the way; one with as many or fewer leaves the candidate unclaimed.
-        if entries[r].describe.n_params <= entries[idx].describe.n_params && unresolved.is_none() {
+        // Neither adds to the other: not separable.
+        if unresolved.is_none() {
             unresolved = Some(Verdict::NotSeparable { with, p_added, p_rival_added });
         }
     }
