@@ -12,6 +12,7 @@
 //! | `thermal_expansion[:T]` | lengths change with `temp_c`, geometry at `T` degrees Celsius (default 20) |
 //! | `time_drift` | lengths change with `t_s` |
 //! | `link_compliance:L` | link `L` bends under the load it carries |
+//! | `coupled_transmission:J:K` | joint `J`'s error is proportional to joint `K`'s angle |
 //!
 //! A JSON file may be a `ferrocal diagnose` report (its findings' `spec`), a calibration file
 //! (its `effects`), or an array of effect objects as those carry them.
@@ -57,6 +58,13 @@ fn parse_item(item: &str) -> std::result::Result<EffectSpec, String> {
         "backlash" => EffectSpec::Backlash { joint: index(1, "joint")? },
         "joint_scale_error" => EffectSpec::JointScaleError { joint: index(1, "joint")? },
         "link_compliance" => EffectSpec::LinkCompliance { link: index(1, "link")? },
+        "coupled_transmission" => {
+            let (joint, driver) = (index(1, "joint")?, index(2, "driving joint")?);
+            if joint == driver {
+                return Err(format!("joint {joint} cannot drive itself (that is joint_scale_error:{joint})"));
+            }
+            EffectSpec::CoupledTransmission { joint, driver }
+        }
         "periodic_joint_error" => {
             let joint = index(1, "joint")?;
             let p = parts.get(2).ok_or("the period is missing (e.g. periodic_joint_error:2:180deg)")?;
@@ -81,12 +89,12 @@ fn parse_item(item: &str) -> std::result::Result<EffectSpec, String> {
         }
         other => {
             return Err(format!(
-                "unknown effect '{other}' (joint_compliance, backlash, joint_scale_error, periodic_joint_error, thermal_expansion, time_drift, link_compliance)"
+                "unknown effect '{other}' (joint_compliance, backlash, joint_scale_error, periodic_joint_error, thermal_expansion, time_drift, link_compliance, coupled_transmission)"
             ))
         }
     };
     let expected = match spec {
-        EffectSpec::PeriodicJointError { .. } => 3,
+        EffectSpec::PeriodicJointError { .. } | EffectSpec::CoupledTransmission { .. } => 3,
         EffectSpec::TimeDrift => 1,
         _ => 2,
     };
@@ -166,7 +174,7 @@ mod tests {
     #[test]
     fn lists_parse_with_units_and_defaults() {
         let e = parse_effect_list(
-            "joint_compliance:2, periodic_joint_error:3:180deg,backlash:1,thermal_expansion,thermal_expansion:21.5C,time_drift,link_compliance:2,periodic_joint_error:1:5mm",
+            "joint_compliance:2, periodic_joint_error:3:180deg,backlash:1,thermal_expansion,thermal_expansion:21.5C,time_drift,link_compliance:2,periodic_joint_error:1:5mm,coupled_transmission:5:4",
         )
         .unwrap();
         assert_eq!(e[0], EffectSpec::JointCompliance { joint: 2 });
@@ -177,6 +185,7 @@ mod tests {
         assert_eq!(e[5], EffectSpec::TimeDrift);
         assert_eq!(e[6], EffectSpec::LinkCompliance { link: 2 });
         assert_eq!(e[7], EffectSpec::PeriodicJointError { joint: 1, period_si: 5e-3 });
+        assert_eq!(e[8], EffectSpec::CoupledTransmission { joint: 5, driver: 4 });
     }
 
     #[test]
@@ -190,6 +199,9 @@ mod tests {
             ("gravity:2", "unknown effect 'gravity'"),
             ("", "names no effect"),
             ("time_drift:3", "too many fields"),
+            ("coupled_transmission:2", "driving joint number is missing"),
+            ("coupled_transmission:2:2", "cannot drive itself"),
+            ("coupled_transmission:2:3:1", "too many fields"),
         ] {
             let e = parse_effect_list(text).unwrap_err().to_string();
             assert!(e.contains(needle), "{text}: {e}");

@@ -17,6 +17,7 @@
 //! | `periodic_joint_error` | `a, b` (rad or m), period `P` fixed | `dq_j = a sin(2 pi q_j / P) + b cos(2 pi q_j / P)` |
 //! | `thermal_expansion` | `alpha` (1/K) | every length scales by `1 + alpha (T - T_ref)`: the target position in the model's base frame scales by that factor |
 //! | `time_drift` | `v` (per hour) | as thermal expansion with `t` in hours instead of `T - T_ref` |
+//! | `coupled_transmission` | `c` (joint units of `J` per joint unit of `K`) | `dq_J = c q_K`: joint `J`'s transmission is coupled to joint `K`'s motion (a wrist whose motors sit on an earlier link, a cable passing a joint) |
 
 use ferrocal_robot::{JointKind, Kinematics, RobotModel, Unit};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -66,6 +67,13 @@ pub enum EffectSpec {
         /// Link (1-based, 1 to joints - 1).
         link: usize,
     },
+    /// A joint's error is proportional to another joint's angle: `dq_joint = c q_driver`.
+    CoupledTransmission {
+        /// The joint whose reading is off (1-based).
+        joint: usize,
+        /// The joint whose motion drives the error (1-based, not `joint`).
+        driver: usize,
+    },
 }
 
 impl EffectSpec {
@@ -79,6 +87,7 @@ impl EffectSpec {
             EffectSpec::ThermalExpansion { .. } => "thermal_expansion",
             EffectSpec::TimeDrift => "thermal_expansion",
             EffectSpec::LinkCompliance { .. } => "link_compliance",
+            EffectSpec::CoupledTransmission { .. } => "coupled_transmission",
         }
     }
 
@@ -88,7 +97,8 @@ impl EffectSpec {
             EffectSpec::JointCompliance { joint }
             | EffectSpec::Backlash { joint }
             | EffectSpec::JointScaleError { joint }
-            | EffectSpec::PeriodicJointError { joint, .. } => Some(*joint),
+            | EffectSpec::PeriodicJointError { joint, .. }
+            | EffectSpec::CoupledTransmission { joint, .. } => Some(*joint),
             EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift | EffectSpec::LinkCompliance { .. } => None,
         }
     }
@@ -98,6 +108,7 @@ impl EffectSpec {
     pub fn joints_reported(&self) -> Vec<usize> {
         match self {
             EffectSpec::LinkCompliance { link } => vec![*link, link + 1],
+            EffectSpec::CoupledTransmission { joint, driver } => vec![*joint, *driver],
             other => other.joint().into_iter().collect(),
         }
     }
@@ -127,6 +138,9 @@ impl EffectSpec {
             EffectSpec::LinkCompliance { link } => {
                 vec![(format!("link{link}.compliance_rad_per_nm"), Unit::Dimensionless)]
             }
+            EffectSpec::CoupledTransmission { joint, driver } => {
+                vec![(format!("joint{joint}.coupling_per_joint{driver}"), Unit::Dimensionless)]
+            }
         }
     }
 
@@ -140,6 +154,7 @@ impl EffectSpec {
             EffectSpec::ThermalExpansion { .. } => vec![1e-5],
             EffectSpec::TimeDrift => vec![1e-5],
             EffectSpec::LinkCompliance { .. } => vec![1e-6],
+            EffectSpec::CoupledTransmission { .. } => vec![1e-4],
         }
     }
 
@@ -180,6 +195,14 @@ impl EffectSpec {
                 )));
             }
         }
+        if let EffectSpec::CoupledTransmission { joint, driver } = self {
+            if *driver == 0 || *driver > model.dof() || driver == joint {
+                return Err(CalibError::Data(format!(
+                    "coupled_transmission: the driving joint {driver} must be another joint of the model (1 to {}, not {joint})",
+                    model.dof()
+                )));
+            }
+        }
         if let EffectSpec::PeriodicJointError { period_si, .. } = self {
             if !(period_si.is_finite() && *period_si > 0.0) {
                 return Err(CalibError::Data(format!(
@@ -212,6 +235,7 @@ impl EffectSpec {
                 let x = std::f64::consts::TAU * row.q[joint - 1] / period_si;
                 dq[joint - 1] += theta[0] * x.sin() + theta[1] * x.cos();
             }
+            EffectSpec::CoupledTransmission { joint, driver } => dq[joint - 1] += theta[0] * row.q[driver - 1],
             EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift | EffectSpec::LinkCompliance { .. } => {}
         }
         Ok(())

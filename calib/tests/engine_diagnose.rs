@@ -25,6 +25,8 @@ struct Polynomial {
     max_coefficient: f64,
     /// Retire the first accepted term once two are accepted (a backward check's verdict).
     prune_first: bool,
+    /// Compare every candidate jointly with the others before accepting it (look-alikes).
+    compare: bool,
 }
 
 fn lstsq(x: &[f64], y: &[f64], terms: &[u32], rows: &[usize]) -> DVector<f64> {
@@ -37,7 +39,16 @@ fn lstsq(x: &[f64], y: &[f64], terms: &[u32], rows: &[usize]) -> DVector<f64> {
 
 impl Polynomial {
     fn new(x: Vec<f64>, y: Vec<f64>, max_coefficient: f64) -> Self {
-        let mut p = Self { x, y, folds: 5, terms: vec![0, 1], e0: Vec::new(), max_coefficient, prune_first: false };
+        let mut p = Self {
+            x,
+            y,
+            folds: 5,
+            terms: vec![0, 1],
+            e0: Vec::new(),
+            max_coefficient,
+            prune_first: false,
+            compare: false,
+        };
         p.e0 = p.heldout(&p.terms.clone());
         p
     }
@@ -108,6 +119,17 @@ impl Family for Polynomial {
         let c = lstsq(&self.x, &self.y, &terms, &all);
         let parameters = BTreeMap::from([(format!("c{p}"), c[terms.len() - 1])]);
         Ok(Some(AllFit { effect: *p, parameters, overlap_sine: None, data: () }))
+    }
+
+    fn look_alikes(&mut self, _p: &u32, others: &[&u32]) -> Result<Vec<usize>> {
+        Ok(if self.compare { (0..others.len()).collect() } else { Vec::new() })
+    }
+
+    fn screen_together(&mut self, cands: &[(&u32, &Vec<f64>)]) -> Result<Option<Vec<f64>>> {
+        let mut terms = self.terms.clone();
+        terms.extend(cands.iter().map(|(p, _)| **p));
+        let e1 = self.heldout(&terms);
+        Ok(Some(self.e0.iter().zip(&e1).map(|(a, b)| a - b).collect()))
     }
 
     fn plausible(&self, fit: &AllFit<u32, ()>) -> std::result::Result<(), String> {
@@ -256,4 +278,33 @@ fn a_retired_effect_leaves_the_findings_and_is_not_proposed_again() {
     assert!(d.steps.len() >= 3);
     let after_prune = &d.steps[2..];
     assert!(after_prune.iter().flat_map(|s| &s.rows).all(|r| r.label != format!("x^{}", d.retired[0])));
+}
+
+#[test]
+fn a_look_alike_that_explains_a_candidate_stops_its_claim() {
+    // The truth holds 0.3 x^4, beyond the plausible 0.265 (fitted: 0.275): x^4 is declined. x^2 alone fits the
+    // even bulge well enough to be significant (coefficient about 0.24, plausible), so without
+    // the joint comparison the wrong term is claimed; fitted together with x^4, x^2 adds
+    // nothing while x^4 still adds, so x^2 is rejected as explained by it.
+    for compare in [false, true] {
+        let (x, y) = data(300, Some((4, 0.3)), 0.05, 8);
+        let mut family = Polynomial::new(x, y, 0.265);
+        family.compare = compare;
+        let d = select(&mut family, &policy(Selection::Ranked { max_checked: 4 })).unwrap();
+        let found: Vec<u32> = d.findings.iter().map(|f| f.accepted).collect();
+        let row = |label: &str| d.steps[0].rows.iter().find(|r| r.label == label).unwrap().verdict.clone();
+        assert!(matches!(row("x^4"), Verdict::Implausible(_)), "{:#?}", d.steps[0]);
+        if compare {
+            assert!(found.is_empty(), "{found:?}: {:#?}", d.steps);
+            match row("x^2") {
+                Verdict::Explained { by, p_added, p_rival_added } => {
+                    assert_eq!(by, "x^4");
+                    assert!(p_added >= 0.01 && p_rival_added < 0.01, "{p_added} {p_rival_added}");
+                }
+                v => panic!("x^2: {v:?}"),
+            }
+        } else {
+            assert_eq!(found, vec![2], "{:#?}", d.steps);
+        }
+    }
 }

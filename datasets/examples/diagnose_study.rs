@@ -23,20 +23,21 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use diagnose_support::{example_urdf, simulate_with_truth, Payload, Scenario};
+use diagnose_support::{example_urdf, simulate_with_truth, Order, Payload, Scenario};
 use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions};
 use ferrocal_calib::kinematic::{calibrate, KinematicOptions};
 use ferrocal_datasets::sim::Effect;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-const KINDS: [&str; 6] = [
+const KINDS: [&str; 7] = [
     "joint_compliance",
     "link_compliance",
     "backlash",
     "joint_scale_error",
     "periodic_joint_error",
     "thermal_expansion",
+    "coupled_transmission",
 ];
 const RATIOS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 
@@ -53,12 +54,15 @@ struct Rec {
     detected: bool,
     first_correct: bool,
     wrong: bool,
+    /// Kinds of other findings on the true joint (look-alikes).
+    confused: String,
     findings: String,
     seconds: f64,
 }
 
 /// The effect of `kind` on `joint` with its size parameter `x` (for thermal: the temperature rise).
-fn effect(kind: &str, joint: usize, x: f64, period: f64, phase: f64) -> Option<Effect> {
+/// `driver`: the driving joint of a coupled transmission.
+fn effect(kind: &str, joint: usize, driver: usize, x: f64, period: f64, phase: f64) -> Option<Effect> {
     Some(match kind {
         "joint_compliance" => Effect::JointCompliance { joint, compliance_si: x },
         // `joint` is the link's number here (link k joins joints k and k + 1).
@@ -69,6 +73,7 @@ fn effect(kind: &str, joint: usize, x: f64, period: f64, phase: f64) -> Option<E
             Effect::PeriodicJointError { joint, amplitude_si: x, period_si: period, phase_rad: phase }
         }
         "thermal_expansion" => Effect::ThermalExpansion { alpha_per_k: 23e-6, reference_temp_c: 20.0 },
+        "coupled_transmission" => Effect::CoupledTransmission { joint, driver, ratio: x },
         _ => return None,
     })
 }
@@ -77,6 +82,10 @@ fn main() {
     let mut out = PathBuf::from("out/diagnose_study");
     let mut per_cell = 4usize;
     let mut seed = 1u64;
+    let mut order = Order::Random;
+    let mut kinds: Vec<String> = KINDS.iter().map(|k| k.to_string()).collect();
+    let mut robot_filter: Option<Vec<String>> = None;
+    let mut ratios: Vec<f64> = RATIOS.to_vec();
     let args: Vec<String> = std::env::args().collect();
     let mut i = 1;
     while i < args.len() {
@@ -85,12 +94,30 @@ fn main() {
             "--out" => out = PathBuf::from(v),
             "--per-cell" => per_cell = v.parse().expect("--per-cell N"),
             "--seed" => seed = v.parse().expect("--seed S"),
+            "--order" => {
+                order = match v.as_str() {
+                    "random" => Order::Random,
+                    "planned" => Order::Planned,
+                    "from-home" => Order::FromHome,
+                    o => panic!("--order random|planned|from-home, got {o}"),
+                }
+            }
+            "--kinds" => kinds = v.split(',').map(str::to_string).collect(),
+            "--robots" => robot_filter = Some(v.split(',').map(str::to_string).collect()),
+            "--ratios" => ratios = v.split(',').map(|x| x.parse().expect("--ratios R,R,..")).collect(),
             a => panic!("unknown argument {a}"),
         }
         i += 2;
     }
     std::fs::create_dir_all(&out).expect("output folder");
-    let robots = ["ur5".to_string(), "ur10".to_string(), example_urdf()];
+    let robots: Vec<String> = ["ur5".to_string(), "ur10".to_string(), example_urdf()]
+        .into_iter()
+        .filter(|r| {
+            robot_filter
+                .as_ref()
+                .is_none_or(|f| f.iter().any(|x| r.rsplit('/').next().unwrap_or(r).starts_with(x.as_str())))
+        })
+        .collect();
     let opts = DiagnoseOptions::default();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut recs: Vec<Rec> = Vec::new();
@@ -100,13 +127,15 @@ fn main() {
     for robot in &robots {
         let short = robot.rsplit('/').next().unwrap_or(robot).trim_end_matches(".urdf").to_string();
         let mut jobs: Vec<(String, f64)> = Vec::new();
-        for _ in 0..per_cell * RATIOS.len() {
-            jobs.push(("none".into(), 0.0));
+        if kinds.iter().any(|k| k == "none") {
+            for _ in 0..per_cell * ratios.len() {
+                jobs.push(("none".into(), 0.0));
+            }
         }
-        for k in KINDS {
-            for r in RATIOS {
+        for k in kinds.iter().filter(|k| *k != "none") {
+            for &r in &ratios {
                 for _ in 0..per_cell {
-                    jobs.push((k.to_string(), r));
+                    jobs.push((k.clone(), r));
                 }
             }
         }
@@ -116,6 +145,17 @@ fn main() {
                 "joint_compliance" | "link_compliance" => rng.random_range(2..=3),
                 "thermal_expansion" | "none" => 0,
                 _ => rng.random_range(1..=5),
+            };
+            // A coupled transmission's driving joint: another of joints 1 to 6.
+            let driver = if kind == "coupled_transmission" {
+                let k = rng.random_range(1..=5);
+                if k >= joint {
+                    k + 1
+                } else {
+                    k
+                }
+            } else {
+                0
             };
             let periods = [std::f64::consts::TAU, 1.0, 0.3, std::f64::consts::TAU / 50.0];
             let period = periods[rng.random_range(0..periods.len())];
@@ -129,6 +169,7 @@ fn main() {
             sc.noise_scale = noise;
             sc.payload = payload;
             sc.with_sigma = true;
+            sc.order = order;
             // Size the effect: a unit-size run gives the displacement per unit.
             let unit = match kind.as_str() {
                 "joint_compliance" | "link_compliance" => 1e-5,
@@ -141,7 +182,7 @@ fn main() {
                 if kind == "thermal_expansion" {
                     sc.temp_c = (20.0, 20.0 + unit);
                 }
-                sc.effect = effect(&kind, joint, unit, period, phase);
+                sc.effect = effect(&kind, joint, driver, unit, period, phase);
                 // Noise-free run: what a geometric calibration cannot absorb is the visible size.
                 let tiny = 1e-6;
                 sc.noise_scale = tiny;
@@ -173,7 +214,7 @@ fn main() {
                 if kind == "thermal_expansion" {
                     sc.temp_c = (20.0, 20.0 + x);
                 } else {
-                    sc.effect = effect(&kind, joint, x, period, phase);
+                    sc.effect = effect(&kind, joint, driver, x, period, phase);
                 }
             }
             sc.with_sigma = sigma_col;
@@ -193,12 +234,20 @@ fn main() {
             let want_joints: Vec<usize> = match (kind.as_str(), joint) {
                 (_, 0) => vec![],
                 ("link_compliance", k) => vec![k, k + 1],
+                ("coupled_transmission", j) => vec![j, driver],
                 (_, j) => vec![j],
             };
             let is_true = |f: &ferrocal_calib::diagnose::Finding| f.effect == kind && f.joints == want_joints;
             let detected = rep.findings.iter().any(is_true);
             let first_correct = rep.findings.first().is_some_and(is_true);
             let wrong = rep.findings.iter().any(|f| !is_true(f));
+            let confused = rep
+                .findings
+                .iter()
+                .filter(|f| f.effect != kind && !want_joints.is_empty() && f.joints == want_joints)
+                .map(|f| f.effect.clone())
+                .collect::<Vec<_>>()
+                .join(" ");
             let findings =
                 rep.findings.iter().map(|f| format!("{}{:?}", f.effect, f.joints)).collect::<Vec<_>>().join(" ");
             eprintln!(
@@ -254,6 +303,7 @@ fn main() {
                 detected,
                 first_correct,
                 wrong,
+                confused,
                 findings,
                 seconds: secs,
             });
@@ -312,7 +362,7 @@ fn main() {
     );
     let mut header = String::from("| effect |");
     let mut sep = String::from("| --- |");
-    for r in RATIOS {
+    for r in &ratios {
         let _ = write!(header, " rho {r} |");
         sep.push_str(" --- |");
     }
@@ -320,10 +370,11 @@ fn main() {
         writeln!(md, "Detection rate (true effect found, in %; wrong claims in brackets; n recordings; - none: the size would have been unphysical), by size:\n\n{header}\n{sep}");
     let mut sum_csv = String::from("effect,rho,n,detected,first_correct,wrong_claim\n");
     let mut curves: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-    for k in KINDS {
+    for k in kinds.iter().filter(|k| *k != "none") {
+        let k = k.as_str();
         let mut line = format!("| {k} |");
         let mut pts = Vec::new();
-        for r in RATIOS {
+        for &r in &ratios {
             let v: Vec<&Rec> = recs.iter().filter(|x| x.kind == k && x.ratio == r).collect();
             let (d, n) = rate(&v, &|x| x.detected);
             let (w, _) = rate(&v, &|x| x.wrong);
@@ -357,6 +408,18 @@ fn main() {
         "\nExactly the true effect and nothing else, rho >= 1: {d} of {n} = {:.1} %",
         100.0 * d as f64 / n.max(1) as f64
     );
+    // Look-alikes: a finding of another kind on the true joint (e.g. backlash named as a scale
+    // error), per kind, at rho >= 1.
+    let _ = writeln!(md, "\nNamed as another effect on the true joint (rho >= 1):\n\n| effect | recordings | other kind on its joint | which |\n| --- | --- | --- | --- |");
+    for k in kinds.iter().filter(|k| *k != "none") {
+        let v: Vec<&Rec> = big.iter().copied().filter(|x| &x.kind == k).collect();
+        let conf: Vec<&Rec> = v.iter().copied().filter(|x| !x.confused.is_empty()).collect();
+        let mut which: Vec<String> = conf.iter().map(|x| x.confused.clone()).collect();
+        which.sort();
+        which.dedup();
+        let _ = writeln!(md, "| {k} | {} | {} | {} |", v.len(), conf.len(), which.join(", "));
+    }
+    let _ = writeln!(md, "\nApproach directions: {order:?} order.");
     if !timing_400.is_empty() {
         let mean = timing_400.iter().sum::<f64>() / timing_400.len() as f64;
         let max = timing_400.iter().copied().fold(0.0, f64::max);

@@ -4,7 +4,7 @@
 
 use crate::diagnose_support;
 
-use diagnose_support::{example_urdf, simulate, Payload, Scenario};
+use diagnose_support::{example_urdf, simulate, Order, Payload, Scenario};
 use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions, DiagnoseReport};
 use ferrocal_datasets::sim::Effect;
 
@@ -92,6 +92,55 @@ fn backlash_scale_and_periodic_errors_on_their_joints() {
     assert_only(&rep, "periodic_joint_error", &[4]);
     let p = rep.findings[0].parameters["period_rad"];
     assert!((p - 0.2).abs() < 0.01, "period {p}");
+}
+
+#[test]
+fn backlash_and_scale_error_told_apart_when_direction_follows_the_angle() {
+    // Random visiting order (dir = sign of the last move) and a return home between poses (dir =
+    // sign(q - home), the strongest tie of direction to angle): the backlash is named as
+    // backlash and the scale error as a scale error, never the other, on two arms.
+    let arm = example_urdf();
+    let cases = [
+        ("ur5", Order::Random, Effect::Backlash { joint: 2, width_si: 2e-4 }, "backlash", 91),
+        ("ur5", Order::FromHome, Effect::Backlash { joint: 3, width_si: 2e-4 }, "backlash", 92),
+        ("ur5", Order::FromHome, Effect::JointScaleError { joint: 2, scale_error: 2e-4 }, "joint_scale_error", 93),
+        (arm.as_str(), Order::Random, Effect::JointScaleError { joint: 1, scale_error: 2e-4 }, "joint_scale_error", 94),
+        (arm.as_str(), Order::FromHome, Effect::Backlash { joint: 2, width_si: 2e-4 }, "backlash", 95),
+    ];
+    for (robot, order, effect, name, seed) in cases {
+        let joint = match effect {
+            Effect::Backlash { joint, .. } | Effect::JointScaleError { joint, .. } => joint,
+            _ => unreachable!(),
+        };
+        let mut s = Scenario::new(robot, Some(effect), seed);
+        s.order = order;
+        s.n_poses = 200;
+        let rep = run(&s);
+        assert_only(&rep, name, &[joint]);
+        // The look-alike on the same joint, where it was significant, was not accepted.
+        let other = if name == "backlash" { "joint_scale_error" } else { "backlash" };
+        for st in &rep.steps {
+            for c in st.candidates.iter().filter(|c| c.effect == other && c.joints == [joint]) {
+                assert!(!c.verdict.starts_with("ACCEPTED"), "{order:?}: {}: {}", c.label, c.verdict);
+            }
+        }
+    }
+}
+
+#[test]
+fn coupled_transmission_on_the_right_pair_of_joints() {
+    // Joint J turns by c per radian of joint K (the elbow driven through the shoulder, and the
+    // shoulder through the elbow on the other arm): the finding names J and K in that order and
+    // recovers c.
+    let arm = example_urdf();
+    for (robot, joint, driver, ratio, seed) in [("ur5", 3, 2, 4e-4, 101), (arm.as_str(), 2, 3, -3e-4, 102)] {
+        let mut s = Scenario::new(robot, Some(Effect::CoupledTransmission { joint, driver, ratio }), seed);
+        s.n_poses = 200;
+        let rep = run(&s);
+        assert_only(&rep, "coupled_transmission", &[joint, driver]);
+        let c = rep.findings[0].parameters["coupling"];
+        assert!((c - ratio).abs() < 0.15 * ratio.abs(), "{robot}: coupling {c:e} against {ratio:e}");
+    }
 }
 
 #[test]

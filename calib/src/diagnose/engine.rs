@@ -16,7 +16,11 @@
 //! 3. the candidates are examined in the order of the [`Selection`]: the overlap with the base
 //!    model (the sine of the angle between the effect's columns and the base model's, when the
 //!    family measures it), plausibility of sign and size, stability over the folds, and, when the
-//!    family has one, a confirmation by full refits that is tested again;
+//!    family has one, a confirmation by full refits that is tested again; with ranked
+//!    examination, before the confirmation, a joint comparison with the candidate's look-alikes
+//!    ([`Family::look_alikes`], [`Family::screen_together`]): a candidate that adds nothing to
+//!    a look-alike which still adds to it is rejected, and two that add nothing to each other are
+//!    both left unclaimed ([`Verdict::Explained`], [`Verdict::NotSeparable`]);
 //! 4. the first candidate that passes is accepted and added to the family's model, and the
 //!    search repeats; a family may also retire an earlier effect that later ones made
 //!    unnecessary ([`StepStart::Pruned`]).
@@ -229,6 +233,17 @@ pub trait Family {
     ) -> Result<Option<std::result::Result<Confirmation, String>>> {
         Ok(None)
     }
+    /// The other scored candidates of the step that can leave residuals like `candidate`'s
+    /// (look-alikes, e.g. a backlash and a scale error of the same joint when the approach
+    /// direction follows the angle): indices into `others`. The default has none.
+    fn look_alikes(&mut self, _candidate: &Self::Candidate, _others: &[&Self::Candidate]) -> Result<Vec<usize>> {
+        Ok(Vec::new())
+    }
+    /// Per held-out unit: the squared error before minus after of the base model plus all
+    /// `candidates` fitted together on the training folds (`None`: the family cannot).
+    fn screen_together(&mut self, _candidates: &[(&Self::Candidate, &Self::Screen)]) -> Result<Option<Vec<f64>>> {
+        Ok(None)
+    }
     /// Adds the accepted effect to the model and describes it.
     fn accept(
         &mut self,
@@ -343,7 +358,7 @@ pub fn select<F: Family>(family: &mut F, policy: &Policy) -> Result<Diagnosis<F:
         let chosen = match policy.selection {
             Selection::SmallestP => smallest_p(family, policy, &mut entries)?,
             Selection::Ranked { max_checked } => {
-                ranked(family, policy, &mut entries, &accepted, max_checked, &multiplier)?
+                ranked(family, policy, &mut entries, &accepted, max_checked, &multiplier, &mut out.notes)?
             }
         };
         let Some((idx, fit, mut decision)) = chosen else {
@@ -492,6 +507,7 @@ fn ranked<F: Family>(
     accepted: &[F::Effect],
     max_checked: usize,
     multiplier: &dyn Fn(&Describe) -> usize,
+    notes: &mut Vec<String>,
 ) -> Result<Option<(usize, AllFit<F::Effect, F::Fit>, Decision)>> {
     entries.sort_by(|a, b| b.row.improvement.total_cmp(&a.row.improvement));
     for e in entries.iter_mut() {
@@ -555,6 +571,18 @@ fn ranked<F: Family>(
                 continue;
             }
         };
+        if let Some(verdict) = separate(family, policy, entries, idx)? {
+            if let Verdict::NotSeparable { with, p_added, p_rival_added } = &verdict {
+                notes.push(format!(
+                    "{} and {with} cannot be told apart on this recording: fitted together, neither improves the held-out fit of the other (p = {} and p = {}); neither is claimed",
+                    entries[idx].row.label,
+                    sig(*p_added, 2),
+                    sig(*p_rival_added, 2)
+                ));
+            }
+            entries[idx].row.verdict = verdict;
+            continue;
+        }
         let row = &entries[idx].row;
         let mut decision = Decision {
             label: row.label.clone(),
@@ -593,4 +621,61 @@ fn ranked<F: Family>(
         chosen = Some((idx, fit, decision));
     }
     Ok(chosen)
+}
+
+/// The level at which a candidate counts as adding to a look-alike in the joint comparison
+/// (uncorrected: the candidate is already significant on its own; the test only asks whether
+/// its own part survives next to the look-alike).
+pub const SEPARATION_LEVEL: f64 = 0.05;
+
+/// The joint comparison of candidate `idx` with its look-alikes (the family's
+/// [`Family::look_alikes`] among the significant candidates): each pair is fitted together and the
+/// per-unit held-out improvement each adds to the other is tested (one-sided paired t test).
+/// The candidate stands against a look-alike when it adds a significant improvement to it
+/// (`p <` [`SEPARATION_LEVEL`]); otherwise it is rejected as explained by the look-alike when the look-alike
+/// adds a significant one to it (`p < alpha` over the look-alikes, Bonferroni). When neither
+/// adds anything, the two are not separable and the candidate is not claimed. A look-alike with
+/// more parameters than the candidate never stands in its way (parsimony: the simpler reading
+/// is examined first and stands).
+/// `None`: it stands against every look-alike.
+fn separate<F: Family>(family: &mut F, policy: &Policy, entries: &[Entry<F>], idx: usize) -> Result<Option<Verdict>> {
+    let scored: Vec<usize> = significant(policy, entries).into_iter().filter(|&i| i != idx).collect();
+    if scored.is_empty() {
+        return Ok(None);
+    }
+    let others: Vec<&F::Candidate> = scored.iter().map(|&i| &entries[i].candidate).collect();
+    let alikes: Vec<usize> =
+        family.look_alikes(&entries[idx].candidate, &others)?.into_iter().map(|k| scored[k]).collect();
+    let (Some(d_c), Some(s_c)) = (entries[idx].d.as_ref(), entries[idx].screen.as_ref()) else { return Ok(None) };
+    let m = alikes.len().max(1);
+    let mut unresolved: Option<Verdict> = None;
+    for r in alikes {
+        let (Some(d_r), Some(s_r)) = (entries[r].d.as_ref(), entries[r].screen.as_ref()) else { continue };
+        let Some(d_pair) = family.screen_together(&[(&entries[idx].candidate, s_c), (&entries[r].candidate, s_r)])?
+        else {
+            continue;
+        };
+        let added: Vec<f64> = d_pair.iter().zip(d_r).map(|(p, r)| p - r).collect();
+        let rival_added: Vec<f64> = d_pair.iter().zip(d_c).map(|(p, c)| p - c).collect();
+        let p_added = paired_test(&added).p_value;
+        if p_added < SEPARATION_LEVEL {
+            continue;
+        }
+        let p_rival_added = bonferroni(paired_test(&rival_added).p_value, m);
+        let with = entries[r].row.label.clone();
+        // Parsimony: a look-alike with more parameters than the candidate does not displace it
+        // (its extra freedom, e.g. a searched period, can mimic a simpler effect's shape); the
+        // simpler reading stands, as in the examination order.
+        if entries[r].describe.n_params > entries[idx].describe.n_params {
+            continue;
+        }
+        if p_rival_added < policy.alpha {
+            return Ok(Some(Verdict::Explained { by: with, p_added, p_rival_added }));
+        }
+        // Neither adds to the other: not separable.
+        if unresolved.is_none() {
+            unresolved = Some(Verdict::NotSeparable { with, p_added, p_rival_added });
+        }
+    }
+    Ok(unresolved)
 }

@@ -68,6 +68,26 @@ pub enum Verdict {
         /// Their corrected p-value.
         p_corrected: f64,
     },
+    /// A look-alike candidate explains it: fitted together, the look-alike adds a significant
+    /// improvement to it while it adds none to the look-alike.
+    Explained {
+        /// Label of the look-alike.
+        by: String,
+        /// p-value of adding this candidate to the look-alike (not significant).
+        p_added: f64,
+        /// p-value of adding the look-alike to this candidate (significant).
+        p_rival_added: f64,
+    },
+    /// The held-out data cannot tell it from a look-alike: neither adds a significant
+    /// improvement to the other when the two are fitted together. Neither is claimed.
+    NotSeparable {
+        /// Label of the look-alike.
+        with: String,
+        /// p-value of adding this candidate to the look-alike.
+        p_added: f64,
+        /// p-value of adding the look-alike to this candidate.
+        p_rival_added: f64,
+    },
     /// Accepted, with the corrected p-value that decided it.
     Accepted {
         /// Corrected p-value.

@@ -131,6 +131,7 @@ fn kinematic_residual_with_effects_passes_the_gradient_checker() {
         EffectSpec::JointScaleError { joint: 2 },
         EffectSpec::PeriodicJointError { joint: 3, period_si: std::f64::consts::PI },
         EffectSpec::ThermalExpansion { reference_temp_c: 20.0 },
+        EffectSpec::CoupledTransmission { joint: 5, driver: 4 },
     ];
     for offset in [0.0, 0.3] {
         check(&ur5, false, false, effects.clone(), offset);

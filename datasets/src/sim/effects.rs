@@ -20,6 +20,7 @@
 //! | joint compliance | `q_eff,i -= k_i tau_i(q, m_p)`, `tau_i = dV/dq_i`, `V = -sum_bodies m g . p_com(q)` |
 //! | thermal expansion | every length parameter `l` becomes `l (1 + alpha (T_c - T_ref))` |
 //! | parameter drift (guideway misalignment) | parameter `p_j += a q_i + b q_i^2` |
+//! | coupled transmission | `q_eff,i += c q_k`: joint `i` turns by `c` per unit of joint `k`'s commanded motion (its drive passes through joint `k`) |
 //!
 //! Joint compliance uses the holding torque `tau = dV/dq` of the potential energy, computed here
 //! by central differences of `V` (an independent route from the Jacobian-transpose formula of
@@ -122,6 +123,17 @@ pub enum Effect {
         /// Compliance, rad/(N m).
         compliance_si: f64,
     },
+    /// Joint `joint` turns by `ratio` times joint `driver`'s commanded value on top of its own
+    /// (its motor or cable is routed through the driving joint, and the controller does not
+    /// compensate the coupling exactly): `q_eff,joint += ratio q_cmd,driver`.
+    CoupledTransmission {
+        /// The joint that is off (1-based).
+        joint: usize,
+        /// The joint whose motion drives the error (1-based).
+        driver: usize,
+        /// Joint units of `joint` per joint unit of `driver`.
+        ratio: f64,
+    },
     /// A parameter that changes with a joint: `p += linear q + quadratic q^2` (a guideway that is
     /// not straight or not parallel to its nominal direction).
     ParameterDrift {
@@ -149,6 +161,7 @@ impl Effect {
             Effect::ThermalExpansion { .. } => "thermal_expansion",
             Effect::ParameterDrift { .. } => "axis_misalignment",
             Effect::LinkCompliance { .. } => "link_compliance",
+            Effect::CoupledTransmission { .. } => "coupled_transmission",
         }
     }
 
@@ -159,7 +172,8 @@ impl Effect {
             | Effect::PeriodicJointError { joint, .. }
             | Effect::Backlash { joint, .. }
             | Effect::JointCompliance { joint, .. }
-            | Effect::ParameterDrift { joint, .. } => Some(*joint),
+            | Effect::ParameterDrift { joint, .. }
+            | Effect::CoupledTransmission { joint, .. } => Some(*joint),
             Effect::ThermalExpansion { .. } | Effect::LinkCompliance { .. } => None,
         }
     }
@@ -215,6 +229,13 @@ impl TrueRobot {
                 if !params.iter().any(|p| &p.name == parameter) {
                     return Err(DatasetError::Config(format!(
                         "effect axis_misalignment: the model has no parameter '{parameter}'"
+                    )));
+                }
+            }
+            if let Effect::CoupledTransmission { joint, driver, .. } = e {
+                if *driver == 0 || *driver > n_joints || driver == joint {
+                    return Err(DatasetError::Config(format!(
+                        "coupled_transmission: driving joint {driver} must be another joint (1 to {n_joints})"
                     )));
                 }
             }
@@ -330,6 +351,9 @@ impl TrueRobot {
                 Effect::Backlash { joint, width_si } => {
                     let d = c.dir.get(joint - 1).copied().unwrap_or(0) as f64;
                     q[joint - 1] -= d * width_si / 2.0;
+                }
+                Effect::CoupledTransmission { joint, driver, ratio } => {
+                    q[joint - 1] += ratio * q_cmd[driver - 1];
                 }
                 Effect::JointCompliance { joint, compliance_si } => {
                     if torques.is_none() {

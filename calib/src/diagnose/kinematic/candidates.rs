@@ -126,6 +126,28 @@ pub(super) fn enumerate_candidates(
             }
         }
     }
+    // Coupled transmissions: joint J's error in proportion to joint K's angle, for every pair of
+    // joints that both moved.
+    let moved: Vec<bool> = ctx
+        .kinds
+        .iter()
+        .enumerate()
+        .map(|(j, kind)| {
+            let q = ctx.q(j);
+            let (lo, hi) = q.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(*v), h.max(*v)));
+            match kind {
+                JointKind::Revolute => hi - lo > 0.05,
+                JointKind::Prismatic => hi - lo > 0.01,
+            }
+        })
+        .collect();
+    for joint in 1..=ctx.kinds.len() {
+        for driver in (1..=ctx.kinds.len()).filter(|&k| k != joint) {
+            if moved[joint - 1] && moved[driver - 1] {
+                cands.push(Cand::Fixed(EffectSpec::CoupledTransmission { joint, driver }));
+            }
+        }
+    }
     // Length changes.
     if all_rows.iter().any(|r| r.temp_c.is_none()) {
         un.push(Untestable {

@@ -56,6 +56,9 @@ pub(super) fn parameter_map(spec: &EffectSpec, theta: &[f64], kinds: &[JointKind
         EffectSpec::LinkCompliance { .. } => {
             m.insert("compliance_rad_per_nm".into(), t0);
         }
+        EffectSpec::CoupledTransmission { .. } => {
+            m.insert("coupling".into(), t0);
+        }
     }
     m
 }
@@ -107,6 +110,12 @@ pub(super) fn plausible(
         EffectSpec::JointScaleError { .. } => {
             if t.abs() > b.max_scale_error {
                 return Err(format!("scale error {} exceeds the bound of {}", sig(t, 2), sig(b.max_scale_error, 2)));
+            }
+        }
+        EffectSpec::CoupledTransmission { .. } => {
+            // A coupling is a transmission ratio error like a scale error: the same bound.
+            if t.abs() > b.max_scale_error {
+                return Err(format!("coupling {} exceeds the bound of {}", sig(t, 2), sig(b.max_scale_error, 2)));
             }
         }
         EffectSpec::PeriodicJointError { .. } => {

@@ -59,6 +59,9 @@ impl Cand {
             Cand::Fixed(EffectSpec::LinkCompliance { link }) => {
                 format!("link_compliance on link {link} (between joints {link} and {})", link + 1)
             }
+            Cand::Fixed(EffectSpec::CoupledTransmission { joint, driver }) => {
+                format!("coupled_transmission on joint {joint} (driven by joint {driver})")
+            }
             c => format!("{} on joint {}", c.name(), c.joints().first().copied().unwrap_or(0)),
         }
     }
@@ -75,6 +78,11 @@ impl Cand {
         }
         if let (Cand::Fixed(EffectSpec::LinkCompliance { link }), EffectSpec::LinkCompliance { link: l }) = (self, s) {
             return link == l;
+        }
+        if let (Cand::Fixed(a @ EffectSpec::CoupledTransmission { .. }), b @ EffectSpec::CoupledTransmission { .. }) =
+            (self, s)
+        {
+            return a == b;
         }
         match self {
             Cand::Fixed(c) => {
@@ -193,6 +201,30 @@ impl Ctx<'_> {
         }
         Some(LinScore { d, e1: e1v, theta_folds, freq_folds })
     }
+}
+
+/// Two candidates are look-alikes, and are compared jointly before either is accepted, when
+/// the largest canonical correlation of their prediction columns, after the base model's
+/// columns are projected out, reaches this.
+pub(super) const LOOK_ALIKE_CORRELATION: f64 = 0.3;
+
+/// The largest canonical correlation between the columns `a` and `b` (all analysis rows) after
+/// the base model's columns (`basis`, fitted on all rows) are projected out: 1 when some
+/// combination of one is a combination of the other, 0 when they are orthogonal.
+pub(super) fn canonical_correlation(basis: &Basis, a: &nalgebra::DMatrix<f64>, b: &nalgebra::DMatrix<f64>) -> f64 {
+    let project = |m: &nalgebra::DMatrix<f64>| {
+        let mt = super::linear::gather(m, &basis.train);
+        &mt - &basis.u * (basis.u.transpose() * &mt)
+    };
+    let orth = |m: nalgebra::DMatrix<f64>| {
+        ferrocal_lsq::linear::TruncatedSvd::new(&m, 1e-9).ok().map(|s| s.range_basis().clone())
+    };
+    let (Some(qa), Some(qb)) = (orth(project(a)), orth(project(b))) else { return 0.0 };
+    if qa.ncols() == 0 || qb.ncols() == 0 {
+        return 0.0;
+    }
+    let m = qa.transpose() * qb;
+    m.singular_values().iter().copied().fold(0.0, f64::max).min(1.0)
 }
 
 /// The state of one step: the linearisation at the current model and its folds.
@@ -379,6 +411,65 @@ impl Family for KinematicFamily<'_> {
         let theta: Vec<f64> = fit.theta.iter().copied().collect();
         let parameters = parameter_map(&spec, &theta, &ctx.kinds);
         Ok(Some(AllFit { effect: spec, parameters, overlap_sine: Some(sa), data: theta }))
+    }
+
+    fn look_alikes(&mut self, c: &Cand, others: &[&Cand]) -> Result<Vec<usize>> {
+        let (ctx, st) = (&self.ctx, self.step());
+        let cols_all = |cand: &Cand| -> Option<nalgebra::DMatrix<f64>> {
+            let spec = match cand {
+                Cand::Fixed(s) => s.clone(),
+                Cand::Periodic { joint } => {
+                    let scan = PeriodScan::new(&st.lin, &st.basis_all, joint - 1, &ctx.q(joint - 1));
+                    Ctx::periodic_spec(*joint, scan.best(&ctx.grids[joint - 1]).0)
+                }
+            };
+            ctx.effect_columns(&st.lin, &spec)
+        };
+        let Some(own) = cols_all(c) else { return Ok(Vec::new()) };
+        let mut out = Vec::new();
+        for (k, o) in others.iter().enumerate() {
+            // Another form of the same effect on the same joint is not a rival (the periodic
+            // error's fixed and searched periods).
+            if o.name() == c.name() && o.joints() == c.joints() {
+                continue;
+            }
+            let Some(cols) = cols_all(o) else { continue };
+            if canonical_correlation(&st.basis_all, &own, &cols) >= LOOK_ALIKE_CORRELATION {
+                out.push(k);
+            }
+        }
+        Ok(out)
+    }
+
+    fn screen_together(&mut self, cands: &[(&Cand, &LinScore)]) -> Result<Option<Vec<f64>>> {
+        let (ctx, st) = (&self.ctx, self.step());
+        let mut d = vec![0.0; ctx.rows.len()];
+        for (k, fold) in st.folds.iter().enumerate() {
+            let mut blocks = Vec::with_capacity(cands.len());
+            for (c, ls) in cands {
+                let spec = match c {
+                    Cand::Fixed(s) => s.clone(),
+                    Cand::Periodic { joint } => match ls.freq_folds.get(k) {
+                        Some(f) => Ctx::periodic_spec(*joint, *f),
+                        None => return Ok(None),
+                    },
+                };
+                let Some(cols) = ctx.effect_columns(&st.lin, &spec) else { return Ok(None) };
+                blocks.push(cols);
+            }
+            let ncols = blocks.iter().map(|b| b.ncols()).sum();
+            let mut cols = nalgebra::DMatrix::zeros(3 * ctx.rows.len(), ncols);
+            let mut at = 0;
+            for b in &blocks {
+                cols.columns_mut(at, b.ncols()).copy_from(b);
+                at += b.ncols();
+            }
+            let (e1, _) = heldout_with(fold, &cols);
+            for (kk, &i) in fold.test.iter().enumerate() {
+                d[i] = fold.e0.fixed_rows::<3>(3 * kk).norm_squared() - e1.fixed_rows::<3>(3 * kk).norm_squared();
+            }
+        }
+        Ok(Some(d))
     }
 
     fn plausible(&self, fit: &AllFit<EffectSpec, Vec<f64>>) -> std::result::Result<(), String> {

@@ -181,6 +181,7 @@ impl Lin {
                 vec![-d / 2.0]
             }
             EffectSpec::JointScaleError { .. } => vec![row.q[j]],
+            EffectSpec::CoupledTransmission { driver, .. } => vec![row.q[driver - 1]],
             EffectSpec::PeriodicJointError { period_si, .. } => {
                 let x = std::f64::consts::TAU * row.q[j] / period_si;
                 vec![x.sin(), x.cos()]

@@ -538,6 +538,16 @@ fn verdict_words(row: &CandidateRow, m: usize, opts: &DiagnoseOptions) -> String
             improvement * 100.0,
             fmt_p(*p_corrected)
         ),
+        Verdict::Explained { by, p_added, p_rival_added } => format!(
+            "rejected: {by} explains it (fitted together, {by} still improves the held-out fit, {}, while this adds nothing to it, {})",
+            fmt_p(*p_rival_added),
+            fmt_p(*p_added)
+        ),
+        Verdict::NotSeparable { with, p_added, p_rival_added } => format!(
+            "not claimed: the held-out data cannot tell it from {with} (fitted together, neither adds to the other: {} and {})",
+            fmt_p(*p_added),
+            fmt_p(*p_rival_added)
+        ),
         Verdict::Accepted { p_corrected } => {
             format!("ACCEPTED ({} after correcting for {m} candidates)", fmt_p(*p_corrected))
         }

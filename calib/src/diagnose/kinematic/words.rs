@@ -20,6 +20,7 @@ pub(super) fn telling_input(spec: &EffectSpec, names: &[String]) -> String {
         }
         EffectSpec::ThermalExpansion { .. } => "temp_c".into(),
         EffectSpec::TimeDrift => "t_s".into(),
+        EffectSpec::CoupledTransmission { driver, .. } => format!("q{driver} ({})", jn(*driver)),
         EffectSpec::LinkCompliance { link } => {
             format!("bending moment on link {link} (between {} and {})", jn(*link), jn(link + 1))
         }
@@ -119,6 +120,16 @@ pub(super) fn statement(
                 sig(t * mmax * 1e3, 2)
             )
         }
+        EffectSpec::CoupledTransmission { joint, driver } => {
+            let unit = |j: usize| if ctx.kinds.get(j - 1) == Some(&JointKind::Prismatic) { "m" } else { "rad" };
+            format!(
+                "joint {joint}'s reading is off in proportion to joint {driver}'s {}: {} {} per {} {pm} (a coupled transmission)",
+                if ctx.kinds.get(driver - 1) == Some(&JointKind::Prismatic) { "position" } else { "angle" },
+                sig(t, 3),
+                unit(*joint),
+                unit(*driver)
+            )
+        }
         EffectSpec::TimeDrift => {
             let hours = ctx.rows.iter().filter_map(|r| r.t_s).fold(0.0f64, f64::max) / 3600.0;
             format!(
@@ -186,6 +197,9 @@ pub(super) fn evidence(
                     .collect(),
                 EffectSpec::PeriodicJointError { period_si, .. } => {
                     ctx.rows.iter().map(|r| (r.q[j] / period_si).rem_euclid(1.0) * 360.0).collect()
+                }
+                EffectSpec::CoupledTransmission { driver, .. } => {
+                    ctx.rows.iter().map(|r| r.q[driver - 1].to_degrees()).collect()
                 }
                 _ => ctx.rows.iter().map(|r| r.q[j].to_degrees()).collect(),
             };
