@@ -468,7 +468,7 @@ pub fn urscript<R: SafetyBody + ?Sized>(
         )));
     }
     let (v, a) = (settings.urscript_speed_rad_s, settings.urscript_accel_rad_s2);
-    if !(v.is_finite() && v > 0.0 && v <= 3.15) || !(a.is_finite() && a > 0.0 && a <= 40.0) {
+    if !(v.is_finite() && v > 0.0 && v <= 3.15 && a.is_finite() && a > 0.0 && a <= 40.0) {
         return Err(RobotError::Safety(format!(
             "program settings: urscript_speed_rad_s must be in (0, 3.15] and urscript_accel_rad_s2 in (0, 40]; got {v} and {a}"
         )));
@@ -518,7 +518,7 @@ pub fn krl<R: SafetyBody + ?Sized>(
         return Err(RobotError::Safety(format!("a KRL AXIS/E6AXIS holds 12 axes; the robot has {}", kinds.len())));
     }
     let vel = settings.krl_velocity_percent;
-    if !(vel.is_finite() && vel >= 1.0 && vel <= 100.0) {
+    if !(vel.is_finite() && (1.0..=100.0).contains(&vel)) {
         return Err(RobotError::Safety(format!(
             "program settings: krl_velocity_percent must be in [1, 100], got {vel}"
         )));
