@@ -30,6 +30,14 @@ pub fn rpy(roll_rad: f64, pitch_rad: f64, yaw_rad: f64) -> UnitQuaternion<f64> {
     UnitQuaternion::from_euler_angles(roll_rad, pitch_rad, yaw_rad)
 }
 
+/// A pose as its position in millimetres and its roll, pitch, yaw in degrees (the inverse of
+/// [`rpy`]: `Rz(yaw) Ry(pitch) Rx(roll)`), as programs and tables print it.
+pub fn position_mm_rpy_deg(pose: &Pose) -> ([f64; 3], [f64; 3]) {
+    let p = pose.translation.vector * 1e3;
+    let (r, pi, y) = pose.rotation.euler_angles();
+    ([p.x, p.y, p.z], [r.to_degrees(), pi.to_degrees(), y.to_degrees()])
+}
+
 /// Pose from a translation and a rotation vector (axis times angle).
 pub fn pose_from_vectors(t_m: &Vector3<f64>, rotvec_rad: &Vector3<f64>) -> Pose {
     Isometry3::from_parts(Translation3::from(*t_m), UnitQuaternion::from_scaled_axis(*rotvec_rad))

@@ -138,15 +138,21 @@ pub enum GcodeAxes {
 }
 
 pub(super) fn rapid_identifier(s: &str, what: &str) -> Result<()> {
+    identifier(s, what, "RAPID", 32)
+}
+
+/// A program identifier of `language`: a letter, then letters, digits or `_`, at most `max`
+/// characters.
+fn identifier(s: &str, what: &str, language: &str, max: usize) -> Result<()> {
     let ok = !s.is_empty()
-        && s.len() <= 32
+        && s.len() <= max
         && s.chars().next().is_some_and(|c| c.is_ascii_alphabetic())
         && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
     if ok {
         Ok(())
     } else {
         Err(RobotError::Safety(format!(
-            "program settings: {what} '{s}' is not a RAPID identifier (a letter, then letters, digits or '_', at most 32)"
+            "program settings: {what} '{s}' is not a {language} identifier (a letter, then letters, digits or '_', at most {max})"
         )))
     }
 }
@@ -342,19 +348,10 @@ pub fn gcode<R: SafetyBody + ?Sized>(
     let mut worst_dev = 0.0f64;
     let pose_words = |q: &[f64]| -> Result<(String, nalgebra::Vector3<f64>)> {
         let t = model.forward(q)?;
-        let p = t.translation.vector * 1e3;
-        let (r, pi, y) = t.rotation.euler_angles();
+        let (p, r) = crate::geometry::position_mm_rpy_deg(&t);
         Ok((
-            format!(
-                "X{:.4} Y{:.4} Z{:.4} A{:.4} B{:.4} C{:.4}",
-                p.x,
-                p.y,
-                p.z,
-                r.to_degrees(),
-                pi.to_degrees(),
-                y.to_degrees()
-            ),
-            p,
+            format!("X{:.4} Y{:.4} Z{:.4} A{:.4} B{:.4} C{:.4}", p[0], p[1], p[2], r[0], r[1], r[2]),
+            t.translation.vector * 1e3,
         ))
     };
     let mut n_meas = 0;
@@ -422,22 +419,6 @@ fn step_label(st: &super::PathStep) -> String {
     }
 }
 
-/// A program identifier for URScript and KRL: a letter, then letters, digits or `_`, at most
-/// `max` characters.
-fn plain_identifier(s: &str, what: &str, max: usize) -> Result<()> {
-    let ok = !s.is_empty()
-        && s.len() <= max
-        && s.chars().next().is_some_and(|c| c.is_ascii_alphabetic())
-        && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-    if ok {
-        Ok(())
-    } else {
-        Err(RobotError::Safety(format!(
-            "program settings: {what} '{s}' is not an identifier (a letter, then letters, digits or '_', at most {max})"
-        )))
-    }
-}
-
 /// A finite joint value for a program line, or an error naming the step and joint.
 fn finite_joint(v: f64, step: usize, joint: usize) -> Result<f64> {
     if v.is_finite() {
@@ -458,7 +439,7 @@ pub fn urscript<R: SafetyBody + ?Sized>(
     settings: &ProgramSettings,
     header: &[String],
 ) -> Result<String> {
-    plain_identifier(&settings.urscript_name, "urscript_name", 63)?;
+    identifier(&settings.urscript_name, "urscript_name", "URScript", 63)?;
     let kinds = model.joint_kinds();
     if kinds.len() != 6 || kinds.iter().any(|k| *k != JointKind::Revolute) {
         return Err(RobotError::Safety(format!(
@@ -512,7 +493,7 @@ pub fn krl<R: SafetyBody + ?Sized>(
     settings: &ProgramSettings,
     header: &[String],
 ) -> Result<String> {
-    plain_identifier(&settings.krl_name, "krl_name", 24)?;
+    identifier(&settings.krl_name, "krl_name", "KRL", 24)?;
     let kinds = model.joint_kinds();
     if kinds.len() > 12 {
         return Err(RobotError::Safety(format!("a KRL AXIS/E6AXIS holds 12 axes; the robot has {}", kinds.len())));

@@ -630,4 +630,46 @@ mod tests {
         assert!(rapid_identifier("1abc", "m").is_err());
         assert!(rapid_identifier("a b", "m").is_err());
     }
+
+    /// The URScript and KRL writers refuse what their controllers cannot run, with the reason.
+    #[test]
+    fn program_writers_refuse_bad_settings_by_name() {
+        let model = crate::RobotModel::Serial(crate::presets::ur5());
+        let step = PathStep { q: vec![0.1; 6], kind: StepKind::Measure, pose: Some(0), dir: vec![0; 6] };
+        let path = PlannedPath {
+            steps: vec![step],
+            order: vec![0],
+            travel_s: 0.0,
+            dwell_s: 0.0,
+            nearest_neighbour_s: 0.0,
+            ordered_s: 0.0,
+            detours: 0,
+            checked_segments: 0,
+        };
+        let ok = ProgramSettings::default();
+        assert!(urscript(&model, &path, 0.5, &ok, &[]).unwrap().contains("movej([0.1000000"));
+        assert!(krl(&model, &path, 0.5, &ok, &[]).unwrap().contains("PTP {AXIS: A1 5.7296"));
+        let err = |r: crate::Result<String>| r.unwrap_err().to_string();
+        assert!(err(urscript(&model, &path, 1e300, &ok, &[])).contains("dwell time must be 0 to 3600 s"));
+        assert!(err(rapid_module(&model, &path, f64::NAN, &ok, &[])).contains("dwell time"));
+        let bad = ProgramSettings { krl_name: "9lives".into(), ..ok.clone() };
+        assert!(err(krl(&model, &path, 0.0, &bad, &[])).contains("krl_name '9lives' is not a KRL identifier"));
+        let fast = ProgramSettings { urscript_speed_rad_s: 10.0, ..ok.clone() };
+        assert!(err(urscript(&model, &path, 0.0, &fast, &[])).contains("urscript_speed_rad_s"));
+        let three = crate::RobotModel::Serial(crate::serial::SerialChain::from_dh(
+            "rrr",
+            &[0.1, 0.2, 0.3],
+            &[0.0; 3],
+            &[0.0; 3],
+            &[0.0; 3],
+        ));
+        let short = PlannedPath {
+            steps: vec![PathStep { q: vec![0.0; 3], kind: StepKind::Measure, pose: Some(0), dir: vec![0; 3] }],
+            ..path.clone()
+        };
+        assert!(err(urscript(&three, &short, 0.0, &ok, &[])).contains("URScript moves six revolute joints"));
+        let mut nan = path.clone();
+        nan.steps[0].q[2] = f64::NAN;
+        assert!(err(krl(&model, &nan, 0.0, &ok, &[])).contains("step 1: joint 3 is not a finite number"));
+    }
 }

@@ -28,7 +28,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 use super::SerialChain;
 use crate::error::{Result, RobotError};
-use crate::geometry::Pose;
+use crate::geometry::{position_mm_rpy_deg, rot_x, rot_y, rot_z, trans, Pose};
 use crate::kinematics::JointKind;
 
 /// Axes closer to parallel than this (radians) are described with Hayati's angle.
@@ -66,22 +66,6 @@ pub struct MdhTable {
     pub tool: Pose,
 }
 
-fn rx(a: f64) -> Pose {
-    Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::x_axis(), a))
-}
-fn ry(a: f64) -> Pose {
-    Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::y_axis(), a))
-}
-fn rz(a: f64) -> Pose {
-    Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), a))
-}
-fn tx(a: f64) -> Pose {
-    Isometry3::from_parts(Translation3::new(a, 0.0, 0.0), UnitQuaternion::identity())
-}
-fn tz(d: f64) -> Pose {
-    Isometry3::from_parts(Translation3::new(0.0, 0.0, d), UnitQuaternion::identity())
-}
-
 /// A frame from its origin, z axis and (unnormalised, not necessarily perpendicular) x axis.
 fn frame(origin: &Vector3<f64>, z: &Vector3<f64>, x: &Vector3<f64>) -> Result<Pose> {
     let x = (x - z * x.dot(z))
@@ -110,7 +94,7 @@ impl MdhTable {
                 JointKind::Revolute => (r.theta_rad + qi, r.d_m),
                 JointKind::Prismatic => (r.theta_rad, r.d_m + qi),
             };
-            t = t * rx(r.alpha_rad) * tx(r.a_m) * ry(r.beta_rad) * rz(theta) * tz(d);
+            t = t * rot_x(r.alpha_rad) * trans(r.a_m, 0.0, 0.0) * rot_y(r.beta_rad) * rot_z(theta) * trans(0.0, 0.0, d);
         }
         Ok(t * self.tool)
     }
@@ -149,18 +133,8 @@ impl MdhTable {
         }
         let _ = writeln!(s, "# frame,x_mm,y_mm,z_mm,rx_deg,ry_deg,rz_deg");
         for (name, t) in [("base", &self.base), ("tool", &self.tool)] {
-            let p = t.translation.vector * 1e3;
-            let (r, pi, y) = t.rotation.euler_angles();
-            let _ = writeln!(
-                s,
-                "# {name},{:.9},{:.9},{:.9},{:.10},{:.10},{:.10}",
-                p.x,
-                p.y,
-                p.z,
-                r.to_degrees(),
-                pi.to_degrees(),
-                y.to_degrees()
-            );
+            let (p, r) = position_mm_rpy_deg(t);
+            let _ = writeln!(s, "# {name},{:.9},{:.9},{:.9},{:.10},{:.10},{:.10}", p[0], p[1], p[2], r[0], r[1], r[2]);
         }
         s
     }
@@ -247,7 +221,7 @@ impl SerialChain {
             // the (tilted) axis; whatever else remains would be a construction error.
             let dd = (o.y * zl.y + o.z * zl.z) / (zl.y * zl.y + zl.z * zl.z);
             let a = o.x - dd * zl.x;
-            let pre = rx(alpha) * tx(a) * ry(beta);
+            let pre = rot_x(alpha) * trans(a, 0.0, 0.0) * rot_y(beta);
             let rest = pre.inverse() * rel;
             let r = rest.translation.vector;
             if r.x.abs() > 1e-9 || r.y.abs() > 1e-9 {

@@ -279,7 +279,7 @@ pub fn run_export(args: &ExportArgs) -> Result<ExitCode> {
     let cm = file.apply(&model).with_context(|| format!("applying {}", args.calibration.display()))?;
     let companion_path = args.urdf.as_ref().map(|u| u.with_extension("calibration.json"));
     for out in [args.urdf.as_ref(), companion_path.as_ref(), args.dh.as_ref()].into_iter().flatten() {
-        if std::fs::canonicalize(out).ok() == std::fs::canonicalize(&args.calibration).ok() && out.exists() {
+        if ferrocal_report::report::same_file(out, &args.calibration) {
             bail!("{}: would overwrite the input calibration", out.display());
         }
     }
