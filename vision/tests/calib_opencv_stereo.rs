@@ -396,3 +396,64 @@ fn rectification_matches_opencv_stereo_rectify_on_the_sample() {
     assert!(ours_rms < 0.5, "row RMS {ours_rms} px");
     assert!((ours_rms - cv100).abs() < 0.01, "ours {ours_rms} vs OpenCV {cv100}");
 }
+
+/// The stereo file as OpenCV itself reads it (`cv::FileStorage`): every matrix comes back with
+/// the same f64 values; and a file OpenCV's FileStorage writes (the `stereo_calib` sample's
+/// names, no ferrocal keys) is read by ours. No calibration: a fixed pair.
+#[test]
+fn opencv_file_storage_reads_and_writes_our_stereo_file() {
+    use ferrocal_vision::camera::io::{from_opencv_stereo_yaml, to_opencv_stereo_yaml, StereoPair};
+    use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
+    use opencv::core::{FileStorage, FileStorage_Mode};
+    let size = ImageSize { width_px: 640, height_px: 480 };
+    let cam = |fx: f64, cx: f64, k1: f64| {
+        CameraModel::new(
+            Intrinsics { fx_px: fx, fy_px: fx, cx_px: cx, cy_px: 241.3 },
+            Distortion::Brown5 { k1, k2: 0.09, p1: 0.0012, p2: -0.0002, k3: 0.01 },
+            size,
+        )
+        .unwrap()
+    };
+    let r = nalgebra::Rotation3::new(nalgebra::Vector3::new(0.0061, -0.0082, -0.0034)).into_inner();
+    let pair = StereoPair::new(
+        cam(534.1, 341.9, -0.28),
+        cam(537.6, 326.4, -0.27),
+        r,
+        nalgebra::Vector3::new(-0.0832, 0.0011, 0.0005),
+    )
+    .unwrap();
+    let text = to_opencv_stereo_yaml(&pair).unwrap();
+    let fs = FileStorage::new(&text, FileStorage_Mode::READ as i32 | FileStorage_Mode::MEMORY as i32, "").unwrap();
+    let get = |name: &str| fs.get(name).unwrap().mat().unwrap();
+    let m1 = get("M1");
+    assert_eq!(*m1.at_2d::<f64>(0, 0).unwrap(), 534.1);
+    assert_eq!(*get("D2").at_2d::<f64>(0, 0).unwrap(), -0.27);
+    assert_eq!(read_mat::<3, 3>(&get("R")), pair.r);
+    assert_eq!(read_mat::<3, 1>(&get("T")), pair.t_m);
+    assert_eq!(read_mat::<3, 4>(&get("P2")), pair.rectification.p2);
+    assert_eq!(read_mat::<4, 4>(&get("Q")), pair.rectification.q);
+    assert_eq!(read_mat::<3, 3>(&get("R1")), pair.rectification.r1);
+
+    // OpenCV writes, we read.
+    let mut out =
+        FileStorage::new(".yml", FileStorage_Mode::WRITE as i32 | FileStorage_Mode::MEMORY as i32, "").unwrap();
+    let k = |c: &CameraModel| {
+        let i = c.intrinsics;
+        mat_from(3, 3, |a, b| [[i.fx_px, 0.0, i.cx_px], [0.0, i.fy_px, i.cy_px], [0.0, 0.0, 1.0]][a][b])
+    };
+    let d = |c: &CameraModel| {
+        let v = c.distortion.coefficients();
+        mat_from(1, 5, |_, j| v[j])
+    };
+    out.write_i32("image_width", 640).unwrap();
+    out.write_i32("image_height", 480).unwrap();
+    out.write_mat("M1", &k(&pair.left)).unwrap();
+    out.write_mat("D1", &d(&pair.left)).unwrap();
+    out.write_mat("M2", &k(&pair.right)).unwrap();
+    out.write_mat("D2", &d(&pair.right)).unwrap();
+    out.write_mat("R", &mat_from(3, 3, |i, j| pair.r[(i, j)])).unwrap();
+    out.write_mat("T", &mat_from(3, 1, |i, _| pair.t_m[i])).unwrap();
+    let written = out.release_and_get_string().unwrap();
+    let back = from_opencv_stereo_yaml(&written).unwrap();
+    assert_eq!(back, pair, "{written}");
+}
