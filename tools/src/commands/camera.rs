@@ -402,19 +402,39 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
         st.baseline_std_mm,
         st.calibration.rms_px
     );
-    let pair = st.pair().map_err(|e| anyhow::anyhow!("camera stereo: rectification: {e}"))?;
-    let rect = pair.rectification;
-    let corners = st.rectified_corners(&rect, &left, &right, &target);
-    let row_rms_px = rectified_row_rms_px(&corners, rect.vertical());
-    println!(
-        "rectified: f' {:.3} px, baseline {:.3} mm, row difference RMS {row_rms_px:.4} px over {} corner pairs",
-        rect.focal_px(),
-        rect.baseline() * 1e3,
-        corners.len()
-    );
+    // The rectification; a pair that cannot be rectified (a wide fisheye whose image corners
+    // lie beyond 90 degrees) is an error only for the outputs that need it.
+    let needs_rectification =
+        a.left_ros_yaml.is_some() || a.right_ros_yaml.is_some() || a.opencv_stereo_yaml.is_some() || a.report.is_some();
+    let pair = match st.pair() {
+        Ok(p) => Some(p),
+        Err(e) if !needs_rectification => {
+            eprintln!("ferrocal: warning: the pair cannot be rectified: {e}");
+            None
+        }
+        Err(e) => bail!(
+            "camera stereo: the pair cannot be rectified ({e}); the ROS and OpenCV stereo files and the report need it"
+        ),
+    };
+    let (corners, row_rms_px) = match &pair {
+        Some(pair) => {
+            let rect = pair.rectification;
+            let corners = st.rectified_corners(&rect, &left, &right, &target);
+            let rms = rectified_row_rms_px(&corners, rect.vertical());
+            println!(
+                "rectified: f' {:.3} px, baseline {:.3} mm, row difference RMS {rms:.4} px over {} corner pairs",
+                rect.focal_px(),
+                rect.baseline() * 1e3,
+                corners.len()
+            );
+            (corners, rms)
+        }
+        None => (Vec::new(), f64::NAN),
+    };
     if let Some(p) = &a.json {
         let mut v = stereo_json(&st, n_pairs, &pattern.pattern(), a.solve.fix_aspect, &skipped);
-        v["rectification"] = rectification_json(&pair, row_rms_px, corners.len());
+        v["rectification"] =
+            pair.as_ref().map_or(Value::Null, |pair| rectification_json(pair, row_rms_px, corners.len()));
         write_json(p, &v)?;
     }
     for (cal, path) in [(st.left(), &a.left_opencv_yaml), (st.right(), &a.right_opencv_yaml)] {
@@ -422,8 +442,11 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
             write_text(p, &io::to_opencv_yaml(&cal.camera)?)?;
         }
     }
+    let Some(pair) = &pair else {
+        return Ok(ExitCode::SUCCESS);
+    };
     if a.left_ros_yaml.is_some() || a.right_ros_yaml.is_some() {
-        let (l, r) = io::to_ros_stereo_yaml(&pair, "left", "right")?;
+        let (l, r) = io::to_ros_stereo_yaml(pair, "left", "right")?;
         for (text, path) in [(l, &a.left_ros_yaml), (r, &a.right_ros_yaml)] {
             if let Some(p) = path {
                 write_text(p, &text)?;
@@ -431,7 +454,7 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
         }
     }
     if let Some(p) = &a.opencv_stereo_yaml {
-        write_text(p, &io::to_opencv_stereo_yaml(&pair)?)?;
+        write_text(p, &io::to_opencv_stereo_yaml(pair)?)?;
     }
     if let Some(p) = &a.report {
         let mut prov = Provenance::new(json!({"pattern": pattern.to_string(), "corners": a.solve.corner_method(),
@@ -442,7 +465,7 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
             left: &left,
             right: &right,
             target: &target,
-            pair: &pair,
+            pair,
             corners: &corners,
             provenance: prov,
         };

@@ -22,7 +22,10 @@
 //! inverse, this module with the model's exact inverse ([`CameraModel::unproject_normalized`]);
 //! the principal points therefore differ by a small fraction of a pixel where the distortion at
 //! the image corners is strong. The rotations and the focal length are the same to rounding.
-//! `alpha` in `[0, 1]` (OpenCV's scaling to the valid pixels) is not implemented.
+//! `alpha` in `[0, 1]` (OpenCV's scaling to the valid pixels) is not implemented. Any lens model
+//! is rectified the same way (through its exact inverse); for Kannala-Brandt this is not
+//! OpenCV's `fisheye::stereoRectify`, which chooses the new camera matrix differently, and it
+//! fails when an image corner turns to 90 degrees or more from the new optical axis.
 
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, Point2, Point3, Rotation3, Vector3, Vector4};
 use serde::{Deserialize, Serialize};
@@ -111,7 +114,7 @@ pub fn stereo_rectify(
         });
     }
     let nt = t.norm();
-    if !(nt.is_finite() && nt > 0.0) || !r.iter().all(|v| v.is_finite()) {
+    if !(nt.is_finite() && nt > 0.0 && r.iter().all(|v| v.is_finite())) {
         return Err(VisionError::InvalidInput {
             detail: format!("rectification needs a finite rotation and a non-zero baseline; |T| = {nt}"),
         });
