@@ -324,10 +324,10 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
         write_json(p, &v)?;
     }
     if let Some(p) = &a.opencv_yaml {
-        io::write_opencv_yaml(&cal.camera, p)?;
+        write_text(p, &io::to_opencv_yaml(&cal.camera)?)?;
     }
     if let Some(p) = &a.ros_yaml {
-        io::write_ros_yaml(&cal.camera, &a.camera_name, p)?;
+        write_text(p, &io::to_ros_yaml(&cal.camera, &a.camera_name)?)?;
     }
     if let Some(p) = &a.report {
         let mut prov = Provenance::new(json!({"pattern": pattern.to_string(), "corners": a.solve.corner_method(),

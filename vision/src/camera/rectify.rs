@@ -160,7 +160,9 @@ pub fn stereo_rectify(
     let tb = t_new[idx];
     p2[(idx, 3)] = tb * f;
     let d_c = if idx == 0 { cx1 - cx2 } else { cy1 - cy2 };
-    let q = Matrix4::new(1.0, 0.0, 0.0, -cx1, 0.0, 1.0, 0.0, -cy1, 0.0, 0.0, 0.0, f, 0.0, 0.0, -1.0 / tb, d_c / tb);
+    // `+ 0.0`: no negative zero in the file when the principal points coincide.
+    let q =
+        Matrix4::new(1.0, 0.0, 0.0, -cx1, 0.0, 1.0, 0.0, -cy1, 0.0, 0.0, 0.0, f, 0.0, 0.0, -1.0 / tb, d_c / tb + 0.0);
     Ok(StereoRectification { r1, r2, p1, p2, q })
 }
 
