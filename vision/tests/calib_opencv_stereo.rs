@@ -228,6 +228,24 @@ fn stereo_baseline_matches_opencv_stereo_calibrate() {
         assert!((st.rotation_deg[i] - rcv[i]).abs() < 0.01, "r[{i}] {} vs OpenCV {}", st.rotation_deg[i], rcv[i]);
     }
     assert!((st.calibration.rms_px - rms).abs() < 1e-3, "rms {} vs OpenCV {rms}", st.calibration.rms_px);
+    // E and F as the stereo file writes them, from OpenCV's own R, T, K1, K2: OpenCV's E and F
+    // (same convention and normalisation, F[2][2] = 1).
+    {
+        use ferrocal_vision::camera::rectify::{essential_matrix, fundamental_matrix};
+        use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
+        let (rn, tn) = (read_mat::<3, 3>(&r), read_mat::<3, 1>(&t));
+        let e_ours = essential_matrix(&rn, &tn);
+        let e_cv = read_mat::<3, 3>(&e);
+        assert!((e_ours - e_cv).amax() < 1e-9 * e_cv.amax(), "E {e_ours} vs OpenCV {e_cv}");
+        let cam = |k: &Mat| {
+            let k = read_mat::<3, 3>(k);
+            let i = Intrinsics { fx_px: k[(0, 0)], fy_px: k[(1, 1)], cx_px: k[(0, 2)], cy_px: k[(1, 2)] };
+            CameraModel::new(i, Distortion::None, ImageSize { width_px: 640, height_px: 480 }).unwrap()
+        };
+        let f_ours = fundamental_matrix(&cam(&k1), &cam(&k2), &rn, &tn);
+        let f_cv = read_mat::<3, 3>(&f);
+        assert!((f_ours - f_cv).amax() < 1e-9 * f_cv.amax(), "F {f_ours} vs OpenCV {f_cv}");
+    }
     // With 25 mm squares the data give a baseline of about 3.3 squares, ~83 mm, not Caltech's
     // 99.8 mm (which is 3.33 squares of 30 mm).
     assert!((st.baseline_mm - 83.0).abs() < 2.0, "baseline {}", st.baseline_mm);
