@@ -1,4 +1,6 @@
-//! The HTML report of `ferrocal camera calibrate --report R.html`: the intrinsics with their
+//! The HTML reports of `ferrocal camera calibrate --report R.html` and `ferrocal camera stereo
+//! --report R.html` ([`stereo_report`]: both cameras' sections, the rig in 3-D and the
+//! rectification check). The mono report: the intrinsics with their
 //! standard deviations, every view's reprojection error, the residual vectors over the image,
 //! where the corners fell (coverage), the target poses seen from above and from the side, and
 //! how uncertain the projection is across the image.
@@ -16,7 +18,10 @@ use plotters::prelude::*;
 use serde_json::json;
 
 use ferrocal_vision::calib::heldout::HeldOut;
-use ferrocal_vision::calib::{CameraCalibration, PlanarTarget, View};
+use ferrocal_vision::calib::{
+    rectified_row_rms_px, CameraCalibration, PlanarTarget, RectifiedCorner, StereoCalibration, View,
+};
+use ferrocal_vision::camera::io::StereoPair;
 use ferrocal_vision::camera::CameraModel;
 
 use crate::report::{Provenance, Report, Section};
@@ -313,5 +318,220 @@ fn projection_uncertainty(cal: &CameraCalibration) -> Section {
     }
     s.figure("How far a point at the views' median distance may project from where the calibrated model puts it, from the intrinsics' covariance alone: small where the corners were, growing where the model extrapolates.", svg);
     s.data = json!({"distance_m": d, "sigma_px_min": lo, "sigma_px_max": hi, "grid": grid});
+    s
+}
+
+/// Everything the stereo report shows, besides the calibration.
+pub struct StereoReportInput<'a> {
+    /// The pattern string.
+    pub pattern: &'a str,
+    /// The left views as given to the calibration (`None` where the pattern was not found).
+    pub left: &'a [Option<View>],
+    /// The right views, paired with the left ones by index.
+    pub right: &'a [Option<View>],
+    /// The target.
+    pub target: &'a PlanarTarget,
+    /// The pair with its rectification.
+    pub pair: &'a StereoPair,
+    /// Corners seen in both images of a pair, rectified.
+    pub corners: &'a [RectifiedCorner],
+    /// Settings and inputs.
+    pub provenance: Provenance,
+}
+
+/// Limit of the rectified row difference RMS for the rectification check, pixels.
+pub const ROW_RMS_LIMIT_PX: f64 = 0.5;
+
+/// The report of `ferrocal camera stereo --report R.html`: the rig (extrinsics with standard
+/// deviations, baseline), per camera the sections of the mono report (intrinsics, per-view
+/// errors, residual vectors and coverage, projection uncertainty), the two cameras and the
+/// board poses from above and from the side, and the rectification check (the row difference
+/// of corresponding corners after rectification).
+pub fn stereo_report(st: &StereoCalibration, input: StereoReportInput) -> Report {
+    let mut rep = Report::new(&format!("Stereo calibration ({})", input.pattern), input.provenance);
+    rep.sections.push(rig_summary(st, input.pair));
+    let n = input.target.points_m.len();
+    for (k, (name, cal, views)) in
+        [("left", st.left(), input.left), ("right", st.right(), input.right)].into_iter().enumerate()
+    {
+        // The views as the joint adjustment numbered them (a reversed view's ids flipped).
+        let views: Vec<View> = views
+            .iter()
+            .flatten()
+            .map(|v| {
+                let mut v = v.clone();
+                if st.calibration.reversed_views.iter().any(|(c, nm)| *c == k && *nm == v.name) {
+                    v.point_ids = v.point_ids.iter().map(|id| n.wrapping_sub(1 + id)).collect();
+                }
+                v
+            })
+            .collect();
+        let res = residuals(cal, &views, input.target);
+        for mut s in [summary(cal, None), per_view(cal, None), image_section(cal, &res), projection_uncertainty(cal)] {
+            s.id = format!("{name}-{}", s.id);
+            s.title = format!("{} camera: {}", if k == 0 { "Left" } else { "Right" }, s.title);
+            rep.sections.push(s);
+        }
+    }
+    rep.sections.push(rig_views(st, input.target));
+    rep.sections.push(rectification_check(input.pair, input.corners));
+    rep
+}
+
+fn rig_summary(st: &StereoCalibration, pair: &StereoPair) -> Section {
+    let mut s = Section::new("rig", "The rig: T_right_left");
+    let mut rows = Vec::new();
+    for (i, axis) in ["x", "y", "z"].iter().enumerate() {
+        rows.push(vec![
+            format!("rotation {axis} [deg]"),
+            format!("{:.4}", st.rotation_deg[i]),
+            format!("{:.4}", st.rotation_std_deg[i]),
+        ]);
+    }
+    for (i, axis) in ["x", "y", "z"].iter().enumerate() {
+        rows.push(vec![
+            format!("translation {axis} [mm]"),
+            format!("{:.3}", st.translation_mm[i]),
+            format!("{:.3}", st.translation_std_mm[i]),
+        ]);
+    }
+    rows.push(vec!["baseline [mm]".into(), format!("{:.3}", st.baseline_mm), format!("{:.3}", st.baseline_std_mm)]);
+    s.table(
+        "p_right = R p_left + T (OpenCV's R, T; rotation as a rotation vector)",
+        &["parameter", "value", "standard deviation"],
+        rows,
+    );
+    s.text(format!(
+        "RMS reprojection error {:.4} px over both cameras (left {:.4} px, right {:.4} px), {} target poses, {} seen by both cameras; s0 {:.4} px.",
+        st.calibration.rms_px,
+        st.left().rms_px,
+        st.right().rms_px,
+        st.calibration.n_views,
+        st.calibration.n_shared_views,
+        st.calibration.s0_px
+    ));
+    if !st.calibration.reversed_views.is_empty() {
+        s.text(format!(
+            "Views whose corner numbering was reversed to match the left camera's: {}.",
+            st.calibration.reversed_views.iter().map(|(_, n)| n.as_str()).collect::<Vec<_>>().join(", ")
+        ));
+    }
+    s.data = json!({
+        "rotation_deg": st.rotation_deg.as_slice(), "rotation_std_deg": st.rotation_std_deg.as_slice(),
+        "translation_mm": st.translation_mm.as_slice(), "translation_std_mm": st.translation_std_mm.as_slice(),
+        "baseline_mm": st.baseline_mm, "baseline_std_mm": st.baseline_std_mm, "rms_px": st.calibration.rms_px,
+        "t_m": pair.t_m.as_slice(),
+    });
+    s
+}
+
+/// The two cameras (centre and optical axis) and every used board pose in the left camera's
+/// frame, from above and from the side.
+fn rig_views(st: &StereoCalibration, target: &PlanarTarget) -> Section {
+    let mut s = Section::new("rig-3d", "The rig and the board poses in 3-D");
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for p in &target.points_m {
+        (x0, x1, y0, y1) = (x0.min(p.x), x1.max(p.x), y0.min(p.y), y1.max(p.y));
+    }
+    let outline = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)].map(|(x, y)| Point3::new(x, y, 0.0));
+    let boards: Vec<Vec<Point3<f64>>> = st
+        .left()
+        .views
+        .iter()
+        .filter(|v| v.used)
+        .map(|v| outline.iter().map(|p| v.t_cam_target * p).collect())
+        .collect();
+    // Cameras: centre and a point along the optical axis, in the left frame.
+    let t_left_right = st.t_right_left.inverse();
+    let depth = boards.iter().flatten().map(|p| p.z).fold(0.0f64, f64::max).max(1e-3);
+    let axis = 0.15 * depth;
+    let cams = [
+        ("left", Point3::origin(), Point3::new(0.0, 0.0, axis)),
+        ("right", t_left_right * Point3::origin(), t_left_right * Point3::new(0.0, 0.0, axis)),
+    ];
+    for (title, a, a_name) in
+        [("Seen from above (x against z)", 0usize, "x [m]"), ("Seen from the side (y against z)", 1, "y [m]")]
+    {
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, (PLOT_W, 420)).into_drawing_area();
+            let _ = root.fill(&WHITE);
+            let pts = boards.iter().flatten().chain(cams.iter().flat_map(|c| [&c.1, &c.2]));
+            let (lo_a, hi_a) = pts.clone().fold((0.0f64, 0.0f64), |(l, h), p| (l.min(p[a]), h.max(p[a])));
+            let (lo_z, hi_z) = pts.fold((0.0f64, 0.0f64), |(l, h), p| (l.min(p.z), h.max(p.z)));
+            let pad = 0.1 * (hi_a - lo_a).max(1e-3);
+            let pad_z = 0.05 * (hi_z - lo_z).max(1e-3);
+            if let Ok(mut chart) = ChartBuilder::on(&root)
+                .caption(title, ("sans-serif", 16))
+                .margin(10)
+                .x_label_area_size(35)
+                .y_label_area_size(50)
+                .build_cartesian_2d((lo_z - pad_z)..(hi_z + pad_z), (lo_a - pad)..(hi_a + pad))
+            {
+                let _ = chart.configure_mesh().x_desc("z [m] (left camera's optical axis)").y_desc(a_name).draw();
+                for (i, b) in boards.iter().enumerate() {
+                    let _ = chart.draw_series(std::iter::once(PathElement::new(
+                        b.iter().map(|p| (p.z, p[a])).collect::<Vec<_>>(),
+                        Palette99::pick(i).stroke_width(2),
+                    )));
+                }
+                for (k, (_, c, tip)) in cams.iter().enumerate() {
+                    let colour = if k == 0 { BLACK } else { RGBColor(214, 39, 40) };
+                    let _ = chart.draw_series(std::iter::once(Circle::new((c.z, c[a]), 5, colour.filled())));
+                    let _ = chart.draw_series(std::iter::once(PathElement::new(
+                        vec![(c.z, c[a]), (tip.z, tip[a])],
+                        colour.stroke_width(2),
+                    )));
+                }
+            }
+            let _ = root.present();
+        }
+        s.figure(
+            &format!("{title}, in the left camera's frame: the left camera (black) and the right camera (red) with their optical axes, each used board pose's outline."),
+            svg,
+        );
+    }
+    s.data = json!({"right_centre_in_left_m": (t_left_right * Point3::origin()).coords.as_slice(), "n_boards": boards.len()});
+    s
+}
+
+fn rectification_check(pair: &StereoPair, corners: &[RectifiedCorner]) -> Section {
+    let mut s = Section::new("rectification", "Rectification and epipolar check");
+    let rc = &pair.rectification;
+    let vertical = rc.vertical();
+    let rms = rectified_row_rms_px(corners, vertical);
+    let diff = |c: &RectifiedCorner| if vertical { c.left_px.x - c.right_px.x } else { c.left_px.y - c.right_px.y };
+    let max = corners.iter().map(|c| diff(c).abs()).fold(0.0, f64::max);
+    s.table(
+        "The rectified cameras (Bouguet's method as OpenCV's stereoRectify: alpha = -1, CALIB_ZERO_DISPARITY)",
+        &["quantity", "value"],
+        vec![
+            vec!["f' [px]".into(), format!("{:.3}", rc.focal_px())],
+            vec!["cx', cy' [px]".into(), format!("{:.3}, {:.3}", rc.p1[(0, 2)], rc.p1[(1, 2)])],
+            vec!["baseline [mm]".into(), format!("{:.3}", rc.baseline() * 1e3)],
+            vec!["P2[0][3] = -f' B [px m]".into(), format!("{:.4}", rc.p2[(0, 3)])],
+            vec!["corner pairs".into(), corners.len().to_string()],
+            vec!["row difference RMS [px]".into(), format!("{rms:.4}")],
+            vec!["largest row difference [px]".into(), format!("{max:.4}")],
+        ],
+    );
+    s.text("Every corner seen in both images of a pair is undistorted and turned into both rectified images: a correct rectification puts it on the same row in both (the same column for vertical stereo). What remains is corner noise and model error.");
+    let pts: Vec<(f64, f64)> =
+        corners.iter().map(|c| (if vertical { c.left_px.y } else { c.left_px.x }, diff(c))).collect();
+    s.figure(
+        "Row difference of each corner pair against its rectified position: a trend across the image means the extrinsics or a lens model are off.",
+        crate::plot::xy_plot(
+            "Rectified row difference v_left - v_right",
+            if vertical { "v left [px]" } else { "u left [px]" },
+            "row difference [px]",
+            &[crate::plot::Series { name: "corner pairs", points: &pts, line: false }],
+        ),
+    );
+    s.status(
+        rms < ROW_RMS_LIMIT_PX,
+        format!("row difference RMS {rms:.4} px (limit {ROW_RMS_LIMIT_PX} px) over {} corner pairs", corners.len()),
+    );
+    s.data = json!({"row_rms_px": rms, "row_max_px": max, "n_corner_pairs": corners.len(), "focal_px": rc.focal_px(),
+        "baseline_mm": rc.baseline() * 1e3});
     s
 }

@@ -12,15 +12,15 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
-use ferrocal_report::camera_report::{camera_report, CameraReportInput};
+use ferrocal_report::camera_report::{camera_report, stereo_report, CameraReportInput, StereoReportInput};
 use ferrocal_report::report::{write_atomic, Provenance};
 use ferrocal_vision::calib::corners::{
     detect_pattern_views, detect_view_slots, CornerMethod, SkippedImage, SubpixWindow,
 };
 use ferrocal_vision::calib::heldout::held_out_reprojection;
 use ferrocal_vision::calib::{
-    calibrate_pattern, calibrate_stereo, compare::compare_with_opencv, CalibrationOptions, CalibrationPattern,
-    CameraCalibration, CovarianceMethod, PlanarTarget, RobustLoss, MIN_VIEWS,
+    calibrate_pattern, calibrate_stereo, compare::compare_with_opencv, rectified_row_rms_px, CalibrationOptions,
+    CalibrationPattern, CameraCalibration, CovarianceMethod, PlanarTarget, RobustLoss, MIN_VIEWS,
 };
 use ferrocal_vision::camera::{io, DistortionKind};
 use serde_json::{json, Value};
@@ -228,12 +228,23 @@ pub struct StereoArgs {
     /// Write the right camera as OpenCV FileStorage YAML.
     #[arg(long)]
     pub right_opencv_yaml: Option<PathBuf>,
-    /// Write the left camera as ROS camera_info YAML.
-    #[arg(long)]
+    /// Write the left camera as ROS camera_info YAML, with the stereo rectification
+    /// (rectification_matrix = R1, projection_matrix = P1), as ROS' stereo calibrator does.
+    #[arg(long, alias = "ros-left")]
     pub left_ros_yaml: Option<PathBuf>,
-    /// Write the right camera as ROS camera_info YAML.
-    #[arg(long)]
+    /// Write the right camera as ROS camera_info YAML, with the stereo rectification
+    /// (rectification_matrix = R2, projection_matrix = P2 with P2[0][3] = -fx' * baseline in
+    /// metres).
+    #[arg(long, alias = "ros-right")]
     pub right_ros_yaml: Option<PathBuf>,
+    /// Write the pair as one OpenCV FileStorage YAML file with the names of OpenCV's
+    /// stereo_calib sample: M1 D1 M2 D2 R T E F R1 R2 P1 P2 Q (T in metres).
+    #[arg(long)]
+    pub opencv_stereo_yaml: Option<PathBuf>,
+    /// Write an HTML report: per camera the per-view errors, residual vectors, coverage and
+    /// projection uncertainty; the rig and the board poses in 3-D; the rectification check.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
 }
 
 /// Runs a camera command.
@@ -354,10 +365,10 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
         write_json(p, &v)?;
     }
     if let Some(p) = &a.opencv_yaml {
-        io::write_opencv_yaml(&cal.camera, p)?;
+        write_text(p, &io::to_opencv_yaml(&cal.camera)?)?;
     }
     if let Some(p) = &a.ros_yaml {
-        io::write_ros_yaml(&cal.camera, &a.camera_name, p)?;
+        write_text(p, &io::to_ros_yaml(&cal.camera, &a.camera_name)?)?;
     }
     if let Some(p) = &a.report {
         let mut prov = Provenance::new(json!({"pattern": pattern.to_string(), "corners": a.solve.corner_method(),
@@ -388,6 +399,20 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
             right_paths.len()
         );
     }
+    let inputs: Vec<&PathBuf> = left_paths.iter().chain(&right_paths).collect();
+    let outputs: Vec<&PathBuf> = [
+        &a.json,
+        &a.left_opencv_yaml,
+        &a.right_opencv_yaml,
+        &a.left_ros_yaml,
+        &a.right_ros_yaml,
+        &a.opencv_stereo_yaml,
+        &a.report,
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    check_outputs(&outputs, &inputs)?;
     let method = a.solve.corner_method();
     let (left, ls) = detect_view_slots(&left_paths, &pattern, method);
     let (right, rs) = detect_view_slots(&right_paths, &pattern, method);
@@ -418,20 +443,121 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
         st.baseline_std_mm,
         st.calibration.rms_px
     );
+    // The rectification; a pair that cannot be rectified (a wide fisheye whose image corners
+    // lie beyond 90 degrees) is an error only for the outputs that need it.
+    let needs_rectification =
+        a.left_ros_yaml.is_some() || a.right_ros_yaml.is_some() || a.opencv_stereo_yaml.is_some() || a.report.is_some();
+    let pair = match st.pair() {
+        Ok(p) => Some(p),
+        Err(e) if !needs_rectification => {
+            eprintln!("ferrocal: warning: the pair cannot be rectified: {e}");
+            None
+        }
+        Err(e) => bail!(
+            "camera stereo: the pair cannot be rectified ({e}); the ROS and OpenCV stereo files and the report need it"
+        ),
+    };
+    let (corners, row_rms_px) = match &pair {
+        Some(pair) => {
+            let rect = pair.rectification;
+            let corners = st.rectified_corners(&rect, &left, &right, &target);
+            let rms = rectified_row_rms_px(&corners, rect.vertical());
+            println!(
+                "rectified: f' {:.3} px, baseline {:.3} mm, row difference RMS {rms:.4} px over {} corner pairs",
+                rect.focal_px(),
+                rect.baseline() * 1e3,
+                corners.len()
+            );
+            (corners, rms)
+        }
+        None => (Vec::new(), f64::NAN),
+    };
     if let Some(p) = &a.json {
-        let v = stereo_json(&st, n_pairs, &pattern.pattern(), a.solve.fix_aspect, &skipped);
+        let mut v = stereo_json(&st, n_pairs, &pattern.pattern(), a.solve.fix_aspect, &skipped);
+        v["rectification"] =
+            pair.as_ref().map_or(Value::Null, |pair| rectification_json(pair, row_rms_px, corners.len()));
         write_json(p, &v)?;
     }
-    for (cal, path, ros, name) in [
-        (st.left(), &a.left_opencv_yaml, &a.left_ros_yaml, "left"),
-        (st.right(), &a.right_opencv_yaml, &a.right_ros_yaml, "right"),
-    ] {
+    for (cal, path) in [(st.left(), &a.left_opencv_yaml), (st.right(), &a.right_opencv_yaml)] {
         if let Some(p) = path {
-            io::write_opencv_yaml(&cal.camera, p)?;
-        }
-        if let Some(p) = ros {
-            io::write_ros_yaml(&cal.camera, name, p)?;
+            write_text(p, &io::to_opencv_yaml(&cal.camera)?)?;
         }
     }
+    let Some(pair) = &pair else {
+        return Ok(ExitCode::SUCCESS);
+    };
+    if a.left_ros_yaml.is_some() || a.right_ros_yaml.is_some() {
+        let (l, r) = io::to_ros_stereo_yaml(pair, "left", "right")?;
+        for (text, path) in [(l, &a.left_ros_yaml), (r, &a.right_ros_yaml)] {
+            if let Some(p) = path {
+                write_text(p, &text)?;
+            }
+        }
+    }
+    if let Some(p) = &a.opencv_stereo_yaml {
+        write_text(p, &io::to_opencv_stereo_yaml(pair)?)?;
+    }
+    if let Some(p) = &a.report {
+        let mut prov = Provenance::new(json!({"pattern": pattern.to_string(), "corners": a.solve.corner_method(),
+            "fix_aspect": a.solve.fix_aspect, "model": format!("{:?}", a.solve.model)}));
+        inputs.iter().for_each(|i| prov.add_input(i));
+        let input = StereoReportInput {
+            pattern: &pattern.to_string(),
+            left: &left,
+            right: &right,
+            target: &target,
+            pair,
+            corners: &corners,
+            provenance: prov,
+        };
+        write_atomic(p, stereo_report(&st, input).to_html().as_bytes())
+            .with_context(|| format!("writing {}", p.display()))?;
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The rectification in the stereo JSON: OpenCV's matrices row by row (T, P2 and Q in
+/// metres), the common focal length, the baseline and the rectified row check.
+fn rectification_json(pair: &io::StereoPair, row_rms_px: f64, n_corners: usize) -> Value {
+    let rc = &pair.rectification;
+    let rows = |m: &dyn Fn(usize, usize) -> f64, r: usize, c: usize| -> Vec<Vec<f64>> {
+        (0..r).map(|i| (0..c).map(|j| m(i, j)).collect()).collect()
+    };
+    json!({
+        "R1": rows(&|i, j| rc.r1[(i, j)], 3, 3),
+        "R2": rows(&|i, j| rc.r2[(i, j)], 3, 3),
+        "P1": rows(&|i, j| rc.p1[(i, j)], 3, 4),
+        "P2": rows(&|i, j| rc.p2[(i, j)], 3, 4),
+        "Q": rows(&|i, j| rc.q[(i, j)], 4, 4),
+        "focal_px": rc.focal_px(),
+        "baseline_mm": rc.baseline() * 1e3,
+        "vertical": rc.vertical(),
+        "row_rms_px": row_rms_px,
+        "n_corner_pairs": n_corners,
+        "method": "Bouguet (OpenCV stereoRectify, alpha = -1, CALIB_ZERO_DISPARITY); T, P2 and Q in metres",
+    })
+}
+
+/// Writes a text output atomically, naming the file on failure.
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    write_atomic(path, text.as_bytes()).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Refuses outputs that would overwrite an input image or each other.
+fn check_outputs(outputs: &[&PathBuf], inputs: &[&PathBuf]) -> Result<()> {
+    let canon = |p: &Path| {
+        let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        abs.canonicalize().unwrap_or(abs)
+    };
+    let ins: Vec<PathBuf> = inputs.iter().map(|p| canon(p)).collect();
+    for (i, o) in outputs.iter().enumerate() {
+        let c = canon(o);
+        if ins.contains(&c) {
+            bail!("camera stereo: output {} is one of the input images; choose another file", o.display());
+        }
+        if outputs[..i].iter().any(|q| canon(q) == c) {
+            bail!("camera stereo: {} is given for two outputs", o.display());
+        }
+    }
+    Ok(())
 }

@@ -53,7 +53,9 @@ use serde::{Deserialize, Serialize};
 
 pub use adjust::{adjust_bundle, BundleFit, BundleMode, BundleModel, BundleSpec, PrintScale, TargetShape, ViewFit};
 pub use pattern::CalibrationPattern;
-pub use stereo::{calibrate_rig, calibrate_stereo, RigCalibration, StereoCalibration};
+pub use stereo::{
+    calibrate_rig, calibrate_stereo, rectified_row_rms_px, RectifiedCorner, RigCalibration, StereoCalibration,
+};
 
 use crate::camera::{CameraModel, Distortion, DistortionKind, ImageSize};
 use crate::detect::Pattern;

@@ -1,12 +1,14 @@
 //! Calibration of a rig of cameras that see the same target poses (stereo: two cameras).
 
-use nalgebra::{DMatrix, Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::bundle::{Bundle, CameraLayout, Obs};
 use super::{
     calibrate_camera, median, CalibrationOptions, CameraCalibration, CovarianceMethod, PlanarTarget, View, ViewReport,
 };
+use crate::camera::io::StereoPair;
+use crate::camera::rectify::StereoRectification;
 use crate::error::{Result, VisionError};
 use crate::pose::{so3, CameraRig, LocalPose};
 
@@ -89,6 +91,68 @@ impl StereoCalibration {
     pub fn rig(&self) -> CameraRig {
         self.calibration.rig()
     }
+
+    /// The pair as the stereo files hold it (`T` in metres), with its rectification
+    /// ([`crate::camera::rectify::stereo_rectify`]).
+    pub fn pair(&self) -> Result<StereoPair> {
+        StereoPair::new(
+            self.left().camera,
+            self.right().camera,
+            self.t_right_left.rotation.to_rotation_matrix().into_inner(),
+            self.t_right_left.translation.vector,
+        )
+    }
+
+    /// Every corner seen in both images of a pair, rectified in both (`left[i]`, `right[i]` as
+    /// given to [`calibrate_stereo`]; the right view's corner numbering flipped where the
+    /// calibration found it reversed). A corner that cannot be rectified is left out.
+    pub fn rectified_corners(
+        &self,
+        rectification: &StereoRectification,
+        left: &[Option<View>],
+        right: &[Option<View>],
+        target: &PlanarTarget,
+    ) -> Vec<RectifiedCorner> {
+        let n = target.points_m.len();
+        let (cl, cr) = (&self.left().camera, &self.right().camera);
+        let mut out = Vec::new();
+        for (lv, rv) in left.iter().zip(right) {
+            let (Some(lv), Some(rv)) = (lv, rv) else { continue };
+            let reversed = self.calibration.reversed_views.iter().any(|(k, name)| *k == 1 && *name == rv.name);
+            for (id, pl) in lv.point_ids.iter().zip(&lv.corners_px) {
+                let want = if reversed { n.wrapping_sub(1 + id) } else { *id };
+                let Some(j) = rv.point_ids.iter().position(|p| *p == want) else { continue };
+                let (Ok(ql), Ok(qr)) = (
+                    rectification.rectify_pixel(cl, false, pl),
+                    rectification.rectify_pixel(cr, true, &rv.corners_px[j]),
+                ) else {
+                    continue;
+                };
+                out.push(RectifiedCorner { view: lv.name.clone(), point_id: *id, left_px: ql, right_px: qr });
+            }
+        }
+        out
+    }
+}
+
+/// A corner seen in both images of a pair, in both rectified images.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RectifiedCorner {
+    /// The left view's name.
+    pub view: String,
+    /// The corner's point id in the left view.
+    pub point_id: usize,
+    /// Rectified left pixel.
+    pub left_px: Point2<f64>,
+    /// Rectified right pixel.
+    pub right_px: Point2<f64>,
+}
+
+/// The RMS of the rectified row difference `v_left - v_right` of corresponding corners
+/// (`u_left - u_right` for vertical stereo), pixels; NaN without corners.
+pub fn rectified_row_rms_px(corners: &[RectifiedCorner], vertical: bool) -> f64 {
+    let d = |c: &RectifiedCorner| if vertical { c.left_px.x - c.right_px.x } else { c.left_px.y - c.right_px.y };
+    (corners.iter().map(|c| d(c).powi(2)).sum::<f64>() / corners.len() as f64).sqrt()
 }
 
 /// Calibrates a stereo pair from views taken at the same time: `left[i]` and `right[i]` see the

@@ -32,12 +32,21 @@
 //! ROS `camera_info` (as `camera_calibration_parsers` writes it): `image_width`,
 //! `image_height`, `camera_name`, `camera_matrix`, `distortion_model` (`plumb_bob`,
 //! `rational_polynomial`, `equidistant`), `distortion_coefficients` (empty for an ideal
-//! pinhole), `rectification_matrix` (written as identity, ignored on reading) and
-//! `projection_matrix` (written as `[K | 0]`, ignored on reading). ROS, OpenCV and ferrocal all
-//! put pixel centres at integer coordinates, so no offset is applied.
+//! pinhole), `rectification_matrix` and `projection_matrix`: for one camera written as identity
+//! and `[K | 0]`; for a stereo pair ([`to_ros_stereo_yaml`]) `R1`/`R2` and `P1`/`P2` of the
+//! rectification, `P2[0][3] = -fx' B` with the baseline `B` in metres (ROS' convention); read
+//! back by [`from_ros_camera_info`] ([`from_ros_yaml`] reads the camera only). ROS, OpenCV and
+//! ferrocal all put pixel centres at integer coordinates, so no offset is applied.
+//!
+//! A stereo pair in OpenCV FileStorage ([`to_opencv_stereo_yaml`]): the names of OpenCV's
+//! `stereo_calib` sample, `M1 D1 M2 D2` (its `intrinsics.yml`) and `R T R1 R2 P1 P2 Q` (its
+//! `extrinsics.yml`) in one file, plus `E`, `F`; `T` in metres (`translation_unit: m`).
 
 use std::path::Path;
 
+use nalgebra::{Matrix3, Matrix3x4, Matrix4, Vector3};
+
+use super::rectify::{essential_matrix, fundamental_matrix, stereo_rectify, StereoRectification};
 use super::yaml::{self, fmt_f64, Entry, Node};
 use super::{CameraModel, Distortion, DistortionKind, ImageSize, Intrinsics};
 use crate::error::{Result, VisionError};
@@ -90,13 +99,22 @@ pub fn to_opencv_yaml(camera: &CameraModel) -> Result<String> {
     Ok(s)
 }
 
-/// The ROS `camera_info` YAML text of a camera.
+/// The ROS `camera_info` YAML text of a camera (rectification identity, projection `[K | 0]`).
 pub fn to_ros_yaml(camera: &CameraModel, camera_name: &str) -> Result<String> {
+    let k = k_matrix(camera);
+    let p = [k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0];
+    ros_text(camera, camera_name, &IDENTITY3, &p)
+}
+
+const IDENTITY3: [f64; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+
+/// The ROS `camera_info` text with the given rectification (3 x 3) and projection (3 x 4)
+/// matrices, row by row.
+fn ros_text(camera: &CameraModel, camera_name: &str, r: &[f64; 9], p: &[f64; 12]) -> Result<String> {
     camera.validate()?;
     let kind = camera.distortion.kind();
     let coeffs = camera.distortion.coefficients();
     let k = k_matrix(camera);
-    let p = [k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0];
     let name = if camera_name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '/')
         && !camera_name.is_empty()
     {
@@ -114,9 +132,9 @@ pub fn to_ros_yaml(camera: &CameraModel, camera_name: &str) -> Result<String> {
     s.push_str(&format!("distortion_coefficients:\n  rows: 1\n  cols: {}\n", coeffs.len()));
     s.push_str(&format!("  data: [{}]\n", fmt_list(&coeffs)));
     s.push_str("rectification_matrix:\n  rows: 3\n  cols: 3\n");
-    s.push_str("  data: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]\n");
+    s.push_str(&format!("  data: [{}]\n", fmt_list(r)));
     s.push_str("projection_matrix:\n  rows: 3\n  cols: 4\n");
-    s.push_str(&format!("  data: [{}]\n", fmt_list(&p)));
+    s.push_str(&format!("  data: [{}]\n", fmt_list(p)));
     Ok(s)
 }
 
@@ -374,6 +392,224 @@ pub fn read_ros_yaml(path: &Path) -> Result<(CameraModel, String)> {
     ros_from_doc(&Doc::parse(&text, &name)?)
 }
 
+/// A calibrated stereo pair as the stereo files hold it: both cameras, `p_right = r p_left +
+/// t_m` (OpenCV's `R`, `T`; metres) and the rectification computed from them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StereoPair {
+    /// The left (first) camera.
+    pub left: CameraModel,
+    /// The right (second) camera.
+    pub right: CameraModel,
+    /// `R` of `T_right_left`.
+    pub r: Matrix3<f64>,
+    /// `T` of `T_right_left`, metres.
+    pub t_m: Vector3<f64>,
+    /// `R1 R2 P1 P2 Q` ([`stereo_rectify`]; `P2` and `Q` in metres).
+    pub rectification: StereoRectification,
+}
+
+impl StereoPair {
+    /// A pair with its rectification computed by [`stereo_rectify`].
+    pub fn new(left: CameraModel, right: CameraModel, r: Matrix3<f64>, t_m: Vector3<f64>) -> Result<Self> {
+        let rectification = stereo_rectify(&left, &right, &r, &t_m)?;
+        Ok(Self { left, right, r, t_m, rectification })
+    }
+}
+
+/// One OpenCV FileStorage matrix block, row by row.
+fn cv_matrix(s: &mut String, name: &str, rows: usize, cols: usize, data: &[f64]) {
+    s.push_str(&format!("{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n"));
+    s.push_str(&format!("   data: [ {} ]\n", fmt_list(data)));
+}
+
+fn row_major<const R: usize, const C: usize>(m: &nalgebra::SMatrix<f64, R, C>) -> Vec<f64> {
+    (0..R).flat_map(|i| (0..C).map(move |j| m[(i, j)])).collect()
+}
+
+/// The OpenCV FileStorage YAML text of a stereo pair, with the names of OpenCV's `stereo_calib`
+/// sample (its `intrinsics.yml` and `extrinsics.yml` in one file): `M1 D1 M2 D2 R T E F R1 R2
+/// P1 P2 Q`, plus `image_width`, `image_height`, and ferrocal's `distortion_model_1`,
+/// `distortion_model_2` (ROS names, `none` for an ideal pinhole) and `translation_unit: m`
+/// (OpenCV ignores them). `T`, `E`, `P2` and `Q` are in metres.
+pub fn to_opencv_stereo_yaml(pair: &StereoPair) -> Result<String> {
+    let mut s = String::from("%YAML:1.0\n---\n");
+    if pair.left.image_size != pair.right.image_size {
+        return Err(VisionError::InvalidInput { detail: "a stereo file needs two cameras of one image size".into() });
+    }
+    s.push_str(&format!("image_width: {}\n", pair.left.image_size.width_px));
+    s.push_str(&format!("image_height: {}\n", pair.left.image_size.height_px));
+    for (i, cam) in [(1, &pair.left), (2, &pair.right)] {
+        cam.validate()?;
+        let kind = cam.distortion.kind();
+        let coeffs = match kind {
+            DistortionKind::None => vec![0.0; 5],
+            _ => cam.distortion.coefficients(),
+        };
+        cv_matrix(&mut s, &format!("M{i}"), 3, 3, &k_matrix(cam));
+        cv_matrix(&mut s, &format!("D{i}"), 1, coeffs.len(), &coeffs);
+        let model = match kind {
+            DistortionKind::None => "none",
+            other => ros_model_name(other),
+        };
+        s.push_str(&format!("distortion_model_{i}: {model}\n"));
+    }
+    let rc = &pair.rectification;
+    cv_matrix(&mut s, "R", 3, 3, &row_major(&pair.r));
+    cv_matrix(&mut s, "T", 3, 1, pair.t_m.as_slice());
+    s.push_str("translation_unit: m\n");
+    cv_matrix(&mut s, "E", 3, 3, &row_major(&essential_matrix(&pair.r, &pair.t_m)));
+    cv_matrix(&mut s, "F", 3, 3, &row_major(&fundamental_matrix(&pair.left, &pair.right, &pair.r, &pair.t_m)));
+    cv_matrix(&mut s, "R1", 3, 3, &row_major(&rc.r1));
+    cv_matrix(&mut s, "R2", 3, 3, &row_major(&rc.r2));
+    cv_matrix(&mut s, "P1", 3, 4, &row_major(&rc.p1));
+    cv_matrix(&mut s, "P2", 3, 4, &row_major(&rc.p2));
+    cv_matrix(&mut s, "Q", 4, 4, &row_major(&rc.q));
+    Ok(s)
+}
+
+impl Doc<'_> {
+    /// A matrix of the given shape (a vector may be written as a row or a column).
+    fn fixed(&self, key: &str, rows: usize, cols: usize) -> Result<Vec<f64>> {
+        let (r, c, data, line) = self.matrix(key)?;
+        let vector_ok = (rows == 1 || cols == 1) && r * c == rows * cols && (r == 1 || c == 1);
+        if (r, c) != (rows, cols) && !vector_ok {
+            return Err(perr(self.source_name, line, format!("'{key}' must be {rows}x{cols}, found {r}x{c}")));
+        }
+        Ok(data)
+    }
+
+    /// A camera from `M{i}`, `D{i}` and `distortion_model_{i}` with the file's image size.
+    fn stereo_camera(&self, i: usize, image_size: ImageSize) -> Result<CameraModel> {
+        let k = self.fixed(&format!("M{i}"), 3, 3)?;
+        let (_, _, _, line) = self.matrix(&format!("M{i}"))?;
+        if k[1] != 0.0 || k[3] != 0.0 || k[6] != 0.0 || k[7] != 0.0 || k[8] != 1.0 {
+            return Err(perr(self.source_name, line, format!("M{i} must be [fx 0 cx; 0 fy cy; 0 0 1] (no skew)")));
+        }
+        let (rows, cols, coeffs, dline) = self.matrix(&format!("D{i}"))?;
+        if rows != 1 && cols != 1 && rows * cols != 0 {
+            return Err(perr(self.source_name, dline, format!("D{i} must be a vector, found {rows}x{cols}")));
+        }
+        let model = match self.get(&format!("distortion_model_{i}")) {
+            Some(e) => Some(self.scalar(e)?.to_string()),
+            None => None,
+        };
+        let distortion = distortion_from(model.as_deref(), false, &coeffs, self.source_name, dline)?;
+        CameraModel::new(Intrinsics { fx_px: k[0], fy_px: k[4], cx_px: k[2], cy_px: k[5] }, distortion, image_size)
+    }
+}
+
+fn mat3(v: &[f64]) -> Matrix3<f64> {
+    Matrix3::from_row_slice(v)
+}
+
+fn opencv_stereo_from_doc(doc: &Doc<'_>) -> Result<StereoPair> {
+    let image_size = doc.image_size()?;
+    let left = doc.stereo_camera(1, image_size)?;
+    let right = doc.stereo_camera(2, image_size)?;
+    let r = mat3(&doc.fixed("R", 3, 3)?);
+    let scale = match doc.get("translation_unit") {
+        None => 1.0,
+        Some(e) => match doc.scalar(e)? {
+            "m" => 1.0,
+            "cm" => 1e-2,
+            "mm" => 1e-3,
+            other => return Err(perr(doc.source_name, e.line, format!("translation_unit '{other}': use m, cm or mm"))),
+        },
+    };
+    let t_m = Vector3::from_column_slice(&doc.fixed("T", 3, 1)?) * scale;
+    let mut pair = StereoPair::new(left, right, r, t_m)?;
+    // The file's own rectification when it has one (all five matrices), else the computed one.
+    if ["R1", "R2", "P1", "P2", "Q"].iter().all(|k| doc.get(k).is_some()) {
+        let rc = &mut pair.rectification;
+        rc.r1 = mat3(&doc.fixed("R1", 3, 3)?);
+        rc.r2 = mat3(&doc.fixed("R2", 3, 3)?);
+        rc.p1 = Matrix3x4::from_row_slice(&doc.fixed("P1", 3, 4)?);
+        rc.p2 = Matrix3x4::from_row_slice(&doc.fixed("P2", 3, 4)?);
+        rc.q = Matrix4::from_row_slice(&doc.fixed("Q", 4, 4)?);
+        if scale != 1.0 {
+            for i in 0..3 {
+                rc.p2[(i, 3)] *= scale;
+            }
+            rc.q[(3, 2)] /= scale;
+            rc.q[(3, 3)] /= scale;
+        }
+    }
+    Ok(pair)
+}
+
+/// Reads a stereo pair from OpenCV FileStorage YAML text (see [`to_opencv_stereo_yaml`]; `T` in
+/// `translation_unit` (`m`, `cm`, `mm`; metres when absent), `E` and `F` ignored, the
+/// rectification computed when `R1 R2 P1 P2 Q` are not all present).
+pub fn from_opencv_stereo_yaml(text: &str) -> Result<StereoPair> {
+    opencv_stereo_from_doc(&Doc::parse(text, "<string>")?)
+}
+
+/// Writes a stereo pair as OpenCV FileStorage YAML.
+pub fn write_opencv_stereo_yaml(pair: &StereoPair, path: &Path) -> Result<()> {
+    write_text(path, &to_opencv_stereo_yaml(pair)?)
+}
+
+/// Reads a stereo pair from an OpenCV FileStorage YAML file.
+pub fn read_opencv_stereo_yaml(path: &Path) -> Result<StereoPair> {
+    let text = read_text(path)?;
+    let name = path.display().to_string();
+    opencv_stereo_from_doc(&Doc::parse(&text, &name)?)
+}
+
+/// A ROS `camera_info` file with its rectification and projection matrices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RosCameraInfo {
+    /// The camera.
+    pub camera: CameraModel,
+    /// `camera_name` (empty when absent).
+    pub name: String,
+    /// `rectification_matrix` (`R`; identity when absent).
+    pub rectification: Matrix3<f64>,
+    /// `projection_matrix` (`P`; `[K | 0]` when absent).
+    pub projection: Matrix3x4<f64>,
+}
+
+/// The ROS `camera_info` YAML texts of the left and right camera of a stereo pair, as ROS'
+/// stereo calibrator writes them: `rectification_matrix` = `R1` / `R2`, `projection_matrix` =
+/// `P1` / `P2` with `P2[0][3] = -fx' B`, `B` the baseline in metres.
+pub fn to_ros_stereo_yaml(pair: &StereoPair, left_name: &str, right_name: &str) -> Result<(String, String)> {
+    let rc = &pair.rectification;
+    let arr9 = |m: &Matrix3<f64>| -> [f64; 9] { std::array::from_fn(|i| m[(i / 3, i % 3)]) };
+    let arr12 = |m: &Matrix3x4<f64>| -> [f64; 12] { std::array::from_fn(|i| m[(i / 4, i % 4)]) };
+    Ok((
+        ros_text(&pair.left, left_name, &arr9(&rc.r1), &arr12(&rc.p1))?,
+        ros_text(&pair.right, right_name, &arr9(&rc.r2), &arr12(&rc.p2))?,
+    ))
+}
+
+fn ros_info_from_doc(doc: &Doc<'_>) -> Result<RosCameraInfo> {
+    let (camera, name) = ros_from_doc(doc)?;
+    let rectification = if doc.get("rectification_matrix").is_some() {
+        mat3(&doc.fixed("rectification_matrix", 3, 3)?)
+    } else {
+        Matrix3::identity()
+    };
+    let projection = if doc.get("projection_matrix").is_some() {
+        Matrix3x4::from_row_slice(&doc.fixed("projection_matrix", 3, 4)?)
+    } else {
+        let k = k_matrix(&camera);
+        Matrix3x4::new(k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0)
+    };
+    Ok(RosCameraInfo { camera, name, rectification, projection })
+}
+
+/// Reads a ROS `camera_info` YAML text with its rectification and projection matrices.
+pub fn from_ros_camera_info(text: &str) -> Result<RosCameraInfo> {
+    ros_info_from_doc(&Doc::parse(text, "<string>")?)
+}
+
+/// Reads a ROS `camera_info` YAML file with its rectification and projection matrices.
+pub fn read_ros_camera_info(path: &Path) -> Result<RosCameraInfo> {
+    let text = read_text(path)?;
+    let name = path.display().to_string();
+    ros_info_from_doc(&Doc::parse(&text, &name)?)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -391,6 +627,81 @@ mod tests {
         .into_iter()
         .map(|d| CameraModel::new(k, d, size).unwrap())
         .collect()
+    }
+
+    fn stereo_pair(kind: usize) -> StereoPair {
+        let cams = cameras();
+        let mut right = cams[kind];
+        right.intrinsics.fx_px += 3.7;
+        right.intrinsics.cx_px -= 15.3;
+        let r = nalgebra::Rotation3::new(Vector3::new(0.0061, -0.0082, -0.0034)).into_inner();
+        StereoPair::new(cams[kind], right, r, Vector3::new(-0.0832, 0.0011 / 3.0, 0.0005)).unwrap()
+    }
+
+    #[test]
+    fn opencv_stereo_yaml_round_trips_exactly() {
+        for kind in [0, 1, 2] {
+            let pair = stereo_pair(kind);
+            let text = to_opencv_stereo_yaml(&pair).unwrap();
+            for key in ["M1:", "D1:", "M2:", "D2:", "R:", "T:", "E:", "F:", "R1:", "R2:", "P1:", "P2:", "Q:"] {
+                assert!(text.lines().any(|l| l.starts_with(key)), "{key} missing:\n{text}");
+            }
+            let back = from_opencv_stereo_yaml(&text).unwrap();
+            assert_eq!(back, pair, "{text}");
+            // Without the rectification the reader computes the same one.
+            let cut = text.find("R1:").unwrap();
+            assert_eq!(from_opencv_stereo_yaml(&text[..cut]).unwrap(), pair);
+        }
+        // T in millimetres (as OpenCV's stereoCalibrate gives it with the board in mm).
+        let pair = stereo_pair(1);
+        let text = to_opencv_stereo_yaml(&pair).unwrap();
+        let t_line = text.lines().skip_while(|l| !l.starts_with("T:")).nth(4).unwrap().to_string();
+        let mm: Vec<String> = pair.t_m.iter().map(|v| fmt_f64(v * 1e3)).collect();
+        let text_mm = text[..text.find("R1:").unwrap()]
+            .replace(&t_line, &format!("   data: [ {} ]", mm.join(", ")))
+            .replace("translation_unit: m", "translation_unit: mm");
+        let back = from_opencv_stereo_yaml(&text_mm).unwrap();
+        assert!((back.t_m - pair.t_m).norm() < 1e-15);
+        assert!((back.rectification.p2 - pair.rectification.p2).norm() < 1e-12);
+        let bad = text.replace("translation_unit: m", "translation_unit: furlong");
+        assert!(from_opencv_stereo_yaml(&bad).unwrap_err().to_string().contains("furlong"));
+    }
+
+    #[test]
+    fn ros_stereo_yaml_round_trips_exactly_with_the_rectification() {
+        let pair = stereo_pair(1);
+        let (l, r) = to_ros_stereo_yaml(&pair, "stereo/left", "stereo/right").unwrap();
+        let li = from_ros_camera_info(&l).unwrap();
+        let ri = from_ros_camera_info(&r).unwrap();
+        assert_eq!((li.camera, li.name.as_str()), (pair.left, "stereo/left"));
+        assert_eq!((ri.camera, ri.name.as_str()), (pair.right, "stereo/right"));
+        assert_eq!(li.rectification, pair.rectification.r1);
+        assert_eq!(ri.rectification, pair.rectification.r2);
+        assert_eq!(li.projection, pair.rectification.p1);
+        assert_eq!(ri.projection, pair.rectification.p2);
+        // ROS: P2[0][3] = -fx' B, B in metres.
+        let b = pair.rectification.baseline();
+        assert!((b - pair.t_m.norm()).abs() < 1e-15);
+        assert!((ri.projection[(0, 3)] + ri.projection[(0, 0)] * b).abs() < 1e-12);
+        // A mono file reads with identity and [K | 0].
+        let mono = from_ros_camera_info(&to_ros_yaml(&pair.left, "left").unwrap()).unwrap();
+        assert_eq!(mono.rectification, Matrix3::identity());
+        assert_eq!(mono.projection[(0, 2)], pair.left.intrinsics.cx_px);
+    }
+
+    #[test]
+    fn stereo_files_round_trip_and_errors_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let pair = stereo_pair(1);
+        let p = dir.path().join("stereo.yml");
+        write_opencv_stereo_yaml(&pair, &p).unwrap();
+        assert_eq!(read_opencv_stereo_yaml(&p).unwrap(), pair);
+        let text = std::fs::read_to_string(&p).unwrap().replace("   rows: 3\n   cols: 1\n", "   rows: 2\n   cols: 1\n");
+        std::fs::write(&p, text).unwrap();
+        let err = read_opencv_stereo_yaml(&p).unwrap_err().to_string();
+        assert!(err.contains("stereo.yml") && err.contains("'T'"), "{err}");
+        let err = read_ros_camera_info(&dir.path().join("none.yaml")).unwrap_err().to_string();
+        assert!(err.contains("none.yaml"), "{err}");
     }
 
     #[test]

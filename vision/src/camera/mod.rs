@@ -7,7 +7,10 @@
 //!   [`CameraModel::unproject`], [`CameraModel::unproject_normalized`], the parameter vector
 //!   ([`CameraModel::parameters`], [`CameraModel::set_parameter_values`]);
 //! - [`Distortion`]: the lens models and their coefficients in OpenCV order;
-//! - [`io`]: OpenCV FileStorage YAML and ROS `camera_info` YAML, written and read exactly.
+//! - [`io`]: OpenCV FileStorage YAML and ROS `camera_info` YAML, written and read exactly, for one
+//!   camera and for a stereo pair ([`io::StereoPair`]: `M1 D1 M2 D2 R T E F R1 R2 P1 P2 Q`, and
+//!   the two ROS files with the rectification);
+//! - [`rectify`]: Bouguet's rectification of a stereo pair ([`rectify::stereo_rectify`]).
 //!
 //! # Conventions
 //! Camera frame: z forward, x right, y down. Pixel `(0, 0)` is the centre of the top-left pixel,
@@ -18,6 +21,7 @@
 
 mod distortion;
 pub mod io;
+pub mod rectify;
 mod yaml;
 
 use nalgebra::{Matrix2x3, Matrix2xX, Point2, Point3, Vector3};
