@@ -87,10 +87,11 @@ pub struct SolveArgs {
     /// recipe) or `adaptive` (shrunk where the squares are smaller than the window).
     #[arg(long, value_enum, default_value = "opencv")]
     pub subpix_window: WindowArg,
-    /// Covariance of the camera parameters (one camera): `independent` (every corner an
-    /// independent measurement, s0^2 (J^T J)^-1, as OpenCV), `jackknife` (leave one view out;
-    /// the corners of a view may be correlated) or `sandwich` (view-clustered sandwich).
-    #[arg(long, value_enum, default_value = "independent")]
+    /// Covariance of the camera parameters (one camera): `auto` (the jackknife with 8 or more
+    /// views, else independent), `independent` (every corner an independent measurement,
+    /// s0^2 (J^T J)^-1, as OpenCV), `jackknife` (leave one view out; the corners of a view may
+    /// be correlated) or `sandwich` (view-clustered sandwich).
+    #[arg(long, value_enum, default_value = "auto")]
     pub covariance: CovarianceArg,
 }
 
@@ -106,6 +107,9 @@ pub enum CovarianceArg {
     /// View-clustered sandwich.
     #[value(name = "sandwich")]
     Sandwich,
+    /// The jackknife with enough views, else independent.
+    #[value(name = "auto")]
+    Auto,
 }
 
 impl CovarianceArg {
@@ -114,6 +118,7 @@ impl CovarianceArg {
             CovarianceArg::Independent => CovarianceMethod::Independent,
             CovarianceArg::Jackknife => CovarianceMethod::ViewJackknife,
             CovarianceArg::Sandwich => CovarianceMethod::ViewSandwich,
+            CovarianceArg::Auto => CovarianceMethod::Auto,
         }
     }
 }

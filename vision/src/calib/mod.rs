@@ -39,6 +39,7 @@ mod bundle;
 pub mod circles;
 pub mod compare;
 pub mod corners;
+mod covariance;
 mod deform;
 pub mod heldout;
 mod pattern;
@@ -52,6 +53,7 @@ use nalgebra::{DMatrix, DVector, Isometry3, Point2, Point3};
 use serde::{Deserialize, Serialize};
 
 pub use adjust::{adjust_bundle, BundleFit, BundleMode, BundleModel, BundleSpec, PrintScale, TargetShape, ViewFit};
+pub use covariance::{CovarianceMethod, MIN_JACKKNIFE_VIEWS};
 pub use pattern::CalibrationPattern;
 pub use stereo::{
     calibrate_rig, calibrate_stereo, rectified_row_rms_px, RectifiedCorner, RigCalibration, StereoCalibration,
@@ -175,50 +177,6 @@ impl RobustLoss {
             "huber" => Ok(RobustLoss::Huber { scale_px }),
             "cauchy" => Ok(RobustLoss::Cauchy { scale_px }),
             _ => Err(bad()),
-        }
-    }
-}
-
-/// How [`calibrate_camera`] computes the covariance of the camera parameters.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum CovarianceMethod {
-    /// `s0^2 (J^T J)^-1` with the target poses marginalised: every corner an independent
-    /// measurement with the same variance (OpenCV's `stdDeviationsIntrinsics`).
-    #[default]
-    Independent,
-    /// Leave-one-view-out jackknife: the adjustment re-solved without each view in turn
-    /// (started from the solution), `(G - 1) / G sum_v (p_v - mean)(p_v - mean)^T` over the
-    /// `G` views. Views are the independent units; the corners of a view may be correlated.
-    ViewJackknife,
-    /// View-clustered sandwich: `S^-1 (sum_v g_v g_v^T) S^-1` with `g_v` a view's score (its
-    /// pose marginalised) and a small-sample factor (see the bundle's `view_sandwich`). Views
-    /// independent, corners of a view possibly correlated; no re-solves. Optimistic with few
-    /// views: the fitted scores are shrunk because every view pulls the fit towards itself
-    /// (12 views, 9 parameters, correlated errors: RMS of error / sigma 2.0 against the
-    /// jackknife's 1.4; test `the_view_jackknife_covers_errors_correlated_within_views`).
-    ViewSandwich,
-}
-
-impl CovarianceMethod {
-    /// Parses `independent`, `jackknife` or `sandwich`.
-    pub fn parse(text: &str) -> Result<Self> {
-        match text.trim().to_ascii_lowercase().as_str() {
-            "independent" => Ok(Self::Independent),
-            "jackknife" => Ok(Self::ViewJackknife),
-            "sandwich" => Ok(Self::ViewSandwich),
-            _ => Err(VisionError::InvalidInput {
-                detail: format!("covariance '{text}': expected independent, jackknife or sandwich"),
-            }),
-        }
-    }
-
-    /// The name [`CovarianceMethod::parse`] reads.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Independent => "independent",
-            Self::ViewJackknife => "jackknife",
-            Self::ViewSandwich => "sandwich",
         }
     }
 }
@@ -592,11 +550,25 @@ pub fn calibrate_camera(
     }
     let m = layout.free_to_model();
     let mut warnings: Vec<String> = reasons.iter().map(|r| format!("view skipped: {r}")).collect();
+    let mut method = options.covariance;
     let (cov_model, cov_independent, s0_px, normal_condition) = match bundle.global_covariance() {
         Ok(cov) => {
             let independent = &m * &cov.covariance * m.transpose();
-            let chosen = match options.covariance {
-                CovarianceMethod::Independent => independent.clone(),
+            method = match options.covariance {
+                CovarianceMethod::Auto if bundle.views.len() >= MIN_JACKKNIFE_VIEWS => CovarianceMethod::ViewJackknife,
+                CovarianceMethod::Auto => {
+                    warnings.push(format!(
+                        "{} views: standard deviations with every corner independent, which is optimistic when \
+                         corner errors correlate within a view; {MIN_JACKKNIFE_VIEWS} or more views give the \
+                         leave-one-view-out jackknife",
+                        bundle.views.len()
+                    ));
+                    CovarianceMethod::Independent
+                }
+                other => other,
+            };
+            let chosen = match method {
+                CovarianceMethod::Independent | CovarianceMethod::Auto => independent.clone(),
                 CovarianceMethod::ViewSandwich => &m * cov.view_sandwich() * m.transpose(),
                 CovarianceMethod::ViewJackknife => {
                     &m * view_jackknife(&bundle, options.max_iterations)? * m.transpose()
@@ -709,7 +681,7 @@ pub fn calibrate_camera(
             max_board_angle_deg: max_angle,
             normal_condition,
             s0_px,
-            covariance_method: options.covariance,
+            covariance_method: method,
             std_independent,
             n_corners: n_used,
             removed_views,
