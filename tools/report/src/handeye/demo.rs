@@ -1,8 +1,9 @@
 //! The demo's hand-eye section: the two real robot-camera recordings of ROS-Industrial's
 //! industrial_calibration examples, imported and calibrated as a user would (`import ic-handeye
 //! --test-every 2`, then `handeye` with the camera calibrated from the training images), with the
-//! robot poses once as noisy measurements (the default) and once as exact, OpenCV's best hand-eye
-//! solver beside them on the same corners, and the source's own acceptance thresholds.
+//! robot poses exact (the default) or as noisy measurements, the print scale fitted (the default)
+//! or nominal, OpenCV's best hand-eye solver beside them on the same corners, and the source's own
+//! acceptance thresholds.
 
 use std::path::Path;
 
@@ -71,10 +72,10 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
         let (rec, skipped) = load_recording(&paths, &table, &flange, &pattern, ic.mount)?;
         let mut runs = Vec::new();
         for (label, exact, scale) in [
-            ("robot poses exact (default)", true, false),
-            ("robot poses as measurements", false, false),
-            ("exact, print scale fitted", true, true),
+            ("robot poses exact, print scale fitted (default)", true, true),
+            ("exact, nominal scale", true, false),
             ("as measurements, print scale fitted", false, true),
+            ("as measurements, nominal scale", false, false),
         ] {
             let mut options = HandEyeOptions {
                 intrinsics: IntrinsicsMode::Calibrate(CalibrationOptions::default()),
@@ -137,17 +138,20 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
         checks.push((
             beats,
             format!(
-                "{}: held-out chain RMS with exact robot poses {} px against OpenCV's best {} px",
+                "{}: held-out chain RMS (default: exact poses, print scale fitted) {} px against OpenCV's best {} px",
                 set.folder,
                 f4(exact.ours.heldout_rms_px),
                 exact.opencv.as_ref().map_or("-".into(), |(_, o)| f4(o.heldout_rms_px))
             ),
         ));
         checks.push((
-            exact.ours.train_rms_px < SOURCE_RMS_LIMIT_PX,
+            exact.ours.train_rms_px < SOURCE_RMS_LIMIT_PX
+                && exact.ours.heldout_rms_px.is_some_and(|h| h < SOURCE_RMS_LIMIT_PX),
             format!(
-                "{}: fit residual RMS {:.4} px (source: < {SOURCE_RMS_LIMIT_PX} px)",
-                set.folder, exact.ours.train_rms_px
+                "{}: fit residual RMS {:.4} px, held-out {} px (source: fit < {SOURCE_RMS_LIMIT_PX} px)",
+                set.folder,
+                exact.ours.train_rms_px,
+                f4(exact.ours.heldout_rms_px)
             ),
         ));
     }
@@ -158,7 +162,8 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
          hand-eye solvers run on the same corners with the same camera and the best of them is shown. \
          The held-out images are used by no fit. The chain RMS predicts each image's corners from the \
          reported robot pose, the hand-eye transform and the fixed frame; the PnP agreement compares the \
-         chain's camera-to-target pose with a per-image PnP, which is the source's own acceptance measure. \
+         chain's camera-to-target pose with a per-image PnP, which is the source's own acceptance measure; \
+         the PnP uses the same target geometry as the chain (the fitted print scale where it is fitted). \
          On both recordings, taking the robot poses as exact predicts held-out pixels better than modelling \
          them as independent noisy measurements: the robots' errors here are systematic, not per-pose noise.",
     );
@@ -178,13 +183,14 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
     );
     s.text(format!(
         "The source also asks for a residual below {SOURCE_RMS_LIMIT_PX} px; held-out images are not part of \
-         its test. Without the print scale ours are above it on held-out images on both sets; with it and the \
-         robot poses exact they are below it (see the table)."
+         its test. With the print scale fitted and the robot poses exact (the default) ours are below it on \
+         held-out images on both sets; with the nominal scale they are above it (see the table)."
     ));
     s.text(format!(
         "The printed targets are not at their nominal scale: fitting the print scale against the robots' metric \
-         poses (`--target-scale`) finds {}. With it and the robot poses exact, the held-out chain RMS is below 1.5 px on both sets \
-         (see the table): the print scale is physics the nominal target description leaves out.",
+         poses (the default; `--nominal-target-scale` holds it) finds {}. It is fitted by default because the \
+         training images alone call for it: on both sets it lies many standard deviations from 1 and lowers \
+         the training RMS; the held-out images played no part in that choice.",
         scales.join("; ")
     ));
     for w in &warnings {

@@ -68,9 +68,13 @@ pub struct HandeyeArgs {
     /// Write an HTML report here.
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// Fit the printed target's overall scale (visible only against metric robot poses).
-    #[arg(long)]
+    /// Fit the printed target's overall scale against the robot's metric poses: the default
+    /// without --out; with --out (the joint adjustment) only when given.
+    #[arg(long, conflicts_with = "nominal_target_scale")]
     pub target_scale: bool,
+    /// Hold the target at its nominal spacing instead of fitting its print scale.
+    #[arg(long)]
+    pub nominal_target_scale: bool,
     /// Noise of the reported flange positions, mm per coordinate; with --robot-sigma-deg the
     /// poses are measurements with this fixed noise.
     #[arg(long, requires = "robot_sigma_deg")]
@@ -181,7 +185,12 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
     };
     let mut options = HandEyeOptions {
         intrinsics,
-        fit_target_scale: a.target_scale,
+        // The print scale is fitted unless asked not to: printed targets are rarely at their
+        // nominal spacing and the robot's metric poses determine it (docs/handeye.md). Not with
+        // the joint adjustment (--out) unless asked: there the flange poses come from the nominal
+        // robot, whose length errors a free scale would take up, and the adjustment holds the
+        // scale of its start.
+        fit_target_scale: a.target_scale || (!a.nominal_target_scale && a.out.is_none()),
         huber_sigmas: a.huber,
         ..HandEyeOptions::default()
     };
@@ -227,7 +236,12 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
             })
             .collect::<Result<Vec<_>>>()?;
         let joint_options = JointOptions { hand_eye: options.clone(), ..JointOptions::default() };
-        let joint = calibrate_joint_from(model, &data, &joints, result.clone(), &joint_options)
+        // The joint adjustment holds the target at the print scale the hand-eye fit found.
+        let mut scaled = data.clone();
+        if let Some((scale, _)) = result.target_scale {
+            scaled.target_points_m = ferrocal_calib::handeye::evaluate::scaled_target(&data.target_points_m, scale);
+        }
+        let joint = calibrate_joint_from(model, &scaled, &joints, result.clone(), &joint_options)
             .context("handeye: the joint adjustment of robot and camera")?;
         write_atomic(out, serde_json::to_string_pretty(&joint.file(spec))?.as_bytes())?;
         let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
