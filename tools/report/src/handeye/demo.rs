@@ -209,7 +209,9 @@ fn f4(v: Option<f64>) -> String {
 
 /// The demo's positioner section: the real two-axis positioner of the industrial_calibration
 /// kinematic example (a fixed camera measuring the target's 6-DoF pose), every fourth pose held
-/// out, calibrated against two nominal baselines (frames only; frames and joint offsets).
+/// out, calibrated against the nominal baselines (frames only; frames and joint offsets; the
+/// source's mount guesses), with the weighting and effects chosen by cross-validation on the
+/// training poses.
 pub fn positioner_section(data: &Path) -> Result<Section> {
     use ferrocal_calib::kinematic::{calibrate, KinematicOptions, ModelParams};
     use ferrocal_calib::Split;
@@ -235,14 +237,30 @@ pub fn positioner_section(data: &Path) -> Result<Section> {
         ("nominal DH, frames and joint offsets fitted", ModelParams::None, true),
         ("calibrated (per-joint corrections, frames, offsets)", ModelParams::Default, true),
     ];
+    use ferrocal_datasets::handeye::positioner as pos;
+    // The weighting and the effects beside the geometry, chosen by 5-fold cross-validation on
+    // the training poses alone.
+    let choice = pos::choose_by_cross_validation(&model, &train, &base, 5)?;
+    let chosen_label = format!(
+        "calibrated, chosen by 5-fold cross-validation on the training poses: {} weighting, effects '{}'",
+        choice.shape.name(),
+        choice.effects
+    );
     let mut rows = Vec::new();
     let mut stats = Vec::new();
+    let mut models = Vec::new();
     for (label, params, offsets) in variants {
         let opts = KinematicOptions { model_params: params, joint_offsets: offsets, ..base.clone() };
         let cal = calibrate(&model, &train, &opts).with_context(|| format!("positioner: {label}"))?;
-        let (pos, _) = cal.calibrated.errors(&test)?;
-        let e: Vec<f64> = pos.iter().map(|p| p.norm() * 1e3).collect();
-        let st = cal.calibrated.evaluate(&test)?;
+        models.push((label.to_string(), cal.calibrated));
+    }
+    let chosen_opts = pos::with_effects(&base, &choice.effects)?;
+    let (chosen, _) = pos::estimate_pose_covariance(&model, &train, &chosen_opts, choice.shape)?;
+    models.push((chosen_label.clone(), chosen.calibrated));
+    for (label, calibrated) in &models {
+        let (errs, _) = calibrated.errors(&test)?;
+        let e: Vec<f64> = errs.iter().map(|p| p.norm() * 1e3).collect();
+        let st = calibrated.evaluate(&test)?;
         let spread = (e.iter().map(|v| (v - st.mean_mm).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
         rows.push(vec![
             label.to_string(),
@@ -270,15 +288,64 @@ pub fn positioner_section(data: &Path) -> Result<Section> {
         &["model", "mean [mm]", "spread (std) [mm]", "max [mm]", "mean [deg]", "max [deg]"],
         rows,
     );
+    let (cam, tgt) = pos::read_initial_guesses(&dir)?;
+    let guess = pos::source_guess_baseline(&model, &test, &cam, &tgt)?;
+    s.text(format!(
+        "The source's own nominal model, the nominal DH chain with the data set's initial mount guesses \
+         (`pose_initial_guesses.yaml`, the camera's mount taken as the positioner's base), is off by {:.1} mm and \
+         {:.1} deg on the held-out poses: those guesses are starting values for an optimiser, not a usable \
+         model, so it is no yardstick. Against the strict baseline (nominal DH with both frames fitted on the \
+         training poses) the calibrations gain {:.1} % (geometry) and {:.1} % (chosen by cross-validation). \
+         Weighting the camera's pose measurements by a covariance estimated from the training residuals \
+         (variance components, per axis or full, in the camera's frame) does not help here: the residuals are \
+         not larger in depth than across the image (they are dominated by what the model leaves out, not by \
+         the camera's noise), and cross-validation keeps the scalar weights.",
+        guess.mean_mm,
+        guess.mean_deg.unwrap_or(f64::NAN),
+        100.0
+            * (1.0
+                - stats[2]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)
+                    / stats[0]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)),
+        100.0
+            * (1.0
+                - stats[3]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)
+                    / stats[0]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)),
+    ));
     let get = |k: usize, f: &str| stats[k]["held_out"][f].as_f64().unwrap_or(f64::NAN);
-    let (nominal_mm, calibrated_mm, calibrated_deg) = (get(0, "mean_mm"), get(2, "mean_mm"), get(2, "mean_deg"));
-    s.data = json!({"n": set.rows.len(), "n_test": test.len(), "models": stats});
+    let (nominal_mm, calibrated_mm, calibrated_deg) = (get(0, "mean_mm"), get(3, "mean_mm"), get(3, "mean_deg"));
+    s.data = json!({
+        "n": set.rows.len(), "n_test": test.len(), "models": stats, "cross_validation": choice,
+        "source_guess_baseline": guess,
+    });
     s.check(Check::from_bool(
         "positioner within the source's thresholds",
         calibrated_mm < 2.0 && calibrated_deg < 0.2 && calibrated_mm < nominal_mm,
         format!(
-            "held-out mean {calibrated_mm:.4} mm, {calibrated_deg:.4} deg (source: < 2 mm, 0.2 deg); nominal with fitted frames {nominal_mm:.4} mm"
+            "held-out mean {calibrated_mm:.4} mm, {calibrated_deg:.4} deg (source: < 2 mm, 0.2 deg); nominal with fitted frames {nominal_mm:.4} mm ({:.1} % better; the issue asks for more than 10 %)",
+            100.0 * (1.0 - calibrated_mm / nominal_mm)
         ),
     ));
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The positioner section on the real set (when present): the held-out table has the three
+    /// fitted models and the one chosen by cross-validation, and the source's thresholds hold.
+    #[test]
+    fn positioner_section_runs_on_the_real_set() {
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+        if !data.join("industrial_calibration/kinematic_calibration").exists() {
+            return;
+        }
+        let s = positioner_section(&data).unwrap();
+        let models = s.data["models"].as_array().unwrap();
+        assert_eq!(models.len(), 4);
+        assert!(models[3]["model"].as_str().unwrap().contains("cross-validation"));
+        let mean_mm = models[3]["held_out"]["mean_mm"].as_f64().unwrap();
+        assert!(mean_mm < 2.0, "{mean_mm}");
+        assert!(s.data["source_guess_baseline"]["mean_mm"].as_f64().unwrap() > mean_mm);
+    }
 }
