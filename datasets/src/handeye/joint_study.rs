@@ -141,7 +141,7 @@ impl JointStudyConfig {
     }
 
     /// The grid's points, metres, plate frame.
-    fn points(&self) -> Vec<Point3<f64>> {
+    pub(crate) fn points(&self) -> Vec<Point3<f64>> {
         let (cols, rows) = self.grid;
         (0..rows)
             .flat_map(|r| (0..cols).map(move |c| (c, r)))
@@ -281,7 +281,7 @@ impl JointStudyRun {
     }
 }
 
-fn score(cm: &CalibratedModel, test: &[&PoseMeasurement]) -> Result<Score> {
+pub(crate) fn score(cm: &CalibratedModel, test: &[&PoseMeasurement]) -> Result<Score> {
     let fail = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("joint study: {e}"));
     let (refit, _) = refit_frame(cm, test, 2e-5).map_err(fail)?;
     let s = refit.evaluate(test).map_err(fail)?;
@@ -326,14 +326,25 @@ fn coverage_raw(params: &[ParamResult], truth: &[(String, f64)]) -> Coverage {
     c
 }
 
-/// One seed of the study (see the module documentation).
-pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStudyRun> {
+/// One seed's cell: the nominal model, the true robot, the training and held-out joint readings
+/// and the random state after them (the rest of the seed's draws continue from it).
+pub(crate) struct Cell {
+    pub(crate) nominal: RobotModel,
+    pub(crate) truth: TrueRobot,
+    pub(crate) truth_values: Vec<(String, f64)>,
+    pub(crate) train_q: Vec<Vec<f64>>,
+    pub(crate) test_q: Vec<Vec<f64>>,
+    pub(crate) rng: ChaCha8Rng,
+}
+
+/// Draws the cell of `seed` (poses, then the true robot's errors on the parameters the
+/// selection keeps free on the training poses).
+pub(crate) fn draw_cell(config: &JointStudyConfig, seed: u64) -> Result<Cell> {
     let fail = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("joint study, seed {seed}: {e}"));
     let nominal = RobotModel::load(&config.robot).map_err(|e| DatasetError::Config(e.to_string()))?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let train_q = draw_poses(config, &nominal, config.n_train, &mut rng)?;
     let test_q = draw_poses(config, &nominal, config.n_test, &mut rng)?;
-    let points = config.points();
     // The true robot: errors on the parameters the selection keeps free on the training poses
     // (the camera's table of the nominal chain, with orientations).
     let x = config.t_flange_target;
@@ -365,6 +376,16 @@ pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStud
     let truth = TrueRobot::new(nominal.clone(), &errors, vec![], 0.0, &mut rng)?;
     let truth_values: Vec<(String, f64)> =
         truth.truth.parameters().into_iter().map(|p| (p.name.clone(), p.value)).collect();
+    Ok(Cell { nominal, truth, truth_values, train_q, test_q, rng })
+}
+
+/// One seed of the study (see the module documentation).
+pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStudyRun> {
+    let fail = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("joint study, seed {seed}: {e}"));
+    let Cell { nominal, truth, truth_values, train_q, test_q, mut rng } = draw_cell(config, seed)?;
+    let points = config.points();
+    let x = config.t_flange_target;
+    let w_inv = config.t_base_camera.inverse();
     let cond = Conditions { temp_c: 20.0, dir: vec![0; nominal.dof()], ..Default::default() };
     // Images of the training poses (exact projections plus noise) and tracker readings of all.
     let noise = Normal::new(0.0, config.corner_sigma_px).map_err(|e| DatasetError::Input(e.to_string()))?;

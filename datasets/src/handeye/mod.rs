@@ -7,6 +7,7 @@
 
 pub mod ic;
 pub mod ic_kinematic;
+pub mod joint_record;
 pub mod joint_study;
 pub mod poses;
 pub mod positioner;
