@@ -5,6 +5,7 @@
 
 pub mod demo;
 pub mod html;
+pub mod joint_demo;
 pub mod json;
 
 use std::path::{Path, PathBuf};
