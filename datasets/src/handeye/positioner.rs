@@ -278,3 +278,47 @@ pub fn with_effects(opts: &KinematicOptions, effects: &str) -> Result<KinematicO
     };
     Ok(KinematicOptions { effects, ..opts.clone() })
 }
+
+/// `ferrocal diagnose`'s effects for the positioner, found on `train` alone. Diagnose fits
+/// positions only, and from its start (camera frame at identity, target mount at the flange) the
+/// positioner's geometric fit does not converge (286 mm RMS): the target is 0.85 m off the last
+/// link and the camera 1.3 m away. So the camera frame and the target mount of the nominal
+/// chain fitted on `train` (frames only, with orientations) are put into the model (its base
+/// and tool), and diagnose (its default options, the position sigma of `opts`) runs on that.
+/// Returns the effect list (`""`: none) and the report.
+pub fn diagnose_effects(
+    chain: &ferrocal_robot::serial::SerialChain,
+    train: &[&PoseMeasurement],
+    opts: &KinematicOptions,
+) -> Result<(String, ferrocal_calib::diagnose::kinematic::DiagnoseReport)> {
+    use ferrocal_calib::diagnose::kinematic::{diagnose, DiagnoseOptions};
+    use ferrocal_calib::kinematic::ModelParams;
+    let fail = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("positioner diagnose: {e}"));
+    let frames = KinematicOptions { model_params: ModelParams::None, joint_offsets: false, ..opts.clone() };
+    let cal = calibrate(&RobotModel::Serial(chain.clone()), train, &frames).map_err(fail)?;
+    let mut placed = chain.clone();
+    placed.base = cal.calibrated.device_frame * chain.base;
+    placed.tool = chain.tool * cal.calibrated.tool;
+    let rows: Vec<PoseMeasurement> = train.iter().map(|r| (*r).clone()).collect();
+    let dopts = DiagnoseOptions { sigma_position_m: opts.sigma_position_m, ..DiagnoseOptions::default() };
+    let report = diagnose(&RobotModel::Serial(placed), &rows, &dopts).map_err(fail)?;
+    let list = report.findings.iter().map(|f| effect_text(&f.spec)).collect::<Vec<_>>().join(",");
+    Ok((list, report))
+}
+
+/// An effect in the list syntax `calibrate --effects` reads (e.g.
+/// `periodic_joint_error:2:180deg`); the period is the nearest multiple of 1e-9 deg, so the
+/// text names the effect, not its exact period bits.
+pub fn effect_text(e: &ferrocal_calib::effects::EffectSpec) -> String {
+    use ferrocal_calib::effects::EffectSpec;
+    match e {
+        EffectSpec::PeriodicJointError { joint, period_si } => {
+            format!("periodic_joint_error:{joint}:{}deg", (period_si.to_degrees() * 1e9).round() / 1e9)
+        }
+        EffectSpec::CoupledTransmission { joint, driver } => format!("coupled_transmission:{joint}:{driver}"),
+        EffectSpec::LinkCompliance { link } => format!("link_compliance:{link}"),
+        EffectSpec::ThermalExpansion { reference_temp_c } => format!("thermal_expansion:{reference_temp_c}C"),
+        EffectSpec::TimeDrift => "time_drift".into(),
+        other => format!("{}:{}", other.name(), other.joint().unwrap_or(0)),
+    }
+}

@@ -257,6 +257,15 @@ pub fn positioner_section(data: &Path) -> Result<Section> {
     let chosen_opts = pos::with_effects(&base, &choice.effects)?;
     let (chosen, _) = pos::estimate_pose_covariance(&model, &train, &chosen_opts, choice.shape)?;
     models.push((chosen_label.clone(), chosen.calibrated));
+    // `ferrocal diagnose` on the training poses (frames placed in the model first), then the
+    // calibration with its effects: the pre-specified route for the effects.
+    let (diag_list, diag) = pos::diagnose_effects(&ferrocal_datasets::handeye::ic_positioner_nominal(), &train, &base)?;
+    let diag_cal = calibrate(&model, &train, &pos::with_effects(&base, &diag_list)?)
+        .context("positioner: calibration with diagnose's effects")?;
+    models.push((
+        format!("calibrated with the effects diagnose finds on the training poses: '{diag_list}'"),
+        diag_cal.calibrated,
+    ));
     for (label, calibrated) in &models {
         let (errs, _) = calibrated.errors(&test)?;
         let e: Vec<f64> = errs.iter().map(|p| p.norm() * 1e3).collect();
@@ -295,7 +304,8 @@ pub fn positioner_section(data: &Path) -> Result<Section> {
          (`pose_initial_guesses.yaml`, the camera's mount taken as the positioner's base), is off by {:.1} mm and \
          {:.1} deg on the held-out poses: those guesses are starting values for an optimiser, not a usable \
          model, so it is no yardstick. Against the strict baseline (nominal DH with both frames fitted on the \
-         training poses) the calibrations gain {:.1} % (geometry) and {:.1} % (chosen by cross-validation). \
+         training poses) the calibrations gain {:.1} % (geometry), {:.1} % (chosen by cross-validation) and \
+         {:.1} % (with the effects `ferrocal diagnose` finds on the training poses: {}). \
          Weighting the camera's pose measurements by a covariance estimated from the training residuals \
          (variance components, per axis or full, in the camera's frame) does not help here: the residuals are \
          not larger in depth than across the image (they are dominated by what the model leaves out, not by \
@@ -310,16 +320,21 @@ pub fn positioner_section(data: &Path) -> Result<Section> {
             * (1.0
                 - stats[3]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)
                     / stats[0]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)),
+        100.0
+            * (1.0
+                - stats[4]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)
+                    / stats[0]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)),
+        diag.findings.iter().map(|f| f.statement.as_str()).collect::<Vec<_>>().join("; "),
     ));
     let get = |k: usize, f: &str| stats[k]["held_out"][f].as_f64().unwrap_or(f64::NAN);
-    let (nominal_mm, calibrated_mm, calibrated_deg) = (get(0, "mean_mm"), get(3, "mean_mm"), get(3, "mean_deg"));
+    let (nominal_mm, calibrated_mm, calibrated_deg) = (get(0, "mean_mm"), get(4, "mean_mm"), get(4, "mean_deg"));
     s.data = json!({
         "n": set.rows.len(), "n_test": test.len(), "models": stats, "cross_validation": choice,
-        "source_guess_baseline": guess,
+        "source_guess_baseline": guess, "diagnose_effects": diag_list, "diagnose_findings": diag.findings,
     });
     s.check(Check::from_bool(
-        "positioner within the source's thresholds",
-        calibrated_mm < 2.0 && calibrated_deg < 0.2 && calibrated_mm < nominal_mm,
+        "positioner within the source's thresholds and more than 10 % better than nominal",
+        calibrated_mm < 2.0 && calibrated_deg < 0.2 && calibrated_mm < 0.9 * nominal_mm,
         format!(
             "held-out mean {calibrated_mm:.4} mm, {calibrated_deg:.4} deg (source: < 2 mm, 0.2 deg); nominal with fitted frames {nominal_mm:.4} mm ({:.1} % better; the issue asks for more than 10 %)",
             100.0 * (1.0 - calibrated_mm / nominal_mm)
@@ -333,7 +348,9 @@ mod tests {
     use super::*;
 
     /// The positioner section on the real set (when present): the held-out table has the three
-    /// fitted models and the one chosen by cross-validation, and the source's thresholds hold.
+    /// fitted models, the one chosen by cross-validation and the one with diagnose's effects;
+    /// that one meets the source's thresholds and is more than 10 % better than the nominal
+    /// model with fitted frames (measured: 0.3961 against 0.4525 mm).
     #[test]
     fn positioner_section_runs_on_the_real_set() {
         let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
@@ -342,10 +359,12 @@ mod tests {
         }
         let s = positioner_section(&data).unwrap();
         let models = s.data["models"].as_array().unwrap();
-        assert_eq!(models.len(), 4);
+        assert_eq!(models.len(), 5);
         assert!(models[3]["model"].as_str().unwrap().contains("cross-validation"));
-        let mean_mm = models[3]["held_out"]["mean_mm"].as_f64().unwrap();
-        assert!(mean_mm < 2.0, "{mean_mm}");
+        assert!(models[4]["model"].as_str().unwrap().contains("diagnose"));
+        let mean_mm = models[4]["held_out"]["mean_mm"].as_f64().unwrap();
+        let nominal_mm = models[0]["held_out"]["mean_mm"].as_f64().unwrap();
+        assert!(mean_mm < 2.0 && mean_mm < 0.9 * nominal_mm, "{mean_mm} against {nominal_mm}");
         assert!(s.data["source_guess_baseline"]["mean_mm"].as_f64().unwrap() > mean_mm);
     }
 }
