@@ -4,7 +4,7 @@
 //! model, their ratios to the tracker's, and the robot parameters within 3 sigma of the truth.
 //!
 //! `cargo run --release -p ferrocal-datasets --example joint_study -- --seeds 20 [--first 0]
-//! [--train 60] [--test 40] [--corner-sigma-px 0.1] [--json out.json]`
+//! [--train 60] [--test 40] [--corner-sigma-px 0.1] [--mount eye-in-hand] [--json out.json]`
 
 use ferrocal_datasets::handeye::joint_study::{run_joint_study, summarise_joint_study, JointStudyConfig};
 
@@ -13,7 +13,11 @@ fn main() {
     let get = |name: &str| args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).cloned();
     let seeds: u64 = get("--seeds").map_or(20, |v| v.parse().expect("--seeds N"));
     let first: u64 = get("--first").map_or(0, |v| v.parse().expect("--first N"));
-    let mut config = JointStudyConfig::ur5();
+    let mut config = match get("--mount").as_deref() {
+        None | Some("eye-to-hand") => JointStudyConfig::ur5(),
+        Some("eye-in-hand") => JointStudyConfig::ur5_eye_in_hand(),
+        Some(m) => panic!("--mount {m}: eye-to-hand or eye-in-hand"),
+    };
     if let Some(v) = get("--train") {
         config.n_train = v.parse().expect("--train N");
     }

@@ -144,6 +144,14 @@ fn target_print_scale_is_found_against_metric_robot_poses() {
     let (s, sd) = r.target_scale.unwrap();
     println!("scale {s:.6} +- {sd:.6}");
     assert!((s - 1.003).abs() < 3.0 * sd && (s - 1.003).abs() < 5e-4, "{s} +- {sd}");
+    // The PnP yardstick uses the chain's scaled target: its held-out agreement is far below the
+    // 0.3 % of the depth that PnP on the nominal target would misplace the plate by.
+    assert_eq!(r.figures.pnp_target_scale, s);
+    let depth_mm = truth.t_camera_target.iter().map(|t| t.translation.vector.norm()).sum::<f64>() * 1e3
+        / truth.t_camera_target.len() as f64;
+    let pnp_mm = r.figures.heldout_pnp_position_mm.unwrap();
+    println!("held-out PnP agreement {pnp_mm:.4} mm; 0.3 % of the mean distance {:.4} mm", 0.003 * depth_mm);
+    assert!(pnp_mm < 0.25 * 0.003 * depth_mm, "{pnp_mm} mm at {depth_mm} mm");
     opts.fit_target_scale = false;
     let without = calibrate_hand_eye(&data, &opts).unwrap();
     assert!(without.figures.train_rms_px > r.figures.train_rms_px, "the scale should explain residuals");

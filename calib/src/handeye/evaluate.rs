@@ -81,6 +81,9 @@ pub struct ChainFigures {
     pub heldout_pnp_position_mm: Option<f64>,
     /// Mean PnP orientation difference over the test images, degrees.
     pub heldout_pnp_rotation_deg: Option<f64>,
+    /// The print scale of the target geometry the PnP poses were computed with: the chain's
+    /// own (`Chain::scale`), so that both sides of the agreement use the same target.
+    pub pnp_target_scale: f64,
 }
 
 fn mean(v: &[f64]) -> Option<f64> {
@@ -88,7 +91,10 @@ fn mean(v: &[f64]) -> Option<f64> {
 }
 
 /// The chain figures of `chain` with `camera` over `views`; `pnp[i]` is view `i`'s PnP
-/// `T_camera_target`, when it has one.
+/// `T_camera_target`, when it has one, computed with the same target geometry the chain uses:
+/// `target_points_m` scaled by `chain.scale` (see [`scaled_target`]). With the nominal spacing
+/// and a fitted scale `s`, PnP would place the target at `1/s` times the chain's depth and the
+/// agreement would measure the print-scale error instead of the chain's.
 pub fn chain_figures(
     mount: Mount,
     camera: &CameraModel,
@@ -138,5 +144,12 @@ pub fn chain_figures(
         train_pnp_rotation_deg: mean(&rot[0]),
         heldout_pnp_position_mm: mean(&pos[1]),
         heldout_pnp_rotation_deg: mean(&rot[1]),
+        pnp_target_scale: chain.scale,
     }
+}
+
+/// The target's points at print scale `scale` (metres): the geometry a chain with that scale
+/// predicts through, and the one its PnP yardstick must use.
+pub fn scaled_target(target_points_m: &[Point3<f64>], scale: f64) -> Vec<Point3<f64>> {
+    target_points_m.iter().map(|p| Point3::from(p.coords * scale)).collect()
 }

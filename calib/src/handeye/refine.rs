@@ -437,7 +437,9 @@ pub fn calibrate_hand_eye(data: &HandEyeData, options: &HandEyeOptions) -> Resul
     let camera_free = matches!(options.intrinsics, IntrinsicsMode::Calibrate(_));
     let setup = Setup { data, views: &views, options, camera_free };
     let r = refine(&setup, &camera0, &start)?;
-    let pnp = pnp_poses(&r.camera, &data.target_points_m, &views, fallback);
+    // The PnP yardstick uses the target geometry the chain uses (the fitted print scale).
+    let target = super::evaluate::scaled_target(&data.target_points_m, r.chain.scale);
+    let pnp = pnp_poses(&r.camera, &target, &views, fallback);
     let figures = chain_figures(data.mount, &r.camera, &data.target_points_m, &views, &pnp, &r.chain);
     let motion = super::MotionGeometry::of(&views);
     Ok(HandEyeResult {

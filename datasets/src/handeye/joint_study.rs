@@ -73,10 +73,17 @@ pub struct JointStudyConfig {
     pub spacing_m: f64,
     /// The true camera.
     pub camera: CameraModel,
-    /// `T_base_camera`.
+    /// Where the camera is: eye-to-hand (a fixed camera, the plate on the flange; the study's
+    /// main cell) or eye-in-hand (the camera on the flange, the plate fixed in the cell).
+    pub mount: Mount,
+    /// `T_base_camera` (eye-to-hand).
     pub t_base_camera: Isometry3<f64>,
-    /// `T_flange_target` (grid origin at the first corner).
+    /// `T_flange_target` (eye-to-hand; grid origin at the first corner).
     pub t_flange_target: Isometry3<f64>,
+    /// `T_flange_camera` (eye-in-hand).
+    pub t_flange_camera: Isometry3<f64>,
+    /// `T_base_target` (eye-in-hand; grid origin at the first corner).
+    pub t_base_target: Isometry3<f64>,
     /// Largest angle between the plate's normal and the direction to the camera, degrees.
     pub max_view_angle_deg: f64,
     /// Standard deviation of each corner coordinate, pixels.
@@ -115,6 +122,7 @@ impl JointStudyConfig {
                 distortion: Distortion::Brown5 { k1: -0.11, k2: 0.09, p1: 0.0003, p2: -0.0002, k3: -0.02 },
                 image_size: ImageSize { width_px: 2448, height_px: 2048 },
             },
+            mount: Mount::EyeToHand,
             t_base_camera: looking_at(
                 Vector3::new(2.1, 0.6, 1.1),
                 Vector3::new(0.35, 0.0, 0.35),
@@ -122,6 +130,16 @@ impl JointStudyConfig {
             ),
             t_flange_target: Isometry3::from_parts(
                 Translation3::from(Vector3::new(0.0, 0.0, 0.04) - centre),
+                UnitQuaternion::identity(),
+            ),
+            // The camera 60 mm off the flange's axis and 50 mm out, looking along it.
+            t_flange_camera: Isometry3::from_parts(
+                Translation3::from(Vector3::new(0.0, 0.06, 0.05)),
+                UnitQuaternion::identity(),
+            ),
+            // The plate flat on the table beside the robot, facing up.
+            t_base_target: Isometry3::from_parts(
+                Translation3::from(Vector3::new(0.45, -0.1, 0.0) - centre),
                 UnitQuaternion::identity(),
             ),
             max_view_angle_deg: 60.0,
@@ -140,8 +158,31 @@ impl JointStudyConfig {
         }
     }
 
+    /// The same cell with the camera on the flange (0.05 m out, 0.06 m off the axis) and the
+    /// plate on the table beside the robot, facing up; the tracker still sees a reflector on the
+    /// flange.
+    pub fn ur5_eye_in_hand() -> Self {
+        Self { mount: Mount::EyeInHand, ..Self::ur5() }
+    }
+
+    /// `X`: `T_flange_target` (eye-to-hand) or `T_flange_camera` (eye-in-hand).
+    pub fn hand_eye(&self) -> Isometry3<f64> {
+        match self.mount {
+            Mount::EyeToHand => self.t_flange_target,
+            Mount::EyeInHand => self.t_flange_camera,
+        }
+    }
+
+    /// `W`: `T_base_camera` (eye-to-hand) or `T_base_target` (eye-in-hand).
+    pub fn world(&self) -> Isometry3<f64> {
+        match self.mount {
+            Mount::EyeToHand => self.t_base_camera,
+            Mount::EyeInHand => self.t_base_target,
+        }
+    }
+
     /// The grid's points, metres, plate frame.
-    fn points(&self) -> Vec<Point3<f64>> {
+    pub(crate) fn points(&self) -> Vec<Point3<f64>> {
         let (cols, rows) = self.grid;
         (0..rows)
             .flat_map(|r| (0..cols).map(move |c| (c, r)))
@@ -151,6 +192,9 @@ impl JointStudyConfig {
 
     /// Whether the plate on `t_base_flange` faces the camera and lies wholly in the image.
     fn visible(&self, t_base_flange: &Isometry3<f64>, points: &[Point3<f64>]) -> bool {
+        if self.mount == Mount::EyeInHand {
+            return self.visible_in_hand(t_base_flange, points);
+        }
         let t_base_target = t_base_flange * self.t_flange_target;
         let normal = t_base_target.rotation * Vector3::z();
         let to_cam = (self.t_base_camera.translation.vector - t_base_target.translation.vector).normalize();
@@ -158,6 +202,26 @@ impl JointStudyConfig {
             return false;
         }
         let t_cam_target = self.t_base_camera.inverse() * t_base_target;
+        let (w, h) = (f64::from(self.camera.image_size.width_px), f64::from(self.camera.image_size.height_px));
+        points.iter().all(|p| {
+            self.camera
+                .project(&(t_cam_target * p))
+                .is_ok_and(|px| px.x > 8.0 && px.y > 8.0 && px.x < w - 8.0 && px.y < h - 8.0)
+        })
+    }
+}
+
+impl JointStudyConfig {
+    /// [`JointStudyConfig::visible`] with the camera on the flange: the camera above the floor,
+    /// the plate facing it within the largest view angle and wholly in the image.
+    fn visible_in_hand(&self, t_base_flange: &Isometry3<f64>, points: &[Point3<f64>]) -> bool {
+        let t_base_cam = t_base_flange * self.t_flange_camera;
+        let normal = self.t_base_target.rotation * Vector3::z();
+        let to_cam = (t_base_cam.translation.vector - self.t_base_target.translation.vector).normalize();
+        if normal.dot(&to_cam) < self.max_view_angle_deg.to_radians().cos() || t_base_cam.translation.z < 0.05 {
+            return false;
+        }
+        let t_cam_target = t_base_cam.inverse() * self.t_base_target;
         let (w, h) = (f64::from(self.camera.image_size.width_px), f64::from(self.camera.image_size.height_px));
         points.iter().all(|p| {
             self.camera
@@ -281,7 +345,7 @@ impl JointStudyRun {
     }
 }
 
-fn score(cm: &CalibratedModel, test: &[&PoseMeasurement]) -> Result<Score> {
+pub(crate) fn score(cm: &CalibratedModel, test: &[&PoseMeasurement]) -> Result<Score> {
     let fail = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("joint study: {e}"));
     let (refit, _) = refit_frame(cm, test, 2e-5).map_err(fail)?;
     let s = refit.evaluate(test).map_err(fail)?;
@@ -326,18 +390,30 @@ fn coverage_raw(params: &[ParamResult], truth: &[(String, f64)]) -> Coverage {
     c
 }
 
-/// One seed of the study (see the module documentation).
-pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStudyRun> {
+/// One seed's cell: the nominal model, the true robot, the training and held-out joint readings
+/// and the random state after them (the rest of the seed's draws continue from it).
+pub(crate) struct Cell {
+    pub(crate) nominal: RobotModel,
+    pub(crate) truth: TrueRobot,
+    pub(crate) truth_values: Vec<(String, f64)>,
+    pub(crate) train_q: Vec<Vec<f64>>,
+    pub(crate) test_q: Vec<Vec<f64>>,
+    pub(crate) rng: ChaCha8Rng,
+}
+
+/// Draws the cell of `seed` (poses, then the true robot's errors on the parameters the
+/// selection keeps free on the training poses).
+pub(crate) fn draw_cell(config: &JointStudyConfig, seed: u64) -> Result<Cell> {
     let fail = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("joint study, seed {seed}: {e}"));
     let nominal = RobotModel::load(&config.robot).map_err(|e| DatasetError::Config(e.to_string()))?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let train_q = draw_poses(config, &nominal, config.n_train, &mut rng)?;
     let test_q = draw_poses(config, &nominal, config.n_test, &mut rng)?;
-    let points = config.points();
     // The true robot: errors on the parameters the selection keeps free on the training poses
-    // (the camera's table of the nominal chain, with orientations).
-    let x = config.t_flange_target;
-    let w_inv = config.t_base_camera.inverse();
+    // (the camera's table of the nominal chain, with orientations: `W^-1 FK X`, the layout of
+    // the joint adjustment for either mount).
+    let x = config.hand_eye();
+    let w_inv = config.world().inverse();
     let sel_rows: Vec<PoseMeasurement> = train_q
         .iter()
         .enumerate()
@@ -365,6 +441,16 @@ pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStud
     let truth = TrueRobot::new(nominal.clone(), &errors, vec![], 0.0, &mut rng)?;
     let truth_values: Vec<(String, f64)> =
         truth.truth.parameters().into_iter().map(|p| (p.name.clone(), p.value)).collect();
+    Ok(Cell { nominal, truth, truth_values, train_q, test_q, rng })
+}
+
+/// One seed of the study (see the module documentation).
+pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStudyRun> {
+    let fail = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("joint study, seed {seed}: {e}"));
+    let Cell { nominal, truth, truth_values, train_q, test_q, mut rng } = draw_cell(config, seed)?;
+    let points = config.points();
+    let x = config.hand_eye();
+    let w_inv = config.world().inverse();
     let cond = Conditions { temp_c: 20.0, dir: vec![0; nominal.dof()], ..Default::default() };
     // Images of the training poses (exact projections plus noise) and tracker readings of all.
     let noise = Normal::new(0.0, config.corner_sigma_px).map_err(|e| DatasetError::Input(e.to_string()))?;
@@ -386,7 +472,10 @@ pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStud
     let train_tracker = tracker_rows(&train_q, &mut rng, "train")?;
     let test_tracker = tracker_rows(&test_q, &mut rng, "test")?;
     for (k, q) in train_q.iter().enumerate() {
-        let t_cam_target = w_inv * truth.tool_pose(q, &cond)? * x;
+        let t_cam_target = match config.mount {
+            Mount::EyeToHand => w_inv * truth.tool_pose(q, &cond)? * x,
+            Mount::EyeInHand => x.inverse() * truth.tool_pose(q, &cond)?.inverse() * config.world(),
+        };
         let mut corners = Vec::with_capacity(points.len());
         let mut exact = Vec::with_capacity(points.len());
         for p in &points {
@@ -405,14 +494,14 @@ pub fn run_joint_study(config: &JointStudyConfig, seed: u64) -> Result<JointStud
             corners_px: corners,
         });
     }
-    let data = HandEyeData { mount: Mount::EyeToHand, target_points_m: points, views };
+    let data = HandEyeData { mount: config.mount, target_points_m: points, views };
     let test: Vec<&PoseMeasurement> = test_tracker.iter().collect();
     // (a) The tracker calibration.
     let train_refs: Vec<&PoseMeasurement> = train_tracker.iter().collect();
     let tracker_cal = calibrate(&nominal, &train_refs, &KinematicOptions::default()).map_err(fail)?;
     // (b) The two-step path: camera from the training images, PnP with covariance, calibrate.
     let rec_opts = RecordingOptions {
-        mount: Mount::EyeToHand,
+        mount: config.mount,
         camera: None,
         calibration: CalibrationOptions::default(),
         corner_sigma_px: config.corner_sigma_px,

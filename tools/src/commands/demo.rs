@@ -56,6 +56,7 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     s.push(ferrocal_report::compensate::corrected_section(args.seed)?);
     s.push(ferrocal_report::handeye::demo::demo_section(&args.data, &args.out.join("handeye"), &tick)?);
     s.push(ferrocal_report::handeye::demo::positioner_section(&args.data)?);
+    s.push(ferrocal_report::handeye::joint_demo::joint_section(args.seed, args.quick)?);
     s.push(ferrocal_report::recording::demo_section(&args.data, &args.out.join("measure-real"))?);
     for set in
         ["test_set_charuco/cal_data.yaml", "test_set_10x10/cal_data.yaml", "kinematic_calibration/measurements.yaml"]

@@ -1,8 +1,9 @@
 //! The demo's hand-eye section: the two real robot-camera recordings of ROS-Industrial's
 //! industrial_calibration examples, imported and calibrated as a user would (`import ic-handeye
 //! --test-every 2`, then `handeye` with the camera calibrated from the training images), with the
-//! robot poses once as noisy measurements (the default) and once as exact, OpenCV's best hand-eye
-//! solver beside them on the same corners, and the source's own acceptance thresholds.
+//! robot poses exact (the default) or as noisy measurements, the print scale fitted (the default)
+//! or nominal, OpenCV's best hand-eye solver beside them on the same corners, and the source's own
+//! acceptance thresholds.
 
 use std::path::Path;
 
@@ -71,10 +72,10 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
         let (rec, skipped) = load_recording(&paths, &table, &flange, &pattern, ic.mount)?;
         let mut runs = Vec::new();
         for (label, exact, scale) in [
-            ("robot poses exact (default)", true, false),
-            ("robot poses as measurements", false, false),
-            ("exact, print scale fitted", true, true),
+            ("robot poses exact, print scale fitted (default)", true, true),
+            ("exact, nominal scale", true, false),
             ("as measurements, print scale fitted", false, true),
+            ("as measurements, nominal scale", false, false),
         ] {
             let mut options = HandEyeOptions {
                 intrinsics: IntrinsicsMode::Calibrate(CalibrationOptions::default()),
@@ -137,17 +138,20 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
         checks.push((
             beats,
             format!(
-                "{}: held-out chain RMS with exact robot poses {} px against OpenCV's best {} px",
+                "{}: held-out chain RMS (default: exact poses, print scale fitted) {} px against OpenCV's best {} px",
                 set.folder,
                 f4(exact.ours.heldout_rms_px),
                 exact.opencv.as_ref().map_or("-".into(), |(_, o)| f4(o.heldout_rms_px))
             ),
         ));
         checks.push((
-            exact.ours.train_rms_px < SOURCE_RMS_LIMIT_PX,
+            exact.ours.train_rms_px < SOURCE_RMS_LIMIT_PX
+                && exact.ours.heldout_rms_px.is_some_and(|h| h < SOURCE_RMS_LIMIT_PX),
             format!(
-                "{}: fit residual RMS {:.4} px (source: < {SOURCE_RMS_LIMIT_PX} px)",
-                set.folder, exact.ours.train_rms_px
+                "{}: fit residual RMS {:.4} px, held-out {} px (source: fit < {SOURCE_RMS_LIMIT_PX} px)",
+                set.folder,
+                exact.ours.train_rms_px,
+                f4(exact.ours.heldout_rms_px)
             ),
         ));
     }
@@ -158,7 +162,8 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
          hand-eye solvers run on the same corners with the same camera and the best of them is shown. \
          The held-out images are used by no fit. The chain RMS predicts each image's corners from the \
          reported robot pose, the hand-eye transform and the fixed frame; the PnP agreement compares the \
-         chain's camera-to-target pose with a per-image PnP, which is the source's own acceptance measure. \
+         chain's camera-to-target pose with a per-image PnP, which is the source's own acceptance measure; \
+         the PnP uses the same target geometry as the chain (the fitted print scale where it is fitted). \
          On both recordings, taking the robot poses as exact predicts held-out pixels better than modelling \
          them as independent noisy measurements: the robots' errors here are systematic, not per-pose noise.",
     );
@@ -178,13 +183,14 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
     );
     s.text(format!(
         "The source also asks for a residual below {SOURCE_RMS_LIMIT_PX} px; held-out images are not part of \
-         its test. Without the print scale ours are above it on held-out images on both sets; with it and the \
-         robot poses exact they are below it (see the table)."
+         its test. With the print scale fitted and the robot poses exact (the default) ours are below it on \
+         held-out images on both sets; with the nominal scale they are above it (see the table)."
     ));
     s.text(format!(
         "The printed targets are not at their nominal scale: fitting the print scale against the robots' metric \
-         poses (`--target-scale`) finds {}. With it and the robot poses exact, the held-out chain RMS is below 1.5 px on both sets \
-         (see the table): the print scale is physics the nominal target description leaves out.",
+         poses (the default; `--nominal-target-scale` holds it) finds {}. It is fitted by default because the \
+         training images alone call for it: on both sets it lies many standard deviations from 1 and lowers \
+         the training RMS; the held-out images played no part in that choice.",
         scales.join("; ")
     ));
     for w in &warnings {
@@ -203,7 +209,9 @@ fn f4(v: Option<f64>) -> String {
 
 /// The demo's positioner section: the real two-axis positioner of the industrial_calibration
 /// kinematic example (a fixed camera measuring the target's 6-DoF pose), every fourth pose held
-/// out, calibrated against two nominal baselines (frames only; frames and joint offsets).
+/// out, calibrated against the nominal baselines (frames only; frames and joint offsets; the
+/// source's mount guesses), with the weighting and effects chosen by cross-validation on the
+/// training poses.
 pub fn positioner_section(data: &Path) -> Result<Section> {
     use ferrocal_calib::kinematic::{calibrate, KinematicOptions, ModelParams};
     use ferrocal_calib::Split;
@@ -229,14 +237,39 @@ pub fn positioner_section(data: &Path) -> Result<Section> {
         ("nominal DH, frames and joint offsets fitted", ModelParams::None, true),
         ("calibrated (per-joint corrections, frames, offsets)", ModelParams::Default, true),
     ];
+    use ferrocal_datasets::handeye::positioner as pos;
+    // The weighting and the effects beside the geometry, chosen by 5-fold cross-validation on
+    // the training poses alone.
+    let choice = pos::choose_by_cross_validation(&model, &train, &base, 5)?;
+    let chosen_label = format!(
+        "calibrated, chosen by 5-fold cross-validation on the training poses: {} weighting, effects '{}'",
+        choice.shape.name(),
+        choice.effects
+    );
     let mut rows = Vec::new();
     let mut stats = Vec::new();
+    let mut models = Vec::new();
     for (label, params, offsets) in variants {
         let opts = KinematicOptions { model_params: params, joint_offsets: offsets, ..base.clone() };
         let cal = calibrate(&model, &train, &opts).with_context(|| format!("positioner: {label}"))?;
-        let (pos, _) = cal.calibrated.errors(&test)?;
-        let e: Vec<f64> = pos.iter().map(|p| p.norm() * 1e3).collect();
-        let st = cal.calibrated.evaluate(&test)?;
+        models.push((label.to_string(), cal.calibrated));
+    }
+    let chosen_opts = pos::with_effects(&base, &choice.effects)?;
+    let (chosen, _) = pos::estimate_pose_covariance(&model, &train, &chosen_opts, choice.shape)?;
+    models.push((chosen_label.clone(), chosen.calibrated));
+    // `ferrocal diagnose` on the training poses (frames placed in the model first), then the
+    // calibration with its effects: the pre-specified route for the effects.
+    let (diag_list, diag) = pos::diagnose_effects(&ferrocal_datasets::handeye::ic_positioner_nominal(), &train, &base)?;
+    let diag_cal = calibrate(&model, &train, &pos::with_effects(&base, &diag_list)?)
+        .context("positioner: calibration with diagnose's effects")?;
+    models.push((
+        format!("calibrated with the effects diagnose finds on the training poses: '{diag_list}'"),
+        diag_cal.calibrated,
+    ));
+    for (label, calibrated) in &models {
+        let (errs, _) = calibrated.errors(&test)?;
+        let e: Vec<f64> = errs.iter().map(|p| p.norm() * 1e3).collect();
+        let st = calibrated.evaluate(&test)?;
         let spread = (e.iter().map(|v| (v - st.mean_mm).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
         rows.push(vec![
             label.to_string(),
@@ -264,15 +297,74 @@ pub fn positioner_section(data: &Path) -> Result<Section> {
         &["model", "mean [mm]", "spread (std) [mm]", "max [mm]", "mean [deg]", "max [deg]"],
         rows,
     );
+    let (cam, tgt) = pos::read_initial_guesses(&dir)?;
+    let guess = pos::source_guess_baseline(&model, &test, &cam, &tgt)?;
+    s.text(format!(
+        "The source's own nominal model, the nominal DH chain with the data set's initial mount guesses \
+         (`pose_initial_guesses.yaml`, the camera's mount taken as the positioner's base), is off by {:.1} mm and \
+         {:.1} deg on the held-out poses: those guesses are starting values for an optimiser, not a usable \
+         model, so it is no yardstick. Against the strict baseline (nominal DH with both frames fitted on the \
+         training poses) the calibrations gain {:.1} % (geometry), {:.1} % (chosen by cross-validation) and \
+         {:.1} % (with the effects `ferrocal diagnose` finds on the training poses: {}). \
+         Weighting the camera's pose measurements by a covariance estimated from the training residuals \
+         (variance components, per axis or full, in the camera's frame) does not help here: the residuals are \
+         not larger in depth than across the image (they are dominated by what the model leaves out, not by \
+         the camera's noise), and cross-validation keeps the scalar weights.",
+        guess.mean_mm,
+        guess.mean_deg.unwrap_or(f64::NAN),
+        100.0
+            * (1.0
+                - stats[2]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)
+                    / stats[0]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)),
+        100.0
+            * (1.0
+                - stats[3]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)
+                    / stats[0]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)),
+        100.0
+            * (1.0
+                - stats[4]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)
+                    / stats[0]["held_out"]["mean_mm"].as_f64().unwrap_or(f64::NAN)),
+        diag.findings.iter().map(|f| f.statement.as_str()).collect::<Vec<_>>().join("; "),
+    ));
     let get = |k: usize, f: &str| stats[k]["held_out"][f].as_f64().unwrap_or(f64::NAN);
-    let (nominal_mm, calibrated_mm, calibrated_deg) = (get(0, "mean_mm"), get(2, "mean_mm"), get(2, "mean_deg"));
-    s.data = json!({"n": set.rows.len(), "n_test": test.len(), "models": stats});
+    let (nominal_mm, calibrated_mm, calibrated_deg) = (get(0, "mean_mm"), get(4, "mean_mm"), get(4, "mean_deg"));
+    s.data = json!({
+        "n": set.rows.len(), "n_test": test.len(), "models": stats, "cross_validation": choice,
+        "source_guess_baseline": guess, "diagnose_effects": diag_list, "diagnose_findings": diag.findings,
+    });
     s.check(Check::from_bool(
-        "positioner within the source's thresholds",
-        calibrated_mm < 2.0 && calibrated_deg < 0.2 && calibrated_mm < nominal_mm,
+        "positioner within the source's thresholds and more than 10 % better than nominal",
+        calibrated_mm < 2.0 && calibrated_deg < 0.2 && calibrated_mm < 0.9 * nominal_mm,
         format!(
-            "held-out mean {calibrated_mm:.4} mm, {calibrated_deg:.4} deg (source: < 2 mm, 0.2 deg); nominal with fitted frames {nominal_mm:.4} mm"
+            "held-out mean {calibrated_mm:.4} mm, {calibrated_deg:.4} deg (source: < 2 mm, 0.2 deg); nominal with fitted frames {nominal_mm:.4} mm ({:.1} % better; the issue asks for more than 10 %)",
+            100.0 * (1.0 - calibrated_mm / nominal_mm)
         ),
     ));
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The positioner section on the real set (when present): the held-out table has the three
+    /// fitted models, the one chosen by cross-validation and the one with diagnose's effects;
+    /// that one meets the source's thresholds and is more than 10 % better than the nominal
+    /// model with fitted frames (measured: 0.3961 against 0.4525 mm).
+    #[test]
+    fn positioner_section_runs_on_the_real_set() {
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+        if !data.join("industrial_calibration/kinematic_calibration").exists() {
+            return;
+        }
+        let s = positioner_section(&data).unwrap();
+        let models = s.data["models"].as_array().unwrap();
+        assert_eq!(models.len(), 5);
+        assert!(models[3]["model"].as_str().unwrap().contains("cross-validation"));
+        assert!(models[4]["model"].as_str().unwrap().contains("diagnose"));
+        let mean_mm = models[4]["held_out"]["mean_mm"].as_f64().unwrap();
+        let nominal_mm = models[0]["held_out"]["mean_mm"].as_f64().unwrap();
+        assert!(mean_mm < 2.0 && mean_mm < 0.9 * nominal_mm, "{mean_mm} against {nominal_mm}");
+        assert!(s.data["source_guess_baseline"]["mean_mm"].as_f64().unwrap() > mean_mm);
+    }
 }

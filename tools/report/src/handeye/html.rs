@@ -95,7 +95,10 @@ pub fn handeye_sections(r: &HandEyeResult, baselines: &[BaselineReport], source:
         if n.robot_sigma_m == 0.0 { " (robot poses taken as exact)" } else { "" }
     ));
     if let Some((v, sd)) = r.target_scale {
-        s.text(format!("Target print scale {v:.6} +- {sd:.6} (1 = nominal spacing)."));
+        s.text(format!(
+            "Target print scale {v:.6} +- {sd:.6} (1 = nominal spacing). The per-image PnP poses the chain is \
+             compared with use the same scaled target."
+        ));
     }
     s.table("Chain figures (robot poses as reported)", &FIGURE_HEADER, vec![figures_row("ferrocal", &r.figures)]);
     attribute(&mut s);

@@ -41,6 +41,7 @@ pub fn figures_json(f: &ChainFigures) -> Value {
         "train_pnp_rotation_deg": f.train_pnp_rotation_deg,
         "heldout_pnp_position_mm": f.heldout_pnp_position_mm,
         "heldout_pnp_rotation_deg": f.heldout_pnp_rotation_deg,
+        "pnp_target_scale": f.pnp_target_scale,
     })
 }
 

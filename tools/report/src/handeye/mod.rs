@@ -5,6 +5,7 @@
 
 pub mod demo;
 pub mod html;
+pub mod joint_demo;
 pub mod json;
 
 use std::path::{Path, PathBuf};
@@ -68,9 +69,13 @@ pub struct HandeyeArgs {
     /// Write an HTML report here.
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// Fit the printed target's overall scale (visible only against metric robot poses).
-    #[arg(long)]
+    /// Fit the printed target's overall scale against the robot's metric poses: the default
+    /// without --out; with --out (the joint adjustment) only when given.
+    #[arg(long, conflicts_with = "nominal_target_scale")]
     pub target_scale: bool,
+    /// Hold the target at its nominal spacing instead of fitting its print scale.
+    #[arg(long)]
+    pub nominal_target_scale: bool,
     /// Noise of the reported flange positions, mm per coordinate; with --robot-sigma-deg the
     /// poses are measurements with this fixed noise.
     #[arg(long, requires = "robot_sigma_deg")]
@@ -124,6 +129,11 @@ pub struct SimulateArgs {
     /// Held-out images.
     #[arg(long, default_value_t = 6)]
     pub test: usize,
+    /// A robot cell instead (eye-to-hand only; `ur5`): the joint study's UR5 with true
+    /// kinematic errors, the joint readings in poses.csv, and heldout.csv, a simulated tracker's
+    /// readings of the held-out poses for `evaluate --refit-frame` (the joint adjustment's check).
+    #[arg(long)]
+    pub robot: Option<String>,
 }
 
 /// `ferrocal handeye study`.
@@ -181,7 +191,12 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
     };
     let mut options = HandEyeOptions {
         intrinsics,
-        fit_target_scale: a.target_scale,
+        // The print scale is fitted unless asked not to: printed targets are rarely at their
+        // nominal spacing and the robot's metric poses determine it (docs/handeye.md). Not with
+        // the joint adjustment (--out) unless asked: there the flange poses come from the nominal
+        // robot, whose length errors a free scale would take up, and the adjustment holds the
+        // scale of its start.
+        fit_target_scale: a.target_scale || (!a.nominal_target_scale && a.out.is_none()),
         huber_sigmas: a.huber,
         ..HandEyeOptions::default()
     };
@@ -227,7 +242,12 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
             })
             .collect::<Result<Vec<_>>>()?;
         let joint_options = JointOptions { hand_eye: options.clone(), ..JointOptions::default() };
-        let joint = calibrate_joint_from(model, &data, &joints, result.clone(), &joint_options)
+        // The joint adjustment holds the target at the print scale the hand-eye fit found.
+        let mut scaled = data.clone();
+        if let Some((scale, _)) = result.target_scale {
+            scaled.target_points_m = ferrocal_calib::handeye::evaluate::scaled_target(&data.target_points_m, scale);
+        }
+        let joint = calibrate_joint_from(model, &scaled, &joints, result.clone(), &joint_options)
             .context("handeye: the joint adjustment of robot and camera")?;
         write_atomic(out, serde_json::to_string_pretty(&joint.file(spec))?.as_bytes())?;
         let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
@@ -299,6 +319,23 @@ pub fn mount_of(m: MountArg) -> Mount {
 }
 
 fn run_simulate(s: &SimulateArgs) -> Result<ExitCode> {
+    if let Some(robot) = &s.robot {
+        if robot != "ur5" || s.mount != MountArg::EyeToHand {
+            bail!("handeye simulate --robot: only the ur5 cell, eye-to-hand, is simulated (got {robot})");
+        }
+        let config = ferrocal_datasets::handeye::joint_record::rendered_ur5_cell(s.train, s.test);
+        let r = ferrocal_datasets::handeye::joint_record::write_joint_recording(&config, &s.out, s.seed)?;
+        eprintln!(
+            "{} + {} images written to {} (pattern {}); nominal {} held out: mean {:.4} mm after the frame refit",
+            r.n_train,
+            r.n_test,
+            s.out.display(),
+            r.pattern,
+            r.robot,
+            r.nominal_heldout.mean_mm
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
     let mut config = ferrocal_datasets::handeye::HandEyeSimConfig::default_for(mount_of(s.mount));
     config.n_train = s.train;
     config.n_test = s.test;
