@@ -155,6 +155,7 @@ pub fn run_correct(a: &CorrectArgs) -> Result<std::process::ExitCode> {
     }
     let model = RobotModel::load(&a.robot)?;
     let file = ferrocal_calib::file::CalibrationFile::read(&a.calibration)?;
+    file.check_robot(&a.robot, &model).with_context(|| format!("{}", a.calibration.display()))?;
     let cm = file.apply(&model).with_context(|| format!("applying {}", a.calibration.display()))?;
     let program = ferrocal_datasets::import::read_joint_program(&a.program)?;
     let opts = CorrectOptions { use_orientation: !a.positions_only, ..CorrectOptions::default() };

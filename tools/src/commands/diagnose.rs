@@ -85,6 +85,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
         ..DiagnoseOptions::default()
     };
     let (model, rows) = super::calibrate::load_model_and_rows(robot, meas)?;
+    super::calibrate::check_distinct_poses(&rows, meas)?;
     let progress = crate::progress::bar(1, "diagnosing");
     let rep = diagnose(&model, &rows, &opts).context("diagnosis")?;
     progress.finish_and_clear();
