@@ -89,7 +89,10 @@ impl MeasurementTable {
             let mut hint = String::new();
             if let Some(a) = alt {
                 let name = if a == JointUnit::Deg { "degrees" } else { "millimetres" };
-                if fits(&all) {
+                // Nearly every row has some joint outside and every row fits as the other unit:
+                // the columns are in it (one column alone is not enough: small angles in
+                // degrees fit the limits in radians too).
+                if 10 * self.rows_outside(limits) >= 9 * n && fits(&all) {
                     hint = format!("; the values look like {name}: name the column q{}_{}", i + 1, a.suffix());
                 } else if fits(&bad) {
                     hint = format!(
@@ -113,6 +116,14 @@ impl MeasurementTable {
             });
         }
         Ok(())
+    }
+}
+
+impl MeasurementTable {
+    /// Rows with at least one joint outside its allowed range.
+    fn rows_outside(&self, limits: &[JointLimits]) -> usize {
+        let ranges: Vec<(f64, f64)> = self.joint_units.iter().zip(limits).map(|(u, l)| allowed(l, u.kind())).collect();
+        self.set.rows.iter().filter(|r| r.q.iter().zip(&ranges).any(|(v, (lo, hi))| !(*v >= *lo && *v <= *hi))).count()
     }
 }
 

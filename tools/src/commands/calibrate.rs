@@ -14,7 +14,7 @@ use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
 use serde_json::json;
 
 use ferrocal_report::calibrate::{calibrate_table, calibration_sections, evaluate_json, report_json, CalibrationRun};
-use ferrocal_report::{write_atomic, Provenance, Report};
+use ferrocal_report::{check_outputs, write_all_atomic, write_atomic, Provenance, Report};
 
 /// `ferrocal calibrate`.
 #[derive(Debug, Args)]
@@ -227,6 +227,9 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
 
 pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
     let opts = options(args)?;
+    let outputs: Vec<&Path> =
+        [Some(args.out.as_path()), args.json.as_deref(), args.report.as_deref()].into_iter().flatten().collect();
+    check_outputs(&outputs, &[args.measurements.as_path(), Path::new(&args.robot)])?;
     let (model, rows) = load_model_and_rows(&args.robot, &args.measurements)?;
     check_params(&opts.model_params, &model)?;
     check_distinct_poses(&rows, &args.measurements)?;
@@ -234,15 +237,6 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
     let run = calibrate_table(&model, &rows, &opts, !args.no_validation, &|| progress.inc(1))?;
     progress.finish_and_clear();
     let CalibrationRun { cal, validation, final_rows, fixed_split, heldout_spatial } = &run;
-    let fits = std::iter::once(("calibration", cal)).chain(validation.iter().map(|(v, _, _)| ("validation fit", v)));
-    for (what, fit) in fits {
-        if let Some(problem) = fit.convergence_problem() {
-            if !args.accept_unconverged {
-                bail!("{what}: {problem}; nothing was written (raise --max-iterations, check the data, or accept it with --accept-unconverged)");
-            }
-            eprintln!("warning: {what}: {problem}; delivered because of --accept-unconverged");
-        }
-    }
     // Repeated rows of one pose add equations but no information: the fit must be redundant
     // counting distinct poses only.
     let distinct = ferrocal_datasets::import::plausible::distinct_poses(final_rows.iter().copied());
@@ -256,26 +250,37 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
             cal.free.len()
         );
     }
+    let fits = std::iter::once(("calibration", cal)).chain(validation.iter().map(|(v, _, _)| ("validation fit", v)));
+    for (what, fit) in fits {
+        if let Some(problem) = fit.convergence_problem() {
+            if !args.accept_unconverged {
+                bail!("{what}: {problem}; nothing was written (raise --max-iterations, check the data, or accept it with --accept-unconverged)");
+            }
+            eprintln!("warning: {what}: {problem}; delivered because of --accept-unconverged");
+        }
+    }
     if let Some(w) = cal.noise_warning() {
         eprintln!("note: {w}");
     }
+    // Everything is composed first, then written together: a failing report leaves no
+    // calibration file behind, and no output is half-set.
     let file = CalibrationFile::new(&args.robot, &cal.calibrated);
-    write_atomic(&args.out, serde_json::to_string_pretty(&file)?.as_bytes())?;
+    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.out, serde_json::to_string_pretty(&file)?.into_bytes())];
     let mut summary = report_json(cal, validation, final_rows.len(), *fixed_split);
     if let Some(spatial) = heldout_spatial {
         summary["heldout_spatial"] = spatial.clone();
     }
     if let Some(j) = &args.json {
-        write_atomic(j, serde_json::to_string_pretty(&summary)?.as_bytes())?;
+        files.push((j, serde_json::to_string_pretty(&summary)?.into_bytes()));
     }
     if let Some(h) = &args.report {
         let mut prov = Provenance::new(json!({"robot": args.robot, "options": opts}));
         prov.add_input(&args.measurements);
         let mut rep = Report::new(&format!("Calibration of {}", model.name()), prov);
         rep.sections.extend(calibration_sections(cal, validation, final_rows));
-        let html = rep.to_html();
-        write_atomic(h, html.as_bytes())?;
+        files.push((h, rep.to_html().into_bytes()));
     }
+    write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     eprintln!(
         "calibrated {} on {} poses: RMS {:.4} mm -> {:.4} mm (mean {:.4} mm){}",
         model.name(),
@@ -292,6 +297,7 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
 }
 
 pub fn run_evaluate(args: &EvaluateArgs) -> Result<ExitCode> {
+    check_outputs(&[&args.json], &[&args.measurements, &args.calibration, Path::new(&args.robot)])?;
     let (model, rows) = load_model_and_rows(&args.robot, &args.measurements)?;
     let file = CalibrationFile::read(&args.calibration)?;
     file.check_robot(&args.robot, &model).with_context(|| format!("{}", args.calibration.display()))?;
