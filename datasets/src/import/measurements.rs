@@ -230,6 +230,12 @@ pub fn measurements_to_string(set: &MeasurementSet, opts: &WriteOptions) -> Resu
             return Err(DatasetError::Input(format!("{}: non-finite value", who())));
         }
         // What the reader refuses is never written.
+        if r.q.iter().any(|v| v.abs() > MAX_JOINT_SI) || r.position_m.iter().any(|v| v.abs() > MAX_POSITION_M) {
+            return Err(DatasetError::Input(format!(
+                "{}: a joint value or position beyond plausible size (docs/reliability.md)",
+                who()
+            )));
+        }
         if let Some(s) = r.sigma_m.filter(|s| *s < 0.0) {
             return Err(DatasetError::Input(format!("{}: negative standard deviation {s} m", who())));
         }

@@ -101,16 +101,25 @@ impl MeasurementTable {
                     );
                 }
             }
-            let range = |v: f64| format!("{:.4}", unit.from_si(v));
+            let u = unit.suffix();
+            let limits_text = if lim.lower.is_finite() && lim.upper.is_finite() {
+                format!(
+                    "the limits [{:.4}, {:.4}] {u} of robot model '{model}'",
+                    unit.from_si(lim.lower),
+                    unit.from_si(lim.upper)
+                )
+            } else {
+                format!(
+                    "[{:.4}, {:.4}] {u}, the range assumed for an unlimited joint of robot model '{model}'",
+                    unit.from_si(lo),
+                    unit.from_si(hi)
+                )
+            };
             return Err(DatasetError::Invalid {
                 location: Location::new(&self.file, first.source_line.unwrap_or(0), column),
                 message: format!(
-                    "joint {} reads {shown} {}, outside the limits [{}, {}] {} of robot model '{model}' ({} of {n} rows of this column are outside){hint}",
+                    "joint {} reads {shown} {u}, outside {limits_text} ({} of {n} rows of this column are outside){hint}",
                     i + 1,
-                    unit.suffix(),
-                    range(lim.lower.max(-f64::MAX)),
-                    range(lim.upper.min(f64::MAX)),
-                    unit.suffix(),
                     bad.len()
                 ),
             });

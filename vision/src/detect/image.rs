@@ -144,7 +144,7 @@ pub fn check_image_file(path: &Path) -> std::result::Result<(u32, u32), String> 
     let Some(format) = reader.format() else {
         return Err("not a recognised image format (PNG, JPEG, TIFF, BMP, PNM)".into());
     };
-    let (w, h) = reader.into_dimensions().map_err(|e| format!("cannot read the header: {e}"))?;
+    let (w, h) = reader.into_dimensions().map_err(|e| format!("cannot decode the header: {e}"))?;
     if u64::from(w) * u64::from(h) > MAX_IMAGE_PIXELS {
         return Err(format!(
             "the image is {w} x {h} pixels, more than the limit of {MAX_IMAGE_PIXELS} pixels; refused before decoding"
