@@ -154,6 +154,23 @@ fn evaluate_refuses_calibration_missing_parameters_for_another_robot_or_duplicat
         std::fs::write(&p, serde_json::to_string(v).unwrap()).unwrap();
         p
     };
+    // `correct` refuses a program in degrees under `_rad` headers, by row.
+    let deg = edited(tmp.path(), "deg.csv", Some(30), |_, c| {
+        for v in c.iter_mut().take(7).skip(1) {
+            *v = v.parse::<f64>().unwrap().to_degrees().to_string();
+        }
+    });
+    let err = fails_within(
+        ferrocal()
+            .args(["correct", "--robot", "ur5", "--calibration"])
+            .arg(&cal)
+            .arg("--program")
+            .arg(&deg)
+            .arg("--out")
+            .arg(tmp.path().join("corrected.csv")),
+        Duration::from_secs(30),
+    );
+    assert!(err.contains("deg.csv: line ") && err.contains("outside the limits"), "{err}");
     let mut cut = full.clone();
     cut["parameters"].as_array_mut().unwrap().truncate(5);
     let err = fails_within(&mut evaluate("ur5", &write("cut.json", &cut)), Duration::from_secs(30));
