@@ -134,6 +134,7 @@ impl CalibrationFile {
         let mut m = model.clone();
         let info = m.parameters();
         let mut values = m.parameter_values();
+        let mut given = vec![0usize; info.len()];
         for nv in &self.parameters {
             let Some(i) = info.iter().position(|p| p.name == nv.name) else {
                 return Err(CalibError::Data(format!(
@@ -142,7 +143,35 @@ impl CalibrationFile {
                     model.name()
                 )));
             };
+            if !nv.value.is_finite() {
+                return Err(CalibError::Data(format!("parameter '{}' is not a finite number", nv.name)));
+            }
+            given[i] += 1;
             values[i] = nv.value;
+        }
+        // Every parameter exactly once: a missing one would silently take its nominal value, a
+        // repeated one would leave the reader to guess which value was meant.
+        let repeated: Vec<&str> =
+            info.iter().zip(&given).filter(|(_, n)| **n > 1).map(|(p, _)| p.name.as_str()).collect();
+        if !repeated.is_empty() {
+            return Err(CalibError::Data(format!(
+                "the calibration gives parameter(s) {} more than once",
+                name_list(&repeated)
+            )));
+        }
+        let missing: Vec<&str> =
+            info.iter().zip(&given).filter(|(_, n)| **n == 0).map(|(p, _)| p.name.as_str()).collect();
+        if !missing.is_empty() {
+            return Err(CalibError::Data(format!(
+                "the calibration lacks {} of the {} parameters of model '{}' ({}); a calibration file lists every parameter: was it cut or edited?",
+                missing.len(),
+                info.len(),
+                model.name(),
+                name_list(&missing)
+            )));
+        }
+        if let Some((k, _)) = self.joint_offsets.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(CalibError::Data(format!("joint offset {} is not a finite number", k + 1)));
         }
         m.set_parameter_values(&values)?;
         let load_model = match &self.load_model {
@@ -172,6 +201,36 @@ impl CalibrationFile {
         })
     }
 
+    /// Checks that the file was made for the robot model `spec` (as given to `--robot`) loaded
+    /// as `model`: the same spec, the same file, or a spec that loads a model of the same name
+    /// and parameters. A calibration of another robot with the same parameter names (a UR5's
+    /// applied to a UR10) would otherwise be used without a word.
+    pub fn check_robot(&self, spec: &str, model: &RobotModel) -> Result<()> {
+        if self.robot == spec {
+            return Ok(());
+        }
+        let (a, b) = (Path::new(&self.robot), Path::new(spec));
+        if let (Ok(x), Ok(y)) = (a.canonicalize(), b.canonicalize()) {
+            if x == y {
+                return Ok(());
+            }
+        }
+        let mismatch = |why: String| {
+            CalibError::Data(format!(
+                "the calibration was made for robot '{}', not '{spec}' ({why}); pass --robot {}",
+                self.robot, self.robot
+            ))
+        };
+        match RobotModel::load(&self.robot) {
+            Ok(m) if m.name() == model.name() && m.parameters().len() == model.parameters().len() => Ok(()),
+            Ok(m) => Err(mismatch(format!("model '{}' against '{}'", m.name(), model.name()))),
+            // A file given relative to another folder: the same file name is taken as the same
+            // model.
+            Err(_) if a.file_name().is_some() && a.file_name() == b.file_name() => Ok(()),
+            Err(e) => Err(mismatch(format!("'{}' cannot be loaded here: {e}", self.robot))),
+        }
+    }
+
     /// Reads a file.
     pub fn read(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path)
@@ -187,5 +246,42 @@ impl CalibrationFile {
             });
         }
         Ok(f)
+    }
+}
+
+/// Up to eight names, quoted, then a count of the rest.
+fn name_list(names: &[&str]) -> String {
+    let mut s = names.iter().take(8).map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ");
+    if names.len() > 8 {
+        s.push_str(&format!(" and {} more", names.len() - 8));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn calibration_file_missing_repeated_or_for_another_robot_is_refused() {
+        let ur5 = RobotModel::load("ur5").unwrap();
+        let ur10 = RobotModel::load("ur10").unwrap();
+        let file = CalibrationFile::new("ur5", &CalibratedModel::nominal(ur5.clone()));
+        assert!(file.apply(&ur5).is_ok());
+        file.check_robot("ur5", &ur5).unwrap();
+        // Another robot with the same parameter names.
+        let e = file.check_robot("ur10", &ur10).unwrap_err().to_string();
+        assert!(e.contains("made for robot 'ur5', not 'ur10'"), "{e}");
+        // Most parameters missing.
+        let mut cut = file.clone();
+        cut.parameters.truncate(10);
+        let e = cut.apply(&ur5).unwrap_err().to_string();
+        assert!(e.contains(&format!("lacks {} of the {}", file.parameters.len() - 10, file.parameters.len())), "{e}");
+        assert!(e.contains(&format!("'{}'", file.parameters[10].name)), "{e}");
+        // A parameter given twice.
+        let mut twice = file.clone();
+        twice.parameters.push(twice.parameters[3].clone());
+        let e = twice.apply(&ur5).unwrap_err().to_string();
+        assert!(e.contains(&format!("'{}' more than once", file.parameters[3].name)), "{e}");
     }
 }

@@ -5,7 +5,7 @@
 //! chart never comes near its singularity whatever the rotation of `T0` (the source's free
 //! quaternions drifted to norms 0.974-1.003: this cannot happen here).
 
-use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Vector3};
 
 use crate::error::{CalibError, Result};
 
@@ -47,12 +47,9 @@ pub fn fit_rigid(from: &[Point3<f64>], to: &[Point3<f64>]) -> Result<Isometry3<f
         d[(2, 2)] = -1.0;
     }
     let r = vt.transpose() * d * u.transpose();
-    // `r` is orthonormal (from the SVD): converted directly. nalgebra's iterative projection
-    // (`from_matrix`) is slow to converge far from its guess and never ends on a non-finite matrix.
-    if !r.iter().all(|v| v.is_finite()) {
-        return Err(CalibError::Numeric("the rigid registration's rotation is not finite".into()));
-    }
-    let rot = UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r));
+    // `r` is orthonormal (from the SVD): converted directly, never iteratively.
+    let rot = ferrocal_robot::geometry::rotation_from_orthonormal(&r)
+        .ok_or_else(|| CalibError::Numeric("the rigid registration's rotation is not finite".into()))?;
     let t = cb - rot * ca;
     Ok(Isometry3::from_parts(Translation3::from(t), rot))
 }
@@ -60,6 +57,7 @@ pub fn fit_rigid(from: &[Point3<f64>], to: &[Point3<f64>]) -> Result<Isometry3<f
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::UnitQuaternion;
 
     #[test]
     fn registration_recovers_a_transform_near_pi() {

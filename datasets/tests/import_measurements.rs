@@ -241,7 +241,8 @@ fn tricky_set() -> MeasurementSet {
     rows[3].pose_id = "#hash, \"quoted\"".into();
     rows[4].q[0] = 0.0;
     rows[5].position_m.x = -0.0;
-    rows[6].position_m.y = 1e300;
+    // The largest plausible coordinate (docs/reliability.md), at full precision.
+    rows[6].position_m.y = 9999.999999999998;
     MeasurementSet { source: "tricky".into(), rows }
 }
 
@@ -295,6 +296,10 @@ fn writer_round_trips_at_full_precision() {
     write_measurements(&p, &set, &opts).unwrap();
     let back = read_measurements(&p).unwrap();
     assert_eq!(back.joint_units, vec![JointUnit::Rad, JointUnit::Rad, JointUnit::Rad, JointUnit::M]);
+    // What the reader refuses (a position of 1e300 m) is not written either.
+    let mut huge = set.clone();
+    huge.rows[6].position_m.y = 1e300;
+    assert!(measurements_to_string(&huge, &opts).unwrap_err().to_string().contains("plausible"));
     // Bit-exact with SI columns.
     assert_same_rows(&set, &back.set, 0.0);
     // The first data row is on line 3, after the comment and the header.

@@ -38,6 +38,32 @@ pub fn position_mm_rpy_deg(pose: &Pose) -> ([f64; 3], [f64; 3]) {
     ([p.x, p.y, p.z], [r.to_degrees(), pi.to_degrees(), y.to_degrees()])
 }
 
+/// The rotation of a matrix that is already orthonormal with determinant +1 (an SVD's product,
+/// a frame built from unit axes), converted exactly and without iteration. `None` when an entry
+/// is not finite. nalgebra's `Rotation3::from_matrix` projects iteratively instead: slow far from
+/// its guess, inexact when it stops early, and endless on a non-finite matrix; use
+/// [`nearest_rotation`] for a matrix that is only nearly orthonormal.
+pub fn rotation_from_orthonormal(m: &nalgebra::Matrix3<f64>) -> Option<UnitQuaternion<f64>> {
+    if !m.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    Some(UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(*m)))
+}
+
+/// The rotation nearest to `m` in the Frobenius norm (`U diag(1, 1, det) V^T` of its SVD), for a
+/// matrix read from a file that is orthonormal only to its printed digits. Direct, no iteration;
+/// `None` when an entry is not finite or the SVD fails.
+pub fn nearest_rotation(m: &nalgebra::Matrix3<f64>) -> Option<UnitQuaternion<f64>> {
+    if !m.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let svd = m.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let d = (u * v_t).determinant().signum();
+    let r = u * nalgebra::Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * v_t;
+    rotation_from_orthonormal(&r)
+}
+
 /// Pose from a translation and a rotation vector (axis times angle).
 pub fn pose_from_vectors(t_m: &Vector3<f64>, rotvec_rad: &Vector3<f64>) -> Pose {
     Isometry3::from_parts(Translation3::from(*t_m), UnitQuaternion::from_scaled_axis(*rotvec_rad))
@@ -114,5 +140,22 @@ mod tests {
                     || ((a - w) / std::f64::consts::TAU).fract().abs() > 1.0 - 1e-9
             );
         }
+    }
+
+    #[test]
+    fn rotation_conversions_are_exact_direct_and_refuse_non_finite() {
+        let q = UnitQuaternion::from_scaled_axis(Vector3::new(0.3, -2.9, 0.4));
+        let m = *q.to_rotation_matrix().matrix();
+        assert!(rotation_from_orthonormal(&m).unwrap().angle_to(&q) < 1e-12);
+        assert!(nearest_rotation(&m).unwrap().angle_to(&q) < 1e-12);
+        // A matrix orthonormal to 6 printed digits: the nearest rotation is within 1e-6 rad.
+        let rounded = m.map(|v| (v * 1e6).round() / 1e6);
+        assert!(nearest_rotation(&rounded).unwrap().angle_to(&q) < 2e-6);
+        let mut bad = m;
+        bad[(1, 2)] = f64::NAN;
+        assert!(rotation_from_orthonormal(&bad).is_none());
+        assert!(nearest_rotation(&bad).is_none());
+        bad[(1, 2)] = f64::INFINITY;
+        assert!(nearest_rotation(&bad).is_none());
     }
 }

@@ -6,3 +6,4 @@ mod compensate;
 mod handeye;
 mod measure;
 mod positioner;
+mod reliability;

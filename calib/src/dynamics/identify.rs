@@ -140,11 +140,11 @@ pub fn poses_from_legs(model: &Hexapod, legs: &SampledSignal) -> Result<SampledS
         let mut c = coordinates_from_pose(&(tool * tool_inv));
         if k > 0 {
             for i in 3..6 {
-                while c[i] - last[i] > std::f64::consts::PI {
-                    c[i] -= std::f64::consts::TAU;
-                }
-                while c[i] - last[i] < -std::f64::consts::PI {
-                    c[i] += std::f64::consts::TAU;
+                // Unwrapped onto the previous sample in one step (a loop of +-2 pi steps never
+                // ends on a huge angle, where subtracting 2 pi changes nothing).
+                let d = c[i] - last[i];
+                if d.is_finite() && d.abs() > std::f64::consts::PI {
+                    c[i] = last[i] + ferrocal_robot::geometry::wrap_angle(d);
                 }
             }
         }

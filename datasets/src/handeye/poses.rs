@@ -241,11 +241,23 @@ pub fn write_atomic(path: &Path, bytes: &[u8], inputs: &[&Path]) -> Result<()> {
     if inputs.iter().any(|i| same(path, i)) {
         return Err(DatasetError::Input(format!("refusing to overwrite the input {}", path.display())));
     }
+    // The rename would replace a symbolic link or a device node itself: refused.
+    if let Ok(m) = std::fs::symlink_metadata(path) {
+        if m.file_type().is_symlink() || !m.is_file() {
+            return Err(DatasetError::Input(format!(
+                "{} exists and is not a regular file (a symbolic link, device or folder); refusing to replace it",
+                path.display()
+            )));
+        }
+    }
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
     let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
     let w = |source| DatasetError::Write { path: path.to_path_buf(), source };
-    std::fs::write(&tmp, bytes).map_err(w)?;
+    std::fs::write(&tmp, bytes).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        w(e)
+    })?;
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         w(e)

@@ -1,7 +1,7 @@
 //! Geometry the importers need: the Euler-angle conventions of published recordings and a rigid
 //! registration of point sets (Kabsch / Horn) with residuals.
 
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 
 use crate::error::{DatasetError, Result};
 
@@ -97,7 +97,9 @@ pub fn fit_rigid(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Result<Isometry3
     let v = v_t.transpose();
     let d = (v * u.transpose()).determinant().signum();
     let r = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
-    let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
+    let rot = ferrocal_robot::geometry::rotation_from_orthonormal(&r).ok_or_else(|| {
+        DatasetError::Input("rigid fit: the rotation is not finite (huge or non-finite points?)".into())
+    })?;
     let t = cb - rot * ca;
     Ok(Isometry3::from_parts(Translation3::from(t), rot))
 }

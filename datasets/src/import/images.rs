@@ -263,6 +263,10 @@ fn names_file(name: &str, p: &Path) -> bool {
 }
 
 fn probe(p: &Path, decode: bool) -> std::result::Result<(u32, u32), String> {
+    if decode {
+        // Size limit and completeness before any pixel is decoded.
+        ferrocal_vision::detect::check_image_file(p)?;
+    }
     let reader = image::ImageReader::open(p)
         .map_err(|e| format!("cannot open: {e}"))?
         .with_guessed_format()

@@ -18,6 +18,7 @@ use ferrocal_calib::{MeasurementSet, PoseCovariance, PoseMeasurement, Split};
 use ferrocal_robot::JointKind;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
+use super::plausible::{cut_cell, MAX_JOINT_SI, MAX_POSITION_M};
 use super::table::{Row, Table, TableFormat};
 use super::units::{JointUnit, LengthUnit};
 use crate::error::{DatasetError, Location, Result};
@@ -38,6 +39,8 @@ pub struct MeasurementTable {
     pub file: PathBuf,
     /// 1-based line of the header row.
     pub header_line: u64,
+    /// Doubts that are not errors (a last line without a line end), for the caller to print.
+    pub warnings: Vec<String>,
 }
 
 impl MeasurementTable {
@@ -152,6 +155,7 @@ fn parse_table(text: &str, source: &Path, require_positions: bool) -> Result<Mea
         )
     })?;
     let layout = Layout::from_table(&table, require_positions)?;
+    let warnings = super::plausible::check_not_cut(text, &table)?;
     let mut rows = Vec::with_capacity(table.rows.len());
     let mut seen: HashMap<String, u64> = HashMap::new();
     for row in &table.rows {
@@ -159,7 +163,7 @@ fn parse_table(text: &str, source: &Path, require_positions: bool) -> Result<Mea
         if let Some(first) = seen.get(&m.pose_id) {
             return Err(DatasetError::DuplicateId {
                 location: table.loc(row, layout.pose_id),
-                id: m.pose_id,
+                id: cut_cell(&m.pose_id),
                 first_line: *first,
             });
         }
@@ -174,6 +178,7 @@ fn parse_table(text: &str, source: &Path, require_positions: bool) -> Result<Mea
         sigma_unit: layout.sigma.map(|(_, u)| u),
         file: source.to_path_buf(),
         header_line: table.header_line,
+        warnings,
     })
 }
 
@@ -223,6 +228,16 @@ pub fn measurements_to_string(set: &MeasurementSet, opts: &WriteOptions) -> Resu
         }
         if values.iter().any(|v| !v.is_finite()) {
             return Err(DatasetError::Input(format!("{}: non-finite value", who())));
+        }
+        // What the reader refuses is never written.
+        if r.q.iter().any(|v| v.abs() > MAX_JOINT_SI) || r.position_m.iter().any(|v| v.abs() > MAX_POSITION_M) {
+            return Err(DatasetError::Input(format!(
+                "{}: a joint value or position beyond plausible size (docs/reliability.md)",
+                who()
+            )));
+        }
+        if let Some(s) = r.sigma_m.filter(|s| *s < 0.0) {
+            return Err(DatasetError::Input(format!("{}: negative standard deviation {s} m", who())));
         }
         if let Some(c) = &r.covariance {
             c.validate().map_err(|e| DatasetError::Input(format!("{}: covariance: {e}", who())))?;
@@ -710,11 +725,30 @@ impl Layout {
         let pose_id = t.text(row, self.pose_id)?.to_string();
         let mut q = Vec::with_capacity(self.joints.len());
         for (col, unit) in &self.joints {
-            q.push(unit.to_si(t.number(row, *col)?));
+            let v = unit.to_si(t.number(row, *col)?);
+            if v.abs() > MAX_JOINT_SI {
+                return Err(DatasetError::Invalid {
+                    location: t.loc(row, *col),
+                    message: format!(
+                        "{} is not a plausible joint value (at most {MAX_JOINT_SI:e} rad or m)",
+                        cut_cell(&row.cells[*col])
+                    ),
+                });
+            }
+            q.push(v);
         }
         let mut p = Vector3::zeros();
         for (a, (col, unit)) in self.xyz.iter().enumerate().filter(|(_, (col, _))| *col != usize::MAX) {
             p[a] = unit.to_m(t.number(row, *col)?);
+            if p[a].abs() > MAX_POSITION_M {
+                return Err(DatasetError::Invalid {
+                    location: t.loc(row, *col),
+                    message: format!(
+                        "{} is not a plausible position (at most {MAX_POSITION_M:e} m from the device)",
+                        cut_cell(&row.cells[*col])
+                    ),
+                });
+            }
         }
         let mut m = PoseMeasurement::new(pose_id, q, p);
         m.source_line = Some(row.line);
@@ -785,7 +819,10 @@ impl Layout {
                         other => {
                             return Err(DatasetError::Invalid {
                                 location: t.loc(row, *c),
-                                message: format!("'{other}' is not a motion direction (1, -1, or 0 for unknown)"),
+                                message: format!(
+                                    "'{}' is not a motion direction (1, -1, or 0 for unknown)",
+                                    cut_cell(other)
+                                ),
                             })
                         }
                     });
@@ -801,7 +838,7 @@ impl Layout {
                 other => {
                     return Err(DatasetError::Invalid {
                         location: t.loc(row, col),
-                        message: format!("'{other}' is not a split (train or test)"),
+                        message: format!("'{}' is not a split (train or test)", cut_cell(other)),
                     })
                 }
             };

@@ -8,6 +8,8 @@
 //!   T-Mac-to-flange transform files, the hand-eye table, conversion to a measurement set and the
 //!   reproduction of measured positions from nominal kinematics.
 //! - [`images`]: image folders with an optional joints table.
+//! - [`plausible`]: plausibility checks at the boundary (joint values against the model's
+//!   limits, a table cut short, repeated poses) and the cutting of long cells in messages.
 //! - [`geometry`]: Euler conventions of the recordings and rigid registration (Kabsch / Horn).
 //!
 //! All values are converted to SI (metres, radians) on import. Every error about file content
@@ -16,6 +18,7 @@
 pub mod geometry;
 pub mod images;
 pub mod measurements;
+pub mod plausible;
 pub(crate) mod table;
 pub mod units;
 pub mod ur10;

@@ -199,7 +199,7 @@ pub(crate) fn parse_number(text: &str, decimal: Decimal, loc: impl Fn() -> Locat
         Decimal::Point => text,
         Decimal::Comma => {
             if text.contains('.') {
-                return Err(DatasetError::DecimalPoint { location: loc(), text: text.to_string() });
+                return Err(DatasetError::DecimalPoint { location: loc(), text: super::plausible::cut_cell(text) });
             }
             normalised = text.replacen(',', ".", 1);
             normalised.as_str()
@@ -207,12 +207,12 @@ pub(crate) fn parse_number(text: &str, decimal: Decimal, loc: impl Fn() -> Locat
     };
     match candidate.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        Ok(_) => Err(DatasetError::NonFinite { location: loc(), text: text.to_string() }),
+        Ok(_) => Err(DatasetError::NonFinite { location: loc(), text: super::plausible::cut_cell(text) }),
         Err(_) => {
             if decimal == Decimal::Point && text.contains(',') && text.replacen(',', ".", 1).parse::<f64>().is_ok() {
-                Err(DatasetError::DecimalComma { location: loc(), text: text.to_string() })
+                Err(DatasetError::DecimalComma { location: loc(), text: super::plausible::cut_cell(text) })
             } else {
-                Err(DatasetError::NotANumber { location: loc(), text: text.to_string() })
+                Err(DatasetError::NotANumber { location: loc(), text: super::plausible::cut_cell(text) })
             }
         }
     }
@@ -344,7 +344,7 @@ fn field_count_error(
                 if numeric(&headers[i]) && is_int(&cells[i]) && cells.get(i + 1).is_some_and(|c| is_fraction(c)) {
                     return DatasetError::DecimalComma {
                         location: Location::new(file, line, headers[i].clone()),
-                        text: format!("{},{}", cells[i], cells[i + 1]),
+                        text: super::plausible::cut_cell(&format!("{},{}", cells[i], cells[i + 1])),
                     };
                 }
             }

@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 
 use ferrocal_calib::{MeasurementSet, PoseMeasurement};
 use ferrocal_robot::Kinematics;
-use nalgebra::{Isometry3, Matrix3, Matrix4, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Matrix4, Quaternion, Translation3, UnitQuaternion, Vector3};
 
 use super::geometry::{
     quat_from_extrinsic_xyz, quat_from_intrinsic_xyz, register_positions, register_with_offset, OffsetRegistration,
@@ -414,7 +414,11 @@ pub fn read_tmac_flange_transform(path: impl AsRef<Path>) -> Result<TmacFlangeFi
             ),
         });
     }
-    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&rot));
+    // Orthonormal to the file's digits (checked above): the nearest rotation, computed directly.
+    let q = ferrocal_robot::geometry::nearest_rotation(&rot).ok_or_else(|| DatasetError::Invalid {
+        location: Location::line(path, 1),
+        message: "the upper-left 3x3 block has no nearest rotation (SVD failed)".into(),
+    })?;
     let t = Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]) / 1000.0;
     Ok(TmacFlangeFile {
         file: path.to_path_buf(),

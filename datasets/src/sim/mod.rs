@@ -345,6 +345,9 @@ pub fn simulate(
             out.display()
         )));
     }
+    if let Some(t) = &cfg.tracker {
+        t.validate().map_err(DatasetError::Config)?;
+    }
     let nominal = RobotModel::load(&cfg.robot.model)
         .map_err(|e| DatasetError::Config(format!("robot model '{}': {e}", cfg.robot.model)))?;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);

@@ -69,6 +69,28 @@ impl TrackerConfig {
         )
     }
 
+    /// Checks the settings: finite placement, noise standard deviations finite and not negative
+    /// (a negative one would be written into the tracker table, which the table's reader then
+    /// refuses).
+    pub fn validate(&self) -> Result<(), String> {
+        for (name, v) in [
+            ("sigma_const_um", self.sigma_const_um),
+            ("sigma_per_m_um", self.sigma_per_m_um),
+            ("sigma_angle_mrad", self.sigma_angle_mrad),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("[tracker] {name} = {v}: a standard deviation must be a finite number >= 0"));
+            }
+        }
+        let placement = self.position_m.iter().chain(&self.rpy_deg).chain(&self.reflector_in_tool_m);
+        if placement.copied().any(|v| !(v.is_finite() && v.abs() < 1e4)) {
+            return Err(
+                "[tracker] position_m, rpy_deg and reflector_in_tool_m must be finite numbers of plausible size".into(),
+            );
+        }
+        Ok(())
+    }
+
     /// A noisy reading of the tool at `t_world_tool`.
     pub fn measure(&self, t_world_tool: &Isometry3<f64>, rng: &mut impl Rng) -> TrackerReading {
         let t_tracker_tool = self.t_world_tracker().inverse() * t_world_tool;
@@ -83,5 +105,21 @@ impl TrackerConfig {
             UnitQuaternion::from_scaled_axis(w) * t_tracker_tool.rotation
         });
         TrackerReading { position_m: p.coords + n, orientation, sigma_m: sigma }
+    }
+}
+
+#[cfg(test)]
+mod validate_tests {
+    use super::*;
+
+    #[test]
+    fn simulate_tracker_with_negative_sigma_is_refused() {
+        let mut t: TrackerConfig = toml::from_str("position_m = [2.0, 0.0, 0.5]").unwrap();
+        assert!(t.validate().is_ok());
+        t.sigma_const_um = -15.0;
+        assert!(t.validate().unwrap_err().contains("sigma_const_um = -15"));
+        t.sigma_const_um = 15.0;
+        t.sigma_per_m_um = f64::NAN;
+        assert!(t.validate().unwrap_err().contains("sigma_per_m_um"));
     }
 }

@@ -24,7 +24,7 @@
 //! the separate `tool` transform. Everything is derived at reading zero with the joint zero
 //! offsets, so the table's offsets are what the controller's readings need.
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, Vector3};
 
 use super::SerialChain;
 use crate::error::{Result, RobotError};
@@ -74,7 +74,8 @@ fn frame(origin: &Vector3<f64>, z: &Vector3<f64>, x: &Vector3<f64>) -> Result<Po
     let y = z.cross(&x);
     let m = nalgebra::Matrix3::from_columns(&[x, y, *z]);
     // Orthonormal by construction: taken as it is (an iterative projection would not be exact).
-    let r = UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(m));
+    let r = crate::geometry::rotation_from_orthonormal(&m)
+        .ok_or_else(|| RobotError::Invalid("DH export: a frame axis is not finite".into()))?;
     Ok(Isometry3::from_parts(Translation3::from(*origin), r))
 }
 

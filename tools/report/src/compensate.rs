@@ -155,8 +155,13 @@ pub fn run_correct(a: &CorrectArgs) -> Result<std::process::ExitCode> {
     }
     let model = RobotModel::load(&a.robot)?;
     let file = ferrocal_calib::file::CalibrationFile::read(&a.calibration)?;
+    file.check_robot(&a.robot, &model).with_context(|| format!("{}", a.calibration.display()))?;
     let cm = file.apply(&model).with_context(|| format!("applying {}", a.calibration.display()))?;
     let program = ferrocal_datasets::import::read_joint_program(&a.program)?;
+    // Readings in another unit (degrees under `_rad`) or beyond the limits are refused by row.
+    if program.joint_units.len() == ferrocal_robot::Kinematics::dof(&model) {
+        program.check_joint_values(&ferrocal_robot::Kinematics::joint_limits(&model), model.name())?;
+    }
     let opts = CorrectOptions { use_orientation: !a.positions_only, ..CorrectOptions::default() };
     let units = &program.joint_units;
     let mut out = format!("# corrected by ferrocal {} with {}\n", env!("CARGO_PKG_VERSION"), a.calibration.display());

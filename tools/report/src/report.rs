@@ -339,15 +339,90 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
 }
 
+/// Refuses a target that exists and is not a regular file (a symbolic link, a device node, a
+/// folder): the temporary file's rename would replace the link or node itself, silently.
+pub fn check_regular_target(path: &Path) -> Result<()> {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => {
+            anyhow::bail!(
+                "{} is a symbolic link; refusing to replace it (write to the file it names, or another path)",
+                path.display()
+            )
+        }
+        Ok(m) if !m.is_file() => {
+            anyhow::bail!("{} exists and is not a regular file; refusing to replace it", path.display())
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Refuses outputs that name an input (the same file, through any path) or each other, and
+/// targets that are not regular files; called before any work is written.
+pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> Result<()> {
+    for (k, out) in outputs.iter().enumerate() {
+        if let Some(i) = inputs.iter().find(|i| same_file(out, i) || out == *i) {
+            anyhow::bail!("{} would overwrite the input {}; choose another output", out.display(), i.display());
+        }
+        if outputs[..k].iter().any(|o| same_file(out, o) || o == out) {
+            anyhow::bail!("{} is named as two outputs", out.display());
+        }
+        check_regular_target(out)?;
+    }
+    Ok(())
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
-/// reader never sees a half-written file.
+/// reader never sees a half-written file; a target that is not a regular file is refused and a
+/// failed write leaves no temporary file behind.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    check_regular_target(path)?;
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create folder {}", dir.display()))?;
     let tmp =
         dir.join(format!(".{}.tmp{}", path.file_name().and_then(|n| n.to_str()).unwrap_or("out"), std::process::id()));
-    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))?;
+    let written =
+        std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display())).and_then(|_| {
+            std::fs::rename(&tmp, path).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))
+        });
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
+}
+
+/// Writes several files as one commit: every file is first written beside its target under a
+/// temporary name, then all are renamed into place; if any write fails, none of the targets is
+/// touched (the renames that follow cannot run out of space).
+pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
+    let mut staged: Vec<(std::path::PathBuf, &Path)> = Vec::new();
+    let cleanup = |staged: &[(std::path::PathBuf, &Path)]| {
+        for (t, _) in staged {
+            let _ = std::fs::remove_file(t);
+        }
+    };
+    for (path, bytes) in files {
+        if let Err(e) = check_regular_target(path) {
+            cleanup(&staged);
+            return Err(e);
+        }
+        let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+        let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+        let r = std::fs::create_dir_all(dir)
+            .and_then(|_| std::fs::write(&tmp, bytes))
+            .with_context(|| format!("cannot write {}", tmp.display()));
+        staged.push((tmp, path));
+        if let Err(e) = r {
+            cleanup(&staged);
+            return Err(e);
+        }
+    }
+    for (k, (tmp, path)) in staged.iter().enumerate() {
+        if let Err(e) = std::fs::rename(tmp, path) {
+            cleanup(&staged[k..]);
+            return Err(e).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()));
+        }
+    }
     Ok(())
 }
 

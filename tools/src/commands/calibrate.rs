@@ -10,11 +10,11 @@ use ferrocal_calib::file::CalibrationFile;
 use ferrocal_calib::kinematic::{KinematicOptions, ModelParams};
 use ferrocal_calib::lsq::Loss;
 use ferrocal_calib::PoseMeasurement;
-use ferrocal_robot::{Kinematics, RobotModel};
+use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
 use serde_json::json;
 
 use ferrocal_report::calibrate::{calibrate_table, calibration_sections, evaluate_json, report_json, CalibrationRun};
-use ferrocal_report::{write_atomic, Provenance, Report};
+use ferrocal_report::{check_outputs, write_all_atomic, write_atomic, Provenance, Report};
 
 /// `ferrocal calibrate`.
 #[derive(Debug, Args)]
@@ -116,7 +116,29 @@ pub fn load_model_and_rows(robot: &str, measurements: &Path) -> Result<(RobotMod
     table.check_joint_kinds(&model.joint_kinds()).with_context(|| {
         format!("{}: joint units do not match the joint kinds of '{}'", measurements.display(), model.name())
     })?;
+    table.check_joint_values(&model.joint_limits(), model.name())?;
+    for w in &table.warnings {
+        eprintln!("warning: {w}");
+    }
     Ok((model, table.set.rows))
+}
+
+/// Fewest distinct joint configurations a calibration or diagnosis accepts (a rigid registration
+/// of the device frame alone needs three).
+pub const MIN_DISTINCT_POSES: usize = 3;
+
+/// Refuses a pose set with fewer than [`MIN_DISTINCT_POSES`] distinct joint configurations
+/// (a table of one pose repeated 200 times calibrates nothing).
+pub fn check_distinct_poses(rows: &[PoseMeasurement], measurements: &Path) -> Result<usize> {
+    let distinct = ferrocal_datasets::import::plausible::distinct_poses(rows);
+    if distinct < MIN_DISTINCT_POSES {
+        bail!(
+            "{}: the {} rows hold {distinct} independent pose(s) (rows with the same joint readings are one pose); a calibration needs many distinct poses: measure more poses",
+            measurements.display(),
+            rows.len()
+        );
+    }
+    Ok(distinct)
 }
 
 fn parse_loss(s: &str) -> Result<Loss> {
@@ -136,13 +158,41 @@ fn parse_loss(s: &str) -> Result<Loss> {
     })
 }
 
-fn parse_params(s: &str) -> ModelParams {
-    match s {
+fn parse_params(s: &str) -> Result<ModelParams> {
+    Ok(match s {
         "default" => ModelParams::Default,
         "all" => ModelParams::All,
         "none" => ModelParams::None,
-        list => ModelParams::Prefixes { prefixes: list.split(',').map(|p| p.trim().to_string()).collect() },
+        list => {
+            let prefixes: Vec<String> =
+                list.split(',').map(|p| p.trim().to_string()).filter(|p| !p.is_empty()).collect();
+            if prefixes.is_empty() {
+                bail!("--params '{list}' names no parameter: use default, all, none or comma-separated name prefixes");
+            }
+            ModelParams::Prefixes { prefixes }
+        }
+    })
+}
+
+/// Refuses `--params` prefixes that match none of the model's parameters (a misspelt list
+/// would otherwise calibrate the frames alone and report success).
+pub fn check_params(params: &ModelParams, model: &RobotModel) -> Result<()> {
+    if let ModelParams::Prefixes { prefixes } = params {
+        let names: Vec<String> = model.parameters().into_iter().map(|p| p.name).collect();
+        let unmatched: Vec<&String> =
+            prefixes.iter().filter(|x| !names.iter().any(|n| n.starts_with(x.as_str()))).collect();
+        if !unmatched.is_empty() {
+            let examples: Vec<&str> = names.iter().take(4).map(String::as_str).collect();
+            bail!(
+                "--params: {} match(es) no parameter of '{}' (its names look like {}, ...; `ferrocal robot info --robot {}` lists them)",
+                unmatched.iter().map(|u| format!("'{u}'")).collect::<Vec<_>>().join(", "),
+                model.name(),
+                examples.join(", "),
+                model.name()
+            );
+        }
     }
+    Ok(())
 }
 
 /// The options from the arguments.
@@ -155,7 +205,7 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
         bail!("--max-iterations must be at least 1");
     }
     Ok(KinematicOptions {
-        model_params: parse_params(&args.params),
+        model_params: parse_params(&args.params)?,
         use_orientation: !args.positions_only,
         sigma_position_m: args.sigma_mm * 1e-3,
         sigma_orientation_rad: args.sigma_deg.to_radians(),
@@ -177,11 +227,29 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
 
 pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
     let opts = options(args)?;
+    let outputs: Vec<&Path> =
+        [Some(args.out.as_path()), args.json.as_deref(), args.report.as_deref()].into_iter().flatten().collect();
+    check_outputs(&outputs, &[args.measurements.as_path(), Path::new(&args.robot)])?;
     let (model, rows) = load_model_and_rows(&args.robot, &args.measurements)?;
+    check_params(&opts.model_params, &model)?;
+    check_distinct_poses(&rows, &args.measurements)?;
     let progress = crate::progress::bar(2, "calibrating");
     let run = calibrate_table(&model, &rows, &opts, !args.no_validation, &|| progress.inc(1))?;
     progress.finish_and_clear();
     let CalibrationRun { cal, validation, final_rows, fixed_split, heldout_spatial } = &run;
+    // Repeated rows of one pose add equations but no information: the fit must be redundant
+    // counting distinct poses only.
+    let distinct = ferrocal_datasets::import::plausible::distinct_poses(final_rows.iter().copied());
+    let block = if cal.used_orientation { 6 } else { 3 };
+    if distinct * block <= cal.free.len() {
+        bail!(
+            "{}: the {} rows hold only {distinct} independent poses ({} equations) for {} identified parameters: the pose set is rank-deficient; measure more distinct poses; nothing was written",
+            args.measurements.display(),
+            final_rows.len(),
+            distinct * block,
+            cal.free.len()
+        );
+    }
     let fits = std::iter::once(("calibration", cal)).chain(validation.iter().map(|(v, _, _)| ("validation fit", v)));
     for (what, fit) in fits {
         if let Some(problem) = fit.convergence_problem() {
@@ -194,23 +262,25 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
     if let Some(w) = cal.noise_warning() {
         eprintln!("note: {w}");
     }
+    // Everything is composed first, then written together: a failing report leaves no
+    // calibration file behind, and no output is half-set.
     let file = CalibrationFile::new(&args.robot, &cal.calibrated);
-    write_atomic(&args.out, serde_json::to_string_pretty(&file)?.as_bytes())?;
+    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.out, serde_json::to_string_pretty(&file)?.into_bytes())];
     let mut summary = report_json(cal, validation, final_rows.len(), *fixed_split);
     if let Some(spatial) = heldout_spatial {
         summary["heldout_spatial"] = spatial.clone();
     }
     if let Some(j) = &args.json {
-        write_atomic(j, serde_json::to_string_pretty(&summary)?.as_bytes())?;
+        files.push((j, serde_json::to_string_pretty(&summary)?.into_bytes()));
     }
     if let Some(h) = &args.report {
         let mut prov = Provenance::new(json!({"robot": args.robot, "options": opts}));
         prov.add_input(&args.measurements);
         let mut rep = Report::new(&format!("Calibration of {}", model.name()), prov);
         rep.sections.extend(calibration_sections(cal, validation, final_rows));
-        let html = rep.to_html();
-        write_atomic(h, html.as_bytes())?;
+        files.push((h, rep.to_html().into_bytes()));
     }
+    write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     eprintln!(
         "calibrated {} on {} poses: RMS {:.4} mm -> {:.4} mm (mean {:.4} mm){}",
         model.name(),
@@ -227,8 +297,10 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
 }
 
 pub fn run_evaluate(args: &EvaluateArgs) -> Result<ExitCode> {
+    check_outputs(&[&args.json], &[&args.measurements, &args.calibration, Path::new(&args.robot)])?;
     let (model, rows) = load_model_and_rows(&args.robot, &args.measurements)?;
     let file = CalibrationFile::read(&args.calibration)?;
+    file.check_robot(&args.robot, &model).with_context(|| format!("{}", args.calibration.display()))?;
     let mut cm = file.apply(&model).with_context(|| format!("applying {}", args.calibration.display()))?;
     let mut refit = None;
     if args.refit_frame {
@@ -276,6 +348,7 @@ pub struct ExportArgs {
 pub fn run_export(args: &ExportArgs) -> Result<ExitCode> {
     let model = RobotModel::load(&args.robot).with_context(|| format!("cannot load robot model '{}'", args.robot))?;
     let file = CalibrationFile::read(&args.calibration)?;
+    file.check_robot(&args.robot, &model).with_context(|| format!("{}", args.calibration.display()))?;
     let cm = file.apply(&model).with_context(|| format!("applying {}", args.calibration.display()))?;
     let companion_path = args.urdf.as_ref().map(|u| u.with_extension("calibration.json"));
     for out in [args.urdf.as_ref(), companion_path.as_ref(), args.dh.as_ref()].into_iter().flatten() {

@@ -1,7 +1,7 @@
 //! `ferrocal diagnose`: the missing-physics analysis of a measurement table (JSON per
 //! `shared/spec/diagnose.md`, optional HTML report with the evidence).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
@@ -84,7 +84,11 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
         sigma_position_m: args.sigma_mm * 1e-3,
         ..DiagnoseOptions::default()
     };
+    let outputs: Vec<&Path> =
+        [Some(args.json.as_path()), args.out.as_deref(), args.report.as_deref()].into_iter().flatten().collect();
+    ferrocal_report::check_outputs(&outputs, &[meas.as_path(), Path::new(robot)])?;
     let (model, rows) = super::calibrate::load_model_and_rows(robot, meas)?;
+    super::calibrate::check_distinct_poses(&rows, meas)?;
     let progress = crate::progress::bar(1, "diagnosing");
     let rep = diagnose(&model, &rows, &opts).context("diagnosis")?;
     progress.finish_and_clear();
@@ -95,23 +99,27 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
         ),
         None => None,
     };
-    write_atomic(&args.json, serde_json::to_string_pretty(&rep)?.as_bytes())?;
+    // Composed first, then written together (no half-set outputs).
+    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.json, serde_json::to_string_pretty(&rep)?.into_bytes())];
     if let (Some(path), Some(cal)) = (&args.out, &compensated) {
         let file = ferrocal_calib::file::CalibrationFile::new(robot, &cal.calibrated);
-        write_atomic(path, serde_json::to_string_pretty(&file)?.as_bytes())?;
-        eprintln!(
-            "wrote {} ({} effect(s) with the geometry; training RMS {:.4} mm)",
-            path.display(),
-            cal.calibrated.effects.len(),
-            cal.train_after.rms_mm
-        );
+        files.push((path, serde_json::to_string_pretty(&file)?.into_bytes()));
     }
     if let Some(h) = &args.report {
         let mut prov = Provenance::new(json!({"robot": robot, "options": opts}));
         prov.add_input(meas);
         let mut r = Report::new(&format!("Missing physics: {} on {}", model.name(), meas.display()), prov);
         r.sections = sections(&rep, args.attribution.as_deref());
-        write_atomic(h, r.to_html().as_bytes())?;
+        files.push((h, r.to_html().into_bytes()));
+    }
+    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
+    if let (Some(path), Some(cal)) = (&args.out, &compensated) {
+        eprintln!(
+            "wrote {} ({} effect(s) with the geometry; training RMS {:.4} mm)",
+            path.display(),
+            cal.calibrated.effects.len(),
+            cal.train_after.rms_mm
+        );
     }
     if let Some(d) = &rep.declined {
         eprintln!("diagnose: {d}");

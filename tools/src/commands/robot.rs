@@ -16,7 +16,26 @@ pub fn run(cmd: RobotCommand) -> Result<ExitCode> {
         RobotCommand::Fk { robot, joints } => {
             let model = load(&robot)?;
             let q = parse_joints(&joints, &model)?;
+            // Outside the limits is refused by name (far outside, the pose is meaningless or
+            // not even finite).
+            let kinds = model.joint_kinds();
+            for (i, (v, l)) in q.iter().zip(model.joint_limits()).enumerate() {
+                if !l.contains(*v, 0.0) {
+                    bail!(
+                        "joint {}: {} is outside the limits [{}, {}] of '{}'",
+                        i + 1,
+                        user_value(*v, kinds[i]),
+                        user_value(l.lower, kinds[i]),
+                        user_value(l.upper, kinds[i]),
+                        model.name()
+                    );
+                }
+            }
             let t = model.forward(&q).context("forward kinematics")?;
+            if !(t.translation.vector.iter().all(|v| v.is_finite()) && t.rotation.coords.iter().all(|v| v.is_finite()))
+            {
+                bail!("forward kinematics gave a non-finite pose (joints {joints})");
+            }
             print_pose(&t);
             Ok(ExitCode::SUCCESS)
         }
@@ -109,4 +128,17 @@ fn info(spec: &str, json: Option<&std::path::Path>) -> Result<ExitCode> {
         crate::report::write_atomic(path, serde_json::to_string_pretty(&v)?.as_bytes())?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A joint value or limit in user units (degrees or millimetres).
+fn user_value(v: f64, kind: ferrocal_robot::JointKind) -> String {
+    let (v, unit) = match kind {
+        ferrocal_robot::JointKind::Revolute => (v.to_degrees(), "deg"),
+        ferrocal_robot::JointKind::Prismatic => (v * 1e3, "mm"),
+    };
+    if v.abs() < 1e6 {
+        format!("{v:.3} {unit}")
+    } else {
+        format!("{v:.3e} {unit}")
+    }
 }

@@ -29,6 +29,16 @@ pub struct SimulateArgs {
 }
 
 pub fn run_simulate(args: &SimulateArgs) -> Result<ExitCode> {
+    // The session folder must not hold (or be) the cell file: --force replaces the folder.
+    if let (Ok(cfg_path), Ok(out)) = (args.config.canonicalize(), args.out.canonicalize()) {
+        if cfg_path.starts_with(&out) {
+            anyhow::bail!(
+                "--out {} holds the cell file {}; choose another folder",
+                args.out.display(),
+                args.config.display()
+            );
+        }
+    }
     let mut cfg = CellConfig::from_file(&args.config)?;
     if let Some(s) = args.seed {
         cfg.seed = s;
@@ -98,6 +108,10 @@ pub struct ImportArgs {
 }
 
 pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
+    let mut outputs = vec![args.out.as_path()];
+    outputs.extend(args.robot_out.as_deref());
+    outputs.extend(args.intrinsics_out.as_deref());
+    ferrocal_report::check_outputs(&outputs, &[&args.input])?;
     let (set, kinds) = match args.kind {
         ImportKind::IcHandeye => {
             let cam = args.intrinsics_out.as_deref();

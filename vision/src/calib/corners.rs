@@ -63,6 +63,9 @@ pub fn chessboard_corners_opencv_with(
     if meta.len() == 0 {
         return Err(unusable(path, "empty file (0 bytes)"));
     }
+    // Dimensions, format and completeness checked before OpenCV decodes (it only warns on a
+    // truncated JPEG and returns the grey-filled image).
+    crate::detect::check_image_file(path).map_err(|reason| unusable(path, reason))?;
     let img = opencv::imgcodecs::imread(path, opencv::imgcodecs::IMREAD_GRAYSCALE)
         .map_err(|e| unusable(path, format!("cannot decode: {e}")))?;
     if img.empty() || img.cols() <= 0 || img.rows() <= 0 {

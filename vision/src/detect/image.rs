@@ -128,6 +128,50 @@ impl GrayF32 {
     }
 }
 
+/// Largest image this project decodes, in pixels (100 megapixels, e.g. 12000 x 8000: a
+/// grey copy is 100 MB, a colour one 300 MB). The dimensions are read from the file's header
+/// and checked before any pixel is decoded, so a small file that declares a huge image (a
+/// 20000 x 20000 PNG of 389 KB) is refused without allocating gigabytes.
+pub const MAX_IMAGE_PIXELS: u64 = 100_000_000;
+
+/// Checks an image file before decoding: readable, a known format, dimensions within
+/// [`MAX_IMAGE_PIXELS`], and for a JPEG complete (its end-of-image marker after its last scan:
+/// a JPEG cut short decodes "successfully" with grey or smeared rows, and corners found in it are
+/// wrong). Returns the width and height from the header; the error is the reason.
+pub fn check_image_file(path: &Path) -> std::result::Result<(u32, u32), String> {
+    let reader =
+        image::ImageReader::open(path).map_err(|e| e.to_string())?.with_guessed_format().map_err(|e| e.to_string())?;
+    let Some(format) = reader.format() else {
+        return Err("not a recognised image format (PNG, JPEG, TIFF, BMP, PNM)".into());
+    };
+    let (w, h) = reader.into_dimensions().map_err(|e| format!("cannot decode the header: {e}"))?;
+    if u64::from(w) * u64::from(h) > MAX_IMAGE_PIXELS {
+        return Err(format!(
+            "the image is {w} x {h} pixels, more than the limit of {MAX_IMAGE_PIXELS} pixels; refused before decoding"
+        ));
+    }
+    if format == image::ImageFormat::Jpeg {
+        let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+        if !jpeg_is_complete(&bytes) {
+            return Err(format!(
+                "the JPEG is truncated ({} bytes, no end-of-image marker after its last scan): was the file cut short?",
+                bytes.len()
+            ));
+        }
+    }
+    Ok((w, h))
+}
+
+/// Whether a JPEG stream has its end-of-image marker (`FF D9`) after its last start-of-scan
+/// (`FF DA`). Entropy-coded data never holds `FF D9` (a data byte `FF` is followed by `00`),
+/// so the marker is found only when the file is complete; an embedded thumbnail's scan comes
+/// before the main image's.
+pub fn jpeg_is_complete(bytes: &[u8]) -> bool {
+    let last_sos = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
+    let Some(sos) = last_sos else { return false };
+    bytes[sos..].windows(2).any(|w| w == [0xFF, 0xD9])
+}
+
 /// Reads an image file as 8-bit grey (colour images are converted with the `image` crate's
 /// luma weights). An empty file, an undecodable file or a 0 x 0 image is an error naming the
 /// file.
@@ -142,13 +186,11 @@ pub fn load_gray(path: impl AsRef<Path>) -> Result<GrayImage> {
     if meta.len() == 0 {
         return Err(fail("the file is empty (0 bytes)".into()));
     }
+    check_image_file(path).map_err(fail)?;
     let reader = image::ImageReader::open(path)
         .map_err(|e| fail(e.to_string()))?
         .with_guessed_format()
         .map_err(|e| fail(e.to_string()))?;
-    if reader.format().is_none() {
-        return Err(fail("not a recognised image format (PNG, JPEG, TIFF, BMP, PNM)".into()));
-    }
     let img = reader.decode().map_err(|e| fail(format!("cannot decode: {e}")))?;
     if img.width() == 0 || img.height() == 0 {
         return Err(fail("the image has no pixels".into()));
@@ -209,4 +251,64 @@ pub fn median_background(frames: &[GrayImage]) -> Result<GrayImage> {
             if n % 2 == 1 { buf[n / 2] } else { (u16::from(buf[n / 2 - 1]) + u16::from(buf[n / 2])).div_ceil(2) as u8 };
     }
     GrayImage::from_raw(w, h, out).ok_or_else(|| VisionError::BadImage { reason: "size overflow".into() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut c = 0xFFFF_FFFFu32;
+        for b in bytes {
+            c ^= u32::from(*b);
+            for _ in 0..8 {
+                c = if c & 1 == 1 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
+    }
+
+    /// A PNG whose header declares `w` x `h` grey pixels (the data is not there).
+    fn png_header(w: u32, h: u32) -> Vec<u8> {
+        let mut out = vec![0x89, b'P', b'N', b'G', 0x0D, 0x0A, 0x1A, 0x0A];
+        let mut chunk = b"IHDR".to_vec();
+        chunk.extend(w.to_be_bytes());
+        chunk.extend(h.to_be_bytes());
+        chunk.extend([8, 0, 0, 0, 0]);
+        let mut push = |chunk: Vec<u8>| {
+            out.extend((chunk.len() as u32 - 4).to_be_bytes());
+            out.extend(&chunk);
+            out.extend(crc32(&chunk).to_be_bytes());
+        };
+        push(chunk);
+        let mut idat = b"IDAT".to_vec();
+        idat.extend([0x78, 0x9C, 0x63, 0x00, 0x00, 0x00, 0x01, 0x00, 0x01]);
+        push(idat);
+        push(b"IEND".to_vec());
+        out
+    }
+
+    #[test]
+    fn image_over_the_pixel_limit_is_refused_before_decoding() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("huge.png");
+        std::fs::write(&p, png_header(20_000, 20_000)).unwrap();
+        let e = load_gray(&p).unwrap_err().to_string();
+        assert!(e.contains("20000 x 20000") && e.contains("huge.png"), "{e}");
+    }
+
+    #[test]
+    fn truncated_jpeg_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = image::GrayImage::from_fn(320, 240, |x, y| image::Luma([((x / 20 + y / 20) % 2 * 200 + 20) as u8]));
+        let full = dir.path().join("board.jpg");
+        img.save(&full).unwrap();
+        assert_eq!(load_gray(&full).unwrap().dimensions(), (320, 240));
+        let bytes = std::fs::read(&full).unwrap();
+        let half = dir.path().join("half.jpg");
+        std::fs::write(&half, &bytes[..bytes.len() / 2]).unwrap();
+        let e = load_gray(&half).unwrap_err().to_string();
+        assert!(e.contains("half.jpg") && e.contains("truncated"), "{e}");
+        assert!(jpeg_is_complete(&bytes) && !jpeg_is_complete(&bytes[..bytes.len() - 1]));
+    }
 }

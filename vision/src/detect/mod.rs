@@ -45,7 +45,9 @@ use nalgebra::{Matrix2, Point2, Point3};
 use serde::{Deserialize, Serialize};
 
 pub use self::apriltag::{AprilTagDetector, AprilTagOptions, TagBackend, TagDetection, TagRefine};
-pub use self::image::{load_gray, median_background, to_gray, GrayF32};
+pub use self::image::{
+    check_image_file, jpeg_is_complete, load_gray, median_background, to_gray, GrayF32, MAX_IMAGE_PIXELS,
+};
 pub use self::pattern::{ArucoDictionary, CharucoBoard, CircleGrid, Pattern, TagFamily};
 use crate::error::{Result, VisionError};
 use crate::subpix::RefineOptions;
