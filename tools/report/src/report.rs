@@ -371,15 +371,20 @@ pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
+/// The folder of `path` and the temporary name beside it that a write is staged under.
+fn staging_path(path: &Path) -> (&Path, std::path::PathBuf) {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    (dir, dir.join(format!(".{name}.tmp{}", std::process::id())))
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
 /// reader never sees a half-written file; a target that is not a regular file is refused and a
 /// failed write leaves no temporary file behind.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     check_regular_target(path)?;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let (dir, tmp) = staging_path(path);
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create folder {}", dir.display()))?;
-    let tmp =
-        dir.join(format!(".{}.tmp{}", path.file_name().and_then(|n| n.to_str()).unwrap_or("out"), std::process::id()));
     let written =
         std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display())).and_then(|_| {
             std::fs::rename(&tmp, path).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))
@@ -405,9 +410,7 @@ pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
             cleanup(&staged);
             return Err(e);
         }
-        let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-        let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+        let (dir, tmp) = staging_path(path);
         let r = std::fs::create_dir_all(dir)
             .and_then(|_| std::fs::write(&tmp, bytes))
             .with_context(|| format!("cannot write {}", tmp.display()));
