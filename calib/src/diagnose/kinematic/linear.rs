@@ -23,6 +23,9 @@ use crate::error::Result;
 use crate::kinematic::{prediction_jacobian, CalibratedModel, KinematicCalibration};
 use crate::measurement::PoseMeasurement;
 
+/// A joint's wobble directions and axis point (`effects::axis_wobble`), device frame.
+pub(crate) type Wobble = (Vector3<f64>, Vector3<f64>, nalgebra::Point3<f64>);
+
 /// Residuals and Jacobians of one calibrated model on the analysis rows (all whitened: divided
 /// by each row's position standard deviation).
 pub(crate) struct Lin {
@@ -44,7 +47,7 @@ pub(crate) struct Lin {
     /// Per row and joint (serial chains; empty otherwise): the wobble directions and the axis
     /// point of each revolute joint (`effects::axis_wobble`), in the device frame; zeros for a
     /// prismatic joint.
-    pub wobble: Vec<Vec<(Vector3<f64>, Vector3<f64>, nalgebra::Point3<f64>)>>,
+    pub wobble: Vec<Vec<Wobble>>,
     /// Per row: predicted position in the device frame.
     pub p0: Vec<Vector3<f64>>,
     /// Per row: position standard deviation.
