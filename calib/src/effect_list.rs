@@ -13,6 +13,7 @@
 //! | `time_drift` | lengths change with `t_s` |
 //! | `link_compliance:L` | link `L` bends under the load it carries |
 //! | `coupled_transmission:J:K` | joint `J`'s error is proportional to joint `K`'s angle |
+//! | `axis_misalignment:J` | revolute joint `J`'s axis wobbles with its angle (a tilt whose direction turns with the joint) |
 //!
 //! A JSON file may be a `ferrocal diagnose` report (its findings' `spec`), a calibration file
 //! (its `effects`), or an array of effect objects as those carry them.
@@ -58,6 +59,7 @@ fn parse_item(item: &str) -> std::result::Result<EffectSpec, String> {
         "backlash" => EffectSpec::Backlash { joint: index(1, "joint")? },
         "joint_scale_error" => EffectSpec::JointScaleError { joint: index(1, "joint")? },
         "link_compliance" => EffectSpec::LinkCompliance { link: index(1, "link")? },
+        "axis_misalignment" => EffectSpec::AxisMisalignment { joint: index(1, "joint")? },
         "coupled_transmission" => {
             let (joint, driver) = (index(1, "joint")?, index(2, "driving joint")?);
             if joint == driver {
@@ -89,7 +91,7 @@ fn parse_item(item: &str) -> std::result::Result<EffectSpec, String> {
         }
         other => {
             return Err(format!(
-                "unknown effect '{other}' (joint_compliance, backlash, joint_scale_error, periodic_joint_error, thermal_expansion, time_drift, link_compliance, coupled_transmission)"
+                "unknown effect '{other}' (joint_compliance, backlash, joint_scale_error, periodic_joint_error, thermal_expansion, time_drift, link_compliance, coupled_transmission, axis_misalignment)"
             ))
         }
     };
@@ -174,7 +176,7 @@ mod tests {
     #[test]
     fn lists_parse_with_units_and_defaults() {
         let e = parse_effect_list(
-            "joint_compliance:2, periodic_joint_error:3:180deg,backlash:1,thermal_expansion,thermal_expansion:21.5C,time_drift,link_compliance:2,periodic_joint_error:1:5mm,coupled_transmission:5:4",
+            "joint_compliance:2, periodic_joint_error:3:180deg,backlash:1,thermal_expansion,thermal_expansion:21.5C,time_drift,link_compliance:2,periodic_joint_error:1:5mm,coupled_transmission:5:4,axis_misalignment:3",
         )
         .unwrap();
         assert_eq!(e[0], EffectSpec::JointCompliance { joint: 2 });
@@ -186,6 +188,7 @@ mod tests {
         assert_eq!(e[6], EffectSpec::LinkCompliance { link: 2 });
         assert_eq!(e[7], EffectSpec::PeriodicJointError { joint: 1, period_si: 5e-3 });
         assert_eq!(e[8], EffectSpec::CoupledTransmission { joint: 5, driver: 4 });
+        assert_eq!(e[9], EffectSpec::AxisMisalignment { joint: 3 });
     }
 
     #[test]
@@ -202,6 +205,8 @@ mod tests {
             ("coupled_transmission:2", "driving joint number is missing"),
             ("coupled_transmission:2:2", "cannot drive itself"),
             ("coupled_transmission:2:3:1", "too many fields"),
+            ("axis_misalignment", "joint number is missing"),
+            ("axis_misalignment:2:1", "too many fields"),
         ] {
             let e = parse_effect_list(text).unwrap_err().to_string();
             assert!(e.contains(needle), "{text}: {e}");

@@ -18,6 +18,14 @@
 //! | `thermal_expansion` | `alpha` (1/K) | every length scales by `1 + alpha (T - T_ref)`: the target position in the model's base frame scales by that factor |
 //! | `time_drift` | `v` (per hour) | as thermal expansion with `t` in hours instead of `T - T_ref` |
 //! | `coupled_transmission` | `c` (joint units of `J` per joint unit of `K`) | `dq_J = c q_K`: joint `J`'s transmission is coupled to joint `K`'s motion (a wrist whose motors sit on an earlier link, a cable passing a joint) |
+//! | `axis_misalignment` | `c_x, c_y` (rad) | revolute joint `J`'s axis wobbles with its angle: everything beyond the joint turns about the joint's axis point by the rotation vector `c_x e_1(q) + c_y e_2(q)`, `e_1 = cos 2q u + sin 2q v`, `e_2 = -sin 2q u + cos 2q v` with `(u, v)` normal to the axis and fixed on the joint's stationary side ([`axis_wobble`]): a tilt of amplitude `hypot(c_x, c_y)` whose direction turns once per revolution relative to the moving link (twice relative to the stationary side) |
+//!
+//! Why that form of axis misalignment: a tilt of the axis fixed on the stationary side is a
+//! different axis direction, and a tilt fixed on the moving link (its direction turning once per
+//! revolution as seen from the stationary side) is a different link frame: both are geometric
+//! parameters (as in spindle metrology, where the once-per-revolution tilt is the artefact's
+//! misalignment, not the axis's error motion). The lowest wobble the geometry cannot absorb turns
+//! with the joint as seen from the link, i.e. at twice the joint's rate as seen from the base.
 
 use ferrocal_robot::{JointKind, Kinematics, RobotModel, Unit};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -74,6 +82,13 @@ pub enum EffectSpec {
         /// The joint whose motion drives the error (1-based, not `joint`).
         driver: usize,
     },
+    /// A revolute joint's axis is not where the nominal model puts it at every angle: the links
+    /// beyond it tilt by a small angle whose direction turns with the joint (see the table in
+    /// the module documentation and [`axis_wobble`]).
+    AxisMisalignment {
+        /// Joint (1-based, revolute, of a serial chain).
+        joint: usize,
+    },
 }
 
 impl EffectSpec {
@@ -88,7 +103,14 @@ impl EffectSpec {
             EffectSpec::TimeDrift => "thermal_expansion",
             EffectSpec::LinkCompliance { .. } => "link_compliance",
             EffectSpec::CoupledTransmission { .. } => "coupled_transmission",
+            EffectSpec::AxisMisalignment { .. } => "axis_misalignment",
         }
+    }
+
+    /// Whether the effect moves the predicted pose rigidly ([`EffectSpec::pose_correction`])
+    /// rather than changing joint values or lengths.
+    pub fn corrects_pose(&self) -> bool {
+        matches!(self, EffectSpec::LinkCompliance { .. } | EffectSpec::AxisMisalignment { .. })
     }
 
     /// The joint it belongs to (1-based), if any.
@@ -98,7 +120,8 @@ impl EffectSpec {
             | EffectSpec::Backlash { joint }
             | EffectSpec::JointScaleError { joint }
             | EffectSpec::PeriodicJointError { joint, .. }
-            | EffectSpec::CoupledTransmission { joint, .. } => Some(*joint),
+            | EffectSpec::CoupledTransmission { joint, .. }
+            | EffectSpec::AxisMisalignment { joint } => Some(*joint),
             EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift | EffectSpec::LinkCompliance { .. } => None,
         }
     }
@@ -141,6 +164,10 @@ impl EffectSpec {
             EffectSpec::CoupledTransmission { joint, driver } => {
                 vec![(format!("joint{joint}.coupling_per_joint{driver}"), Unit::Dimensionless)]
             }
+            EffectSpec::AxisMisalignment { joint } => vec![
+                (format!("joint{joint}.wobble_x_rad"), Unit::Radian),
+                (format!("joint{joint}.wobble_y_rad"), Unit::Radian),
+            ],
         }
     }
 
@@ -155,6 +182,7 @@ impl EffectSpec {
             EffectSpec::TimeDrift => vec![1e-5],
             EffectSpec::LinkCompliance { .. } => vec![1e-6],
             EffectSpec::CoupledTransmission { .. } => vec![1e-4],
+            EffectSpec::AxisMisalignment { .. } => vec![1e-4, 1e-4],
         }
     }
 
@@ -203,6 +231,18 @@ impl EffectSpec {
                 )));
             }
         }
+        if let EffectSpec::AxisMisalignment { joint } = self {
+            let RobotModel::Serial(_) = model else {
+                return Err(CalibError::Data(
+                    "axis_misalignment: only serial chains have a joint axis that carries the links beyond it".into(),
+                ));
+            };
+            if model.joint_kinds()[joint - 1] != JointKind::Revolute {
+                return Err(CalibError::Data(format!(
+                    "axis_misalignment: joint {joint} is prismatic (the wobbling axis is a revolute joint's)"
+                )));
+            }
+        }
         if let EffectSpec::PeriodicJointError { period_si, .. } = self {
             if !(period_si.is_finite() && *period_si > 0.0) {
                 return Err(CalibError::Data(format!(
@@ -236,13 +276,17 @@ impl EffectSpec {
                 dq[joint - 1] += theta[0] * x.sin() + theta[1] * x.cos();
             }
             EffectSpec::CoupledTransmission { joint, driver } => dq[joint - 1] += theta[0] * row.q[driver - 1],
-            EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift | EffectSpec::LinkCompliance { .. } => {}
+            EffectSpec::ThermalExpansion { .. }
+            | EffectSpec::TimeDrift
+            | EffectSpec::LinkCompliance { .. }
+            | EffectSpec::AxisMisalignment { .. } => {}
         }
         Ok(())
     }
 
     /// The rigid correction of the predicted pose (in the model's base frame) the effect causes
-    /// at effective joints `q`, for parameters `theta`: the identity except for link compliance.
+    /// at effective joints `q`, for parameters `theta`: the identity except for link compliance
+    /// and axis misalignment ([`EffectSpec::corrects_pose`]).
     pub fn pose_correction(
         &self,
         model: &RobotModel,
@@ -255,6 +299,12 @@ impl EffectSpec {
                 let (axis, pivot) = link_bending(model, *link, q, row.payload_kg.unwrap_or(0.0))?;
                 let rot = UnitQuaternion::from_scaled_axis(axis * theta[0]);
                 // Rotation about `pivot`: x -> pivot + R (x - pivot).
+                let t = pivot.coords - rot * pivot.coords;
+                Ok(Isometry3::from_parts(Translation3::from(t), rot))
+            }
+            EffectSpec::AxisMisalignment { joint } => {
+                let (e1, e2, pivot) = axis_wobble(model, *joint, q)?;
+                let rot = UnitQuaternion::from_scaled_axis(e1 * theta[0] + e2 * theta[1]);
                 let t = pivot.coords - rot * pivot.coords;
                 Ok(Isometry3::from_parts(Translation3::from(t), rot))
             }
@@ -272,6 +322,37 @@ impl EffectSpec {
             _ => 1.0,
         }
     }
+}
+
+/// The wobble directions of revolute joint `joint` (1-based) of a serial chain at `q`, and the
+/// point it tilts about, in the model's base frame: `(e_1, e_2, pivot)`. `(u, v)` are unit
+/// vectors normal to the joint's axis, fixed on its stationary side (`u` the first of the
+/// stationary frame's basis vectors at more than about 53 deg from the axis, made normal to it;
+/// `v = axis x u`);
+/// `e_1 = cos 2q u + sin 2q v`, `e_2 = axis x e_1`; the pivot is the joint's axis point.
+pub fn axis_wobble(model: &RobotModel, joint: usize, q: &[f64]) -> Result<(Vector3<f64>, Vector3<f64>, Point3<f64>)> {
+    let RobotModel::Serial(chain) = model else {
+        return Err(CalibError::Data("axis_misalignment needs a serial chain".into()));
+    };
+    if joint == 0 || joint > chain.joints.len() {
+        return Err(CalibError::Data(format!("axis_misalignment: joint {joint} does not exist")));
+    }
+    let i = joint - 1;
+    let frames = chain.frames(q)?;
+    let z = frames.axes[i];
+    let stationary = if i == 0 { chain.base.rotation } else { frames.links[i - 1].rotation };
+    let z_local = stationary.inverse() * z;
+    // The first basis vector well away from the axis (a fixed choice: the least aligned one would
+    // flip between two equally aligned ones with rounding).
+    let k = (0..3).find(|&k| z_local[k].abs() < 0.6).unwrap_or(0);
+    let e_k = Vector3::ith(k, 1.0);
+    let u_local = (e_k - z_local * z_local.dot(&e_k)).normalize();
+    let u = stationary * u_local;
+    let v = z.cross(&u);
+    let (s, c) = (2.0 * q[i]).sin_cos();
+    let e1 = u * c + v * s;
+    let e2 = z.cross(&e1);
+    Ok((e1, e2, frames.axis_points[i]))
 }
 
 /// Link bending at `q` per unit compliance: the rotation vector (rad per rad/(N m), i.e. the

@@ -30,7 +30,7 @@ use ferrocal_datasets::sim::Effect;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-const KINDS: [&str; 7] = [
+const KINDS: [&str; 8] = [
     "joint_compliance",
     "link_compliance",
     "backlash",
@@ -38,6 +38,7 @@ const KINDS: [&str; 7] = [
     "periodic_joint_error",
     "thermal_expansion",
     "coupled_transmission",
+    "axis_misalignment",
 ];
 const RATIOS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 
@@ -74,6 +75,7 @@ fn effect(kind: &str, joint: usize, driver: usize, x: f64, period: f64, phase: f
         }
         "thermal_expansion" => Effect::ThermalExpansion { alpha_per_k: 23e-6, reference_temp_c: 20.0 },
         "coupled_transmission" => Effect::CoupledTransmission { joint, driver, ratio: x },
+        "axis_misalignment" => Effect::AxisWobble { joint, tilt_rad: x, phase_rad: phase },
         _ => return None,
     })
 }
@@ -204,6 +206,8 @@ fn main() {
                 let cap = match kind.as_str() {
                     "joint_compliance" | "link_compliance" => 1e-4,
                     "thermal_expansion" => 15.0,
+                    // Diagnose's own bound (Bounds::max_axis_wobble_rad).
+                    "axis_misalignment" => 2e-3,
                     _ => 5e-3,
                 };
                 if x > cap {

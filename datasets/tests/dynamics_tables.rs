@@ -12,8 +12,15 @@ use ferrocal_lsq::linear::{fit, LinearOptions, Weighting};
 #[test]
 fn simulated_tables_identify() {
     let dir = tempfile::tempdir().unwrap();
-    let settings =
-        TableSettings { rig: Rig::Platform, payload_kg: 19.93, periods: 2, rate_hz: 100.0, poses: 60, seed: 3 };
+    let settings = TableSettings {
+        rig: Rig::Platform,
+        payload_kg: 19.93,
+        periods: 2,
+        rate_hz: 100.0,
+        poses: 60,
+        seed: 3,
+        crosstalk: 0.0,
+    };
     let files = simulated_tables(&settings).unwrap();
     let names: Vec<&str> = files.iter().map(|f| f.0).collect();
     assert_eq!(names, ["legs.csv", "forces.csv", "static.csv", "truth.json"]);

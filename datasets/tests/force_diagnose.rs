@@ -48,6 +48,32 @@ fn a_rigid_end_effector_gives_no_findings() {
     }
 }
 
+/// Not yet passing: the cross-talk candidate has the best held-out figure (0.381 N against
+/// model 4's 0.389 N, p = 1.5e-21 on seed 7) but is not accepted (the minimum-norm coefficients
+/// of the linearised fit are presumably beyond the 5 % plausibility bound: most of `C` trades with
+/// the rigid body's gravity terms at one payload). Run with `--ignored`.
+#[test]
+#[ignore]
+fn sensor_crosstalk_is_found_when_present_and_not_claimed_when_absent() {
+    // A rigid end-effector whose sensors pick up 1.5 % of the next sensor's load and -0.75 % of
+    // the previous one's (`dynamics simulate --crosstalk 0.015`).
+    let pattern = ferrocal_datasets::dynsim::tables::crosstalk_pattern(0.015);
+    for seed in [7, 8] {
+        let sim = PlatformSim { deformation: Deformation::none(), crosstalk: pattern, ..PlatformSim::preset() };
+        let reg = SensorRegressor::new(sim.sensors.clone(), sim.deformation.reference_xy_m).unwrap();
+        let rec = record(&sim, 120, seed);
+        let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
+        let got: Vec<&str> = rep.findings.iter().map(|f| f.effect.as_str()).collect();
+        eprintln!(
+            "seed {seed}: {got:?} held-out {:.3} -> {:.3} N",
+            rep.nominal.heldout_rms_n, rep.final_fit.heldout_rms_n
+        );
+        assert_eq!(got, vec!["sensor_crosstalk"], "seed {seed}: {:#?}", rep.candidates);
+        let largest = rep.findings[0].parameters["largest_crosstalk"];
+        assert!(largest > 0.002 && largest < 0.05, "largest cross-talk {largest}");
+    }
+}
+
 #[test]
 fn too_few_poses_decline() {
     let sim = PlatformSim::preset();

@@ -11,17 +11,22 @@
 //! in a paired t test over the held-out poses (Bonferroni over the candidates of the step) and at
 //! least `min_improvement` of the held-out RMS; the search then repeats from it. Finally the held-out residuals are
 //! screened against the platform coordinates for structure no candidate explains.
+//!
+//! A second kind of candidate is sensor cross-talk (`sensor_crosstalk`): each sensor reads
+//! fractions of the other sensors' loads ([`super::force_crosstalk`]); once accepted, the
+//! deformation models are screened with it.
 
 use std::collections::BTreeMap;
 
 use ferrocal_robot::dynamics::{gibbs_vector, MotionState};
 use ferrocal_robot::Pose;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Matrix6};
 use serde::{Deserialize, Serialize};
 
 use super::engine::{
     select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection, StepStart, Test,
 };
+use super::force_crosstalk;
 use super::report::{best_verdict, Decision, Finding, Unit};
 use super::stats::{binned_anova, bonferroni, quantile_groups};
 use crate::dynamics::{SensorModel, SensorRegressor};
@@ -61,7 +66,7 @@ pub struct ForceFit {
 /// One accepted effect.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ForceFinding {
-    /// `platform_deformation`.
+    /// `platform_deformation` or `sensor_crosstalk`.
     pub effect: String,
     /// Empty (no joints).
     pub joints: Vec<usize>,
@@ -210,6 +215,65 @@ fn cross_validate(
     Ok((sse, res))
 }
 
+/// [`cross_validate`] of a model plus cross-talk (the same folds).
+fn cross_validate_crosstalk(
+    reg: &SensorRegressor,
+    model: SensorModel,
+    poses: &[Pose],
+    y: &DVector<f64>,
+    folds: usize,
+) -> Result<(Vec<f64>, DMatrix<f64>)> {
+    let n = poses.len();
+    let a = regressor(reg, model, poses)?;
+    let load = load_columns(model);
+    let k = folds.clamp(2, n);
+    let mut sse = vec![0.0; n];
+    let mut res = DMatrix::zeros(n, 6);
+    for f in 0..k {
+        let train: Vec<usize> = (0..n).filter(|i| i % k != f).collect();
+        let test: Vec<usize> = (0..n).filter(|i| i % k == f).collect();
+        let fitted = force_crosstalk::fit(&a, y, &load, &train);
+        let pred = force_crosstalk::predict(&a, &load, &fitted, &test);
+        for (t, &i) in test.iter().enumerate() {
+            for s in 0..6 {
+                let r = y[6 * i + s] - pred[6 * t + s];
+                sse[i] += r * r;
+                res[(i, s)] = r;
+            }
+        }
+    }
+    Ok((sse, res))
+}
+
+/// The model's load columns (every column but the sensor offsets).
+fn load_columns(model: SensorModel) -> Vec<bool> {
+    model.names().iter().map(|n| !n.starts_with("fq0_")).collect()
+}
+
+/// Largest plausible cross-talk fraction (strain-gauge sensors: a few per cent at most).
+const MAX_CROSSTALK: f64 = 0.05;
+
+/// A candidate: a deformation model (with the accepted cross-talk, if any), or cross-talk.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum ForceCand {
+    Model(SensorModel),
+    Crosstalk,
+}
+
+/// A fit on all the poses.
+struct Full {
+    names: Vec<String>,
+    values: Vec<f64>,
+    crosstalk: Option<Matrix6<f64>>,
+    rms_n: f64,
+}
+
+impl Full {
+    fn get(&self, name: &str) -> Option<f64> {
+        self.names.iter().position(|n| n == name).map(|i| self.values[i])
+    }
+}
+
 fn rms(sse: &[f64]) -> f64 {
     (sse.iter().sum::<f64>() / (6 * sse.len()).max(1) as f64).sqrt()
 }
@@ -222,41 +286,64 @@ struct ForceFamily<'a> {
     y: DVector<f64>,
     folds: usize,
     current: SensorModel,
-    current_fit: LinearFit,
+    crosstalk: bool,
+    current_fit: Full,
     current_sse: Vec<f64>,
     current_res: DMatrix<f64>,
 }
 
 impl ForceFamily<'_> {
-    fn full_fit(&self, m: SensorModel) -> Result<LinearFit> {
-        Ok(fit(&regressor(self.reg, m, self.poses)?, &self.y, &m.names(), &Weighting::Unit, &LinearOptions::default())?)
+    fn full_fit(&self, m: SensorModel, crosstalk: bool) -> Result<Full> {
+        let a = regressor(self.reg, m, self.poses)?;
+        if !crosstalk {
+            let f = fit(&a, &self.y, &m.names(), &Weighting::Unit, &LinearOptions::default())?;
+            return Ok(linear_full(f));
+        }
+        let load = load_columns(m);
+        let rows: Vec<usize> = (0..self.poses.len()).collect();
+        let f = force_crosstalk::fit(&a, &self.y, &load, &rows);
+        let pred = force_crosstalk::predict(&a, &load, &f, &rows);
+        let rms_n = ((&self.y - pred).norm_squared() / self.y.len().max(1) as f64).sqrt();
+        Ok(Full { names: m.names(), values: f.theta.iter().copied().collect(), crosstalk: Some(f.c), rms_n })
+    }
+
+    fn cv(&self, m: SensorModel, crosstalk: bool) -> Result<(Vec<f64>, DMatrix<f64>)> {
+        if crosstalk {
+            cross_validate_crosstalk(self.reg, m, self.poses, &self.y, self.folds)
+        } else {
+            cross_validate(self.reg, m, self.poses, &self.y, self.folds)
+        }
     }
 }
 
-fn mass_cog(f: &LinearFit) -> (f64, f64) {
-    let m = f.get("m_kg").map_or(f64::NAN, |v| v.0);
-    let mcz = f.get("mcz_kgm").map_or(f64::NAN, |v| v.0);
+fn linear_full(f: LinearFit) -> Full {
+    Full { names: f.names.clone(), values: f.values.clone(), crosstalk: None, rms_n: f.rms_residual }
+}
+
+fn mass_cog(f: &Full) -> (f64, f64) {
+    let m = f.get("m_kg").unwrap_or(f64::NAN);
+    let mcz = f.get("mcz_kgm").unwrap_or(f64::NAN);
     (m, mcz / m)
 }
 
 impl Family for ForceFamily<'_> {
-    type Candidate = SensorModel;
-    type Effect = SensorModel;
+    type Candidate = ForceCand;
+    type Effect = ForceCand;
     type Screen = (Vec<f64>, DMatrix<f64>);
-    type Fit = LinearFit;
+    type Fit = Full;
 
     fn unit(&self) -> Unit {
         Unit::Newton
     }
 
-    fn begin_step(&mut self, _accepted: &[SensorModel]) -> Result<StepStart> {
+    fn begin_step(&mut self, _accepted: &[ForceCand]) -> Result<StepStart> {
         let mse = self.current_sse.iter().sum::<f64>() / self.current_sse.len().max(1) as f64;
         Ok(StepStart::Baseline(Baseline { heldout: rms(&self.current_sse), mse }))
     }
 
-    fn candidates(&self, _accepted: &[SensorModel], _retired: &[SensorModel]) -> Vec<SensorModel> {
+    fn candidates(&self, _accepted: &[ForceCand], _retired: &[ForceCand]) -> Vec<ForceCand> {
         let current = self.current;
-        [1u8, 2, 4, 5]
+        let mut out: Vec<ForceCand> = [1u8, 2, 4, 5]
             .iter()
             .filter_map(|id| SensorModel::new(*id).ok())
             .filter(|c| {
@@ -268,21 +355,40 @@ impl Family for ForceFamily<'_> {
                     && (!a.k5 || b.k5)
                     && (!a.k3 || b.k3)
             })
-            .collect()
+            .map(ForceCand::Model)
+            .collect();
+        if !self.crosstalk {
+            out.push(ForceCand::Crosstalk);
+        }
+        out
     }
 
-    fn describe(&self, c: &SensorModel) -> Describe {
-        let (_, _, words) = added_terms(self.current, *c);
-        Describe {
-            label: format!("{c} (adds {words})"),
-            effect: "platform_deformation".into(),
-            joints: Vec::new(),
-            n_params: c.n_params(),
+    fn describe(&self, c: &ForceCand) -> Describe {
+        match c {
+            ForceCand::Model(m) => {
+                let (_, _, words) = added_terms(self.current, *m);
+                Describe {
+                    label: format!("{m} (adds {words})"),
+                    effect: "platform_deformation".into(),
+                    joints: Vec::new(),
+                    n_params: m.n_params(),
+                }
+            }
+            ForceCand::Crosstalk => Describe {
+                label: "sensor_crosstalk (each sensor reads fractions of the other sensors' loads)".into(),
+                effect: "sensor_crosstalk".into(),
+                joints: Vec::new(),
+                n_params: self.current.n_params() + 30,
+            },
         }
     }
 
-    fn screen(&mut self, c: &SensorModel) -> Result<Screened<Self::Screen>> {
-        Ok(match cross_validate(self.reg, *c, self.poses, &self.y, self.folds) {
+    fn screen(&mut self, c: &ForceCand) -> Result<Screened<Self::Screen>> {
+        let cv = match c {
+            ForceCand::Model(m) => self.cv(*m, self.crosstalk),
+            ForceCand::Crosstalk => self.cv(self.current, true),
+        };
+        Ok(match cv {
             Ok((sse, res)) => {
                 let d = self.current_sse.iter().zip(&sse).map(|(a, b)| a - b).collect();
                 Screened::Scored { d, heldout: rms(&sse), data: (sse, res) }
@@ -291,28 +397,49 @@ impl Family for ForceFamily<'_> {
         })
     }
 
-    fn fit_all(&mut self, c: &SensorModel, _screen: &Self::Screen) -> Result<Option<AllFit<SensorModel, LinearFit>>> {
-        let new_fit = self.full_fit(*c)?;
+    fn fit_all(&mut self, c: &ForceCand, _screen: &Self::Screen) -> Result<Option<AllFit<ForceCand, Full>>> {
+        let new_fit = match c {
+            ForceCand::Model(m) => self.full_fit(*m, self.crosstalk)?,
+            ForceCand::Crosstalk => self.full_fit(self.current, true)?,
+        };
         let mut parameters = BTreeMap::new();
         for (name, v) in new_fit.names.iter().zip(&new_fit.values) {
-            if self.current_fit.index(name).is_none() {
+            if self.current_fit.get(name).is_none() {
                 parameters.insert(name.clone(), *v);
             }
+        }
+        if let (ForceCand::Crosstalk, Some(cm)) = (c, &new_fit.crosstalk) {
+            for i in 0..6 {
+                for j in (0..6).filter(|&j| j != i) {
+                    parameters.insert(format!("c_{}_{}", i + 1, j + 1), cm[(i, j)]);
+                }
+            }
+            parameters.insert("largest_crosstalk".into(), cm.amax());
         }
         Ok(Some(AllFit { effect: *c, parameters, overlap_sine: None, data: new_fit }))
     }
 
-    fn plausible(&self, _fit: &AllFit<SensorModel, LinearFit>) -> std::result::Result<(), String> {
-        Ok(())
+    fn plausible(&self, fit: &AllFit<ForceCand, Full>) -> std::result::Result<(), String> {
+        match (&fit.effect, &fit.data.crosstalk) {
+            (ForceCand::Crosstalk, Some(c)) if c.amax() > MAX_CROSSTALK => Err(format!(
+                "a cross-talk of {:.1} % exceeds the bound of {:.0} %",
+                c.amax() * 100.0,
+                MAX_CROSSTALK * 100.0
+            )),
+            _ => Ok(()),
+        }
     }
 
     fn accept(
         &mut self,
-        fit: AllFit<SensorModel, LinearFit>,
+        fit: AllFit<ForceCand, Full>,
         screen: &Self::Screen,
         decision: &Decision,
-    ) -> Result<Finding<SensorModel>> {
-        let cand = fit.effect;
+    ) -> Result<Finding<ForceCand>> {
+        if fit.effect == ForceCand::Crosstalk {
+            return Ok(self.accept_crosstalk(fit, screen, decision));
+        }
+        let ForceCand::Model(cand) = fit.effect else { unreachable!("handled above") };
         let new_fit = fit.data;
         let (before, after, p, m) =
             (decision.heldout_before, decision.heldout_after, decision.p_corrected, decision.candidates_tried);
@@ -339,13 +466,57 @@ impl Family for ForceFamily<'_> {
         self.current_sse = screen.0.clone();
         self.current_res = screen.1.clone();
         Ok(Finding::without_evidence(
-            cand,
+            ForceCand::Model(cand),
             "platform_deformation",
             parameters,
             (before, after),
             statement,
             decision.clone(),
         ))
+    }
+}
+
+impl ForceFamily<'_> {
+    fn accept_crosstalk(
+        &mut self,
+        fit: AllFit<ForceCand, Full>,
+        screen: &(Vec<f64>, DMatrix<f64>),
+        decision: &Decision,
+    ) -> Finding<ForceCand> {
+        let (before, after, p, m) =
+            (decision.heldout_before, decision.heldout_after, decision.p_corrected, decision.candidates_tried);
+        let c = fit.data.crosstalk.unwrap_or_else(Matrix6::zeros);
+        let (mut bi, mut bj) = (0, 1);
+        for i in 0..6 {
+            for j in (0..6).filter(|&j| j != i) {
+                if c[(i, j)].abs() > c[(bi, bj)].abs() {
+                    (bi, bj) = (i, j);
+                }
+            }
+        }
+        let (m_before, _) = mass_cog(&self.current_fit);
+        let (m_after, _) = mass_cog(&fit.data);
+        let mut parameters = fit.parameters;
+        parameters.insert("mass_before_kg".into(), m_before);
+        parameters.insert("mass_after_kg".into(), m_after);
+        let statement = format!(
+            "each sensor reads fractions of the other sensors' loads (cross-talk): the largest identified is {:.2} % of sensor {}'s load in sensor {}; modelling it lowers the held-out force RMS from {before:.3} to {after:.3} N (p = {p:.1e} after correcting for {m} candidates) and moves the identified mass from {m_before:.2} to {m_after:.2} kg. From one payload only the part of the cross-talk that differs from the rigid body's gravity pattern shows: the coefficients are the smallest that explain it (a second payload separates them)",
+            c[(bi, bj)] * 100.0,
+            bj + 1,
+            bi + 1
+        );
+        self.crosstalk = true;
+        self.current_fit = fit.data;
+        self.current_sse = screen.0.clone();
+        self.current_res = screen.1.clone();
+        Finding::without_evidence(
+            ForceCand::Crosstalk,
+            "sensor_crosstalk",
+            parameters,
+            (before, after),
+            statement,
+            decision.clone(),
+        )
     }
 }
 
@@ -387,15 +558,20 @@ pub fn diagnose_force_sensor(
         )));
     }
     let y = DVector::from_iterator(6 * n, (0..n).flat_map(|k| (0..6).map(move |c| forces[(k, c)])));
-    let nominal_fit =
-        fit(&regressor(reg, model0, poses)?, &y, &model0.names(), &Weighting::Unit, &LinearOptions::default())?;
+    let nominal_fit = linear_full(fit(
+        &regressor(reg, model0, poses)?,
+        &y,
+        &model0.names(),
+        &Weighting::Unit,
+        &LinearOptions::default(),
+    )?);
     let (m0, c0) = mass_cog(&nominal_fit);
     let (current_sse, current_res) = cross_validate(reg, model0, poses, &y, opts.folds)?;
     let k = opts.folds.clamp(2, n);
     let nominal = ForceFit {
         n_train: n - n.div_ceil(k),
         n_heldout: n,
-        train_rms_n: nominal_fit.rms_residual,
+        train_rms_n: nominal_fit.rms_n,
         heldout_rms_n: rms(&current_sse),
     };
     let mut family = ForceFamily {
@@ -404,6 +580,7 @@ pub fn diagnose_force_sensor(
         y,
         folds: opts.folds,
         current: model0,
+        crosstalk: false,
         current_fit: nominal_fit,
         current_sse,
         current_res,
@@ -439,7 +616,7 @@ pub fn diagnose_force_sensor(
             .collect(),
         final_fit: ForceFinalFit {
             model: family.current.id(),
-            train_rms_n: family.current_fit.rms_residual,
+            train_rms_n: family.current_fit.rms_n,
             heldout_rms_n: rms(&family.current_sse),
         },
         unexplained,

@@ -16,6 +16,7 @@
 pub mod camera;
 pub mod engine;
 pub mod force;
+mod force_crosstalk;
 pub mod kinematic;
 pub mod report;
 pub mod stats;

@@ -116,7 +116,7 @@ impl CalibratedModel {
         let (q, scale) = self.effective(row)?;
         let mut t = self.model.forward(&q)? * self.tool;
         for (e, theta) in &self.effects {
-            if matches!(e, EffectSpec::LinkCompliance { .. }) {
+            if e.corrects_pose() {
                 t = e.pose_correction(&self.load_model, row, &q, theta)? * t;
             }
         }

@@ -28,7 +28,6 @@ use serde::Serialize;
 
 use super::model::row_error;
 use super::CalibratedModel;
-use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
 use crate::frames::fit_rigid;
 use crate::measurement::PoseMeasurement;
@@ -108,7 +107,7 @@ fn point_map(cm: &CalibratedModel, row: &PoseMeasurement) -> Result<(Matrix3<f64
     let flange = cm.model.forward(&q)?;
     let mut correction = Isometry3::identity();
     for (e, theta) in &cm.effects {
-        if matches!(e, EffectSpec::LinkCompliance { .. }) {
+        if e.corrects_pose() {
             correction = e.pose_correction(&cm.load_model, row, &q, theta)? * correction;
         }
     }

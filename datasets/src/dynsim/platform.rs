@@ -93,6 +93,10 @@ pub struct PlatformSim {
     pub noise: ForceNoise,
     /// Gravity, base frame, m/s^2.
     pub gravity_m_s2: Vector3<f64>,
+    /// Sensor cross-talk: `crosstalk[i][j]` is the fraction of sensor `j + 1`'s load that sensor
+    /// `i + 1` also reads (the diagonal is ignored; all zero: none). The offsets are not loads
+    /// and are not passed on.
+    pub crosstalk: [[f64; 6]; 6],
 }
 
 /// A quasi-static record: the mean of `samples_per_pose` sensor readings at each pose.
@@ -147,6 +151,7 @@ impl PlatformSim {
             deformation: Deformation { k0_n_m: 150.0, k1_nm_m: 40.0, k2_n, k3_nm, reference_xy_m: [home.x, home.y] },
             noise: ForceNoise { sigma_n: 1.5, common_sigma_n: 0.8, leg_sigma_m: 1e-6 },
             gravity_m_s2: GRAVITY_M_S2,
+            crosstalk: [[0.0; 6]; 6],
         }
     }
 
@@ -173,6 +178,9 @@ impl PlatformSim {
         self.sensors.validate().map_err(|e| DatasetError::Config(format!("sensor framework: {e}")))?;
         self.body.validate("end-effector body").map_err(|e| DatasetError::Config(e.to_string()))?;
         self.noise.validate()?;
+        if self.crosstalk.iter().flatten().any(|v| !v.is_finite() || v.abs() > 0.5) {
+            return Err(DatasetError::Config("sensor cross-talk fractions must be finite and below 0.5".into()));
+        }
         if self.offsets_n.iter().any(|v| !v.is_finite()) {
             return Err(DatasetError::Config("sensor offsets must be finite".into()));
         }
@@ -205,7 +213,11 @@ impl PlatformSim {
             .lu()
             .solve(&w)
             .ok_or_else(|| DatasetError::Config("the sensor framework cannot carry every wrench".into()))?;
-        Ok(forces + Vector6::from_column_slice(&self.offsets_n))
+        // What each sensor reads: its own load and the fractions of the others' it picks up.
+        let read = Vector6::from_fn(|i, _| {
+            forces[i] + (0..6).filter(|&j| j != i).map(|j| self.crosstalk[i][j] * forces[j]).sum::<f64>()
+        });
+        Ok(read + Vector6::from_column_slice(&self.offsets_n))
     }
 
     /// Leg extensions at a flange pose; fails outside the legs' limits, naming the leg.

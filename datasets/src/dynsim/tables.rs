@@ -39,6 +39,20 @@ pub struct TableSettings {
     pub poses: usize,
     /// Seed.
     pub seed: u64,
+    /// Sensor cross-talk (platform rig), a fraction: see [`crosstalk_pattern`]. 0: none.
+    pub crosstalk: f64,
+}
+
+/// The cross-talk pattern of `ferrocal dynamics simulate --crosstalk F`: sensor `i` reads `F` of
+/// the next sensor's load and `-F / 2` of the previous one's (cyclic: neighbouring struts of the
+/// framework share a mounting).
+pub fn crosstalk_pattern(fraction: f64) -> [[f64; 6]; 6] {
+    let mut c = [[0.0; 6]; 6];
+    for (i, row) in c.iter_mut().enumerate() {
+        row[(i + 1) % 6] = fraction;
+        row[(i + 5) % 6] = -fraction / 2.0;
+    }
+    c
 }
 
 fn err(what: &'static str) -> impl Fn(String) -> DatasetError {
@@ -61,6 +75,7 @@ pub fn simulated_tables(s: &TableSettings) -> Result<Vec<(&'static str, String)>
             } else {
                 base
             };
+            let sim = PlatformSim { crosstalk: crosstalk_pattern(s.crosstalk), ..sim };
             let reg = PlatformSim::preset().sensor_regressor().map_err(|e| err("sensors")(e.to_string()))?;
             let model9 = SensorModel::new(9).map_err(|e| err("model 9")(e.to_string()))?;
             let rows = SensorRows { regressor: &reg, model: model9 };

@@ -21,6 +21,7 @@
 //! | thermal expansion | every length parameter `l` becomes `l (1 + alpha (T_c - T_ref))` |
 //! | parameter drift (guideway misalignment) | parameter `p_j += a q_i + b q_i^2` |
 //! | coupled transmission | `q_eff,i += c q_k`: joint `i` turns by `c` per unit of joint `k`'s commanded motion (its drive passes through joint `k`) |
+//! | axis wobble (axis misalignment) | everything beyond revolute joint `i` turns about the joint's axis point by `a (cos(q_i + phi) x_i + sin(q_i + phi) y_i)`, `x_i, y_i` unit vectors normal to the axis fixed in the moving link `i` |
 //!
 //! Joint compliance uses the holding torque `tau = dV/dq` of the potential energy, computed here
 //! by central differences of `V` (an independent route from the Jacobian-transpose formula of
@@ -134,6 +135,20 @@ pub enum Effect {
         /// Joint units of `joint` per joint unit of `driver`.
         ratio: f64,
     },
+    /// A revolute joint whose axis wobbles as it turns (a bearing seat that is not round, a
+    /// housing that deflects with the angle): the link it moves, and everything beyond, is tilted
+    /// by `tilt_rad` about the direction `cos(q + phase) x + sin(q + phase) y`, with `x, y` unit
+    /// vectors normal to the joint's axis that turn with the link, about the joint's axis point
+    /// (`q` the joint's effective angle).
+    AxisWobble {
+        /// Joint (1-based, revolute).
+        joint: usize,
+        /// Tilt, rad.
+        tilt_rad: f64,
+        /// Phase.
+        #[serde(default)]
+        phase_rad: f64,
+    },
     /// A parameter that changes with a joint: `p += linear q + quadratic q^2` (a guideway that is
     /// not straight or not parallel to its nominal direction).
     ParameterDrift {
@@ -159,7 +174,7 @@ impl Effect {
             Effect::Backlash { .. } => "backlash",
             Effect::JointCompliance { .. } => "joint_compliance",
             Effect::ThermalExpansion { .. } => "thermal_expansion",
-            Effect::ParameterDrift { .. } => "axis_misalignment",
+            Effect::ParameterDrift { .. } | Effect::AxisWobble { .. } => "axis_misalignment",
             Effect::LinkCompliance { .. } => "link_compliance",
             Effect::CoupledTransmission { .. } => "coupled_transmission",
         }
@@ -173,7 +188,8 @@ impl Effect {
             | Effect::Backlash { joint, .. }
             | Effect::JointCompliance { joint, .. }
             | Effect::ParameterDrift { joint, .. }
-            | Effect::CoupledTransmission { joint, .. } => Some(*joint),
+            | Effect::CoupledTransmission { joint, .. }
+            | Effect::AxisWobble { joint, .. } => Some(*joint),
             Effect::ThermalExpansion { .. } | Effect::LinkCompliance { .. } => None,
         }
     }
@@ -236,6 +252,14 @@ impl TrueRobot {
                 if *driver == 0 || *driver > n_joints || driver == joint {
                     return Err(DatasetError::Config(format!(
                         "coupled_transmission: driving joint {driver} must be another joint (1 to {n_joints})"
+                    )));
+                }
+            }
+            if let Effect::AxisWobble { joint, .. } = e {
+                let serial = matches!(nominal, RobotModel::Serial(_));
+                if !serial || nominal.joint_kinds()[joint - 1] != JointKind::Revolute {
+                    return Err(DatasetError::Config(format!(
+                        "axis wobble: joint {joint} must be a revolute joint of a serial chain"
                     )));
                 }
             }
@@ -362,7 +386,10 @@ impl TrueRobot {
                     let tau = torques.as_ref().expect("just set")[joint - 1];
                     q[joint - 1] -= compliance_si * tau;
                 }
-                Effect::ThermalExpansion { .. } | Effect::ParameterDrift { .. } | Effect::LinkCompliance { .. } => {}
+                Effect::ThermalExpansion { .. }
+                | Effect::ParameterDrift { .. }
+                | Effect::LinkCompliance { .. }
+                | Effect::AxisWobble { .. } => {}
             }
         }
         Ok(q)
@@ -378,9 +405,40 @@ impl TrueRobot {
             if let Effect::LinkCompliance { link, compliance_si } = e {
                 pose = link_bend(&model, *link, &q, c.payload_kg, *compliance_si)? * pose;
             }
+            if let Effect::AxisWobble { joint, tilt_rad, phase_rad } = e {
+                pose = axis_wobble(&model, *joint, &q, *tilt_rad, *phase_rad)? * pose;
+            }
         }
         Ok(pose)
     }
+}
+
+/// The rigid motion of everything beyond wobbling joint `joint` (1-based): the moving link's
+/// frame after the joint's motion gives two directions normal to the axis that turn with it; the
+/// tilt direction is `cos(q + phase)` and `sin(q + phase)` of them, the turn is about the axis
+/// point.
+fn axis_wobble(
+    model: &RobotModel,
+    joint: usize,
+    q: &[f64],
+    tilt_rad: f64,
+    phase_rad: f64,
+) -> Result<Pose, DatasetError> {
+    let RobotModel::Serial(chain) = model else {
+        return Err(DatasetError::Config("axis wobble: the model is not a serial chain".into()));
+    };
+    let f = chain.frames(q).map_err(|e| DatasetError::Config(format!("kinematics failed: {e}")))?;
+    let link = f.links[joint - 1].rotation;
+    // The axis in the moving link's own coordinates, and two normals to it fixed in the link.
+    let axis = (link.inverse() * f.axes[joint - 1]).normalize();
+    let helper = if axis.z.abs() < 0.8 { Vector3::z() } else { Vector3::x() };
+    let x = axis.cross(&helper).normalize();
+    let y = axis.cross(&x);
+    let angle = q[joint - 1] + phase_rad;
+    let direction = link * (x * angle.cos() + y * angle.sin());
+    let rot = nalgebra::UnitQuaternion::from_scaled_axis(direction * tilt_rad);
+    let pivot = f.axis_points[joint - 1].coords;
+    Ok(Pose::from_parts(nalgebra::Translation3::from(pivot - rot * pivot), rot))
 }
 
 /// Potential energy `V = -sum m g . p` of the moving bodies at `q`: the links' inertials for a

@@ -106,6 +106,10 @@ pub struct SimulateArgs {
     /// Poses of the quasi-static table (platform rig).
     #[arg(long, default_value_t = 120)]
     pub poses: usize,
+    /// Sensor cross-talk (platform rig), a fraction (e.g. 0.015): each sensor also reads this
+    /// fraction of the next sensor's load and minus half of it of the previous one's.
+    #[arg(long, default_value_t = 0.0)]
+    pub crosstalk: f64,
     /// Seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -254,6 +258,7 @@ fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
         rate_hz: a.rate_hz,
         poses: a.poses,
         seed: a.seed,
+        crosstalk: a.crosstalk,
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
     for (name, text) in simulated_tables(&settings)? {

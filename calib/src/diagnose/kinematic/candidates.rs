@@ -10,6 +10,9 @@ use crate::error::Result;
 use crate::kinematic::KinematicCalibration;
 use crate::measurement::PoseMeasurement;
 
+/// The least range of a joint's angle over which an axis wobble is a candidate.
+const MIN_WOBBLE_RANGE_RAD: f64 = 0.5;
+
 /// Frequency grids (cycles per joint unit) of the periodic candidates per joint.
 pub(super) fn period_grids(rows: &[&PoseMeasurement], kinds: &[JointKind], opts: &DiagnoseOptions) -> Vec<Vec<f64>> {
     kinds
@@ -122,6 +125,31 @@ pub(super) fn enumerate_candidates(
                     effect: e.into(),
                     joints: vec![jn],
                     reason: format!("joint {jn} barely moved over the poses"),
+                });
+            }
+        }
+    }
+    // Axis misalignment: a revolute joint of a serial chain that turned far enough for a wobble
+    // at twice its angle to differ from a fixed axis placement.
+    if let ferrocal_robot::RobotModel::Serial(_) = model {
+        for (j, kind) in ctx.kinds.iter().enumerate() {
+            if *kind != JointKind::Revolute {
+                continue;
+            }
+            let q = ctx.q(j);
+            let (lo, hi) = q.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(*v), h.max(*v)));
+            if hi - lo >= MIN_WOBBLE_RANGE_RAD {
+                cands.push(Cand::Fixed(EffectSpec::AxisMisalignment { joint: j + 1 }));
+            } else {
+                un.push(Untestable {
+                    effect: "axis_misalignment".into(),
+                    joints: vec![j + 1],
+                    reason: format!(
+                        "joint {} turned through {:.0} deg only: a wobble with its angle needs at least {:.0} deg",
+                        j + 1,
+                        (hi - lo).to_degrees(),
+                        MIN_WOBBLE_RANGE_RAD.to_degrees()
+                    ),
                 });
             }
         }

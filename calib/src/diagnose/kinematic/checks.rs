@@ -59,6 +59,14 @@ pub(super) fn parameter_map(spec: &EffectSpec, theta: &[f64], kinds: &[JointKind
         EffectSpec::CoupledTransmission { .. } => {
             m.insert("coupling".into(), t0);
         }
+        EffectSpec::AxisMisalignment { .. } => {
+            let c = theta.get(1).copied().unwrap_or(0.0);
+            m.insert("wobble_x_rad".into(), t0);
+            m.insert("wobble_y_rad".into(), c);
+            m.insert("tilt_amplitude_rad".into(), t0.hypot(c));
+            m.insert("tilt_amplitude_mrad".into(), t0.hypot(c) * 1e3);
+            m.insert("phase_deg".into(), c.atan2(t0).to_degrees());
+        }
     }
     m
 }
@@ -118,6 +126,16 @@ pub(super) fn plausible(
                 return Err(format!("coupling {} exceeds the bound of {}", sig(t, 2), sig(b.max_scale_error, 2)));
             }
         }
+        EffectSpec::AxisMisalignment { .. } => {
+            let a = t.hypot(theta.get(1).copied().unwrap_or(0.0));
+            if a > b.max_axis_wobble_rad {
+                return Err(format!(
+                    "a tilt of {} mrad exceeds the bound of {} mrad",
+                    sig(a * 1e3, 2),
+                    sig(b.max_axis_wobble_rad * 1e3, 2)
+                ));
+            }
+        }
         EffectSpec::PeriodicJointError { .. } => {
             let a = theta.first().copied().unwrap_or(0.0).hypot(theta.get(1).copied().unwrap_or(0.0));
             let bound = if prismatic { b.max_periodic_m } else { b.max_periodic_rad };
@@ -172,7 +190,7 @@ pub(super) fn plausible(
 pub(super) fn stability(spec: &EffectSpec, theta_all: &[f64], ls: &LinScore, ctx: &Ctx) -> Result<f64, String> {
     let k = ls.theta_folds.len() as f64;
     let main = |t: &[f64]| match spec {
-        EffectSpec::PeriodicJointError { .. } => {
+        EffectSpec::PeriodicJointError { .. } | EffectSpec::AxisMisalignment { .. } => {
             t.first().copied().unwrap_or(0.0).hypot(t.get(1).copied().unwrap_or(0.0))
         }
         _ => t.first().copied().unwrap_or(0.0),

@@ -18,10 +18,13 @@
 use ferrocal_lsq::linear::TruncatedSvd;
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
 
-use crate::effects::{holding_torques, link_bendings, EffectSpec};
+use crate::effects::{axis_wobble, holding_torques, link_bendings, EffectSpec};
 use crate::error::Result;
 use crate::kinematic::{prediction_jacobian, CalibratedModel, KinematicCalibration};
 use crate::measurement::PoseMeasurement;
+
+/// A joint's wobble directions and axis point (`effects::axis_wobble`), device frame.
+pub(crate) type Wobble = (Vector3<f64>, Vector3<f64>, nalgebra::Point3<f64>);
 
 /// Residuals and Jacobians of one calibrated model on the analysis rows (all whitened: divided
 /// by each row's position standard deviation).
@@ -41,6 +44,10 @@ pub(crate) struct Lin {
     /// Per row and link (serial chains; empty otherwise): the bending load moment and the point
     /// the link turns about (`effects::link_bending`), in the device frame.
     pub bend: Vec<Vec<(Vector3<f64>, nalgebra::Point3<f64>)>>,
+    /// Per row and joint (serial chains; empty otherwise): the wobble directions and the axis
+    /// point of each revolute joint (`effects::axis_wobble`), in the device frame; zeros for a
+    /// prismatic joint.
+    pub wobble: Vec<Vec<Wobble>>,
     /// Per row: predicted position in the device frame.
     pub p0: Vec<Vector3<f64>>,
     /// Per row: position standard deviation.
@@ -84,6 +91,7 @@ impl Lin {
         }
         let mut tau = Vec::with_capacity(n);
         let mut bend = Vec::with_capacity(n);
+        let mut wobble = Vec::with_capacity(n);
         for row in rows {
             tau.push(holding_torques(&cm.load_model, &row.q, row.payload_kg.unwrap_or(0.0))?);
             let mut per_link = Vec::new();
@@ -95,8 +103,21 @@ impl Lin {
                     .collect();
             }
             bend.push(per_link);
+            let mut per_joint = Vec::new();
+            if let ferrocal_robot::RobotModel::Serial(_) = &cm.load_model {
+                let (q, _) = cm.effective(row)?;
+                for (j, kind) in ferrocal_robot::Kinematics::joint_kinds(&cm.load_model).iter().enumerate() {
+                    per_joint.push(if *kind == ferrocal_robot::JointKind::Revolute {
+                        let (e1, e2, pivot) = axis_wobble(&cm.load_model, j + 1, &q)?;
+                        (f.rotation * e1, f.rotation * e2, f * pivot)
+                    } else {
+                        (Vector3::zeros(), Vector3::zeros(), nalgebra::Point3::origin())
+                    });
+                }
+            }
+            wobble.push(per_joint);
         }
-        Ok(Self { n, r, base, dq, ds, tau, bend, p0, sigma: sigma.to_vec() })
+        Ok(Self { n, r, base, dq, ds, tau, bend, wobble, p0, sigma: sigma.to_vec() })
     }
 
     /// The same linearisation with the base columns `drop` removed and the residuals `r` of the
@@ -112,6 +133,7 @@ impl Lin {
             ds: self.ds.clone(),
             tau: self.tau.clone(),
             bend: self.bend.clone(),
+            wobble: self.wobble.clone(),
             p0: self.p0.clone(),
             sigma: self.sigma.clone(),
         }
@@ -142,6 +164,18 @@ impl Lin {
                     let (v, pivot) = self.bend.get(i)?.get(link - 1)?;
                     let d = v.cross(&(self.p0[i] - pivot.coords)) / self.sigma[i];
                     c.fixed_view_mut::<3, 1>(3 * i, 0).copy_from(&d);
+                }
+                Some(c)
+            }
+            EffectSpec::AxisMisalignment { joint } => {
+                let mut c = DMatrix::zeros(3 * n, 2);
+                for i in 0..n {
+                    let (e1, e2, pivot) = self.wobble.get(i)?.get(joint - 1)?;
+                    let lever = self.p0[i] - pivot.coords;
+                    for (k, e) in [e1, e2].into_iter().enumerate() {
+                        let d = e.cross(&lever) / self.sigma[i];
+                        c.fixed_view_mut::<3, 1>(3 * i, k).copy_from(&d);
+                    }
                 }
                 Some(c)
             }

@@ -87,6 +87,14 @@ pub struct Bounds {
     pub thermal_alpha_per_k: [f64; 2],
     /// Largest relative length drift per hour (a warm-up without a temperature reading).
     pub max_drift_per_hour: f64,
+    /// Largest tilt amplitude of a wobbling joint axis (axis misalignment): bearings and
+    /// housings of arms hold their axes to well under a milliradian; 2 mrad is generous.
+    #[serde(default = "default_max_axis_wobble_rad")]
+    pub max_axis_wobble_rad: f64,
+}
+
+fn default_max_axis_wobble_rad() -> f64 {
+    0.002
 }
 
 impl Default for Bounds {
@@ -101,6 +109,7 @@ impl Default for Bounds {
             max_periodic_m: 0.002,
             thermal_alpha_per_k: [0.5e-6, 35e-6],
             max_drift_per_hour: 2e-4,
+            max_axis_wobble_rad: default_max_axis_wobble_rad(),
         }
     }
 }

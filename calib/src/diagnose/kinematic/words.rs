@@ -21,6 +21,7 @@ pub(super) fn telling_input(spec: &EffectSpec, names: &[String]) -> String {
         EffectSpec::ThermalExpansion { .. } => "temp_c".into(),
         EffectSpec::TimeDrift => "t_s".into(),
         EffectSpec::CoupledTransmission { driver, .. } => format!("q{driver} ({})", jn(*driver)),
+        EffectSpec::AxisMisalignment { joint } => format!("q{joint} ({}), twice per revolution", jn(*joint)),
         EffectSpec::LinkCompliance { link } => {
             format!("bending moment on link {link} (between {} and {})", jn(*link), jn(link + 1))
         }
@@ -130,6 +131,14 @@ pub(super) fn statement(
                 unit(*driver)
             )
         }
+        EffectSpec::AxisMisalignment { joint } => {
+            let c = theta.get(1).copied().unwrap_or(0.0);
+            format!(
+                "joint {joint}'s axis wobbles as it turns: the links beyond it tilt by {} mrad {pm} about a direction normal to the axis that turns with the joint (twice per revolution as seen from the base; phase {:.0} deg), which no fixed axis placement reproduces",
+                sig(t.hypot(c) * 1e3, 2),
+                c.atan2(t).to_degrees()
+            )
+        }
         EffectSpec::TimeDrift => {
             let hours = ctx.rows.iter().filter_map(|r| r.t_s).fold(0.0f64, f64::max) / 3600.0;
             format!(
@@ -171,6 +180,17 @@ pub(super) fn evidence(
             }
             link_col = m;
             (moments, &link_col, 0, 1e3, format!("bend of link {link} implied by the held-out residual [mrad]"))
+        }
+        EffectSpec::AxisMisalignment { joint } => {
+            // The tilt about the first wobble direction implied per row, against the joint angle.
+            link_col = ctx.effect_columns(lin, spec).unwrap_or_else(|| nalgebra::DMatrix::zeros(3 * lin.n, 2));
+            (
+                ctx.rows.iter().map(|r| r.q[joint - 1].to_degrees()).collect(),
+                &link_col,
+                0,
+                1e3,
+                format!("tilt of joint {joint}'s axis about its first wobble direction implied by the held-out residual [mrad]"),
+            )
         }
         EffectSpec::ThermalExpansion { .. } => (
             ctx.rows.iter().map(|r| r.temp_c.unwrap_or(f64::NAN)).collect(),
