@@ -6,7 +6,7 @@
 use ferrocal_datasets::motion::study::{identify_axis, ilc_experiment, IdentifySettings};
 use ferrocal_datasets::motion::CompliantAxis;
 
-fn main() -> anyhow::Result<()> {
+fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let get = |k: &str| args.iter().position(|a| a == k).and_then(|i| args.get(i + 1)).cloned();
     let seed: u64 = get("--seed").map_or(Ok(1), |s| s.parse())?;
@@ -17,10 +17,15 @@ fn main() -> anyhow::Result<()> {
     eprintln!("identification {:.1} s", t.elapsed().as_secs_f64());
     println!("{}", serde_json::to_string_pretty(&id)?);
     let t = std::time::Instant::now();
-    let runs = ilc_experiment(&axis, &id, 10, 0.02, 0.15, 1e-4, seed)?;
+    let w: f64 = get("--w").map_or(Ok(1e-4), |s| s.parse())?;
+    let runs = ilc_experiment(&axis, &id, 10, 0.02, 0.15, w, seed)?;
     eprintln!("ILC {:.1} s", t.elapsed().as_secs_f64());
     for r in &runs {
-        println!("{:?}: {}", r.case, r.tool_rms_m.iter().map(|v| format!("{:.1}", v * 1e6)).collect::<Vec<_>>().join(" "));
+        println!(
+            "{:?}: {}",
+            r.case,
+            r.tool_rms_m.iter().map(|v| format!("{:.1}", v * 1e6)).collect::<Vec<_>>().join(" ")
+        );
     }
     if let Some(f) = get("--json") {
         std::fs::write(f, serde_json::to_string_pretty(&serde_json::json!({"identify": id, "ilc": runs}))?)?;

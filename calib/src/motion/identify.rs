@@ -212,14 +212,12 @@ pub fn fit_arx(u: &[f64], y: &[f64], na: usize, nb: usize, nk: usize, dt_s: f64)
         }
     });
     let rhs = DVector::from_iterator(rows, (t0..u.len()).map(|t| y[t]));
-    let theta = phi
-        .clone()
-        .svd(true, true)
-        .solve(&rhs, 1e-12)
-        .map_err(|e| CalibError::Numeric(format!("ARX fit: {e}")))?;
+    let theta =
+        phi.clone().svd(true, true).solve(&rhs, 1e-12).map_err(|e| CalibError::Numeric(format!("ARX fit: {e}")))?;
     let res = &rhs - &phi * &theta;
     let s2 = res.norm_squared() / (rows - p) as f64;
-    let cov = (phi.transpose() * &phi).try_inverse().map(|m| m * s2).unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
+    let cov =
+        (phi.transpose() * &phi).try_inverse().map(|m| m * s2).unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
     Ok(DiscreteModel {
         a: theta.rows(0, na).iter().copied().collect(),
         b: theta.rows(na, nb).iter().copied().collect(),
@@ -393,7 +391,14 @@ mod tests {
         let (a1, a2) = (-2.0 * z.re, z.norm_sqr());
         // (1 + a1 q^-1 + a2 q^-2)(1 - 0.8 q^-1)
         let a = vec![a1 - 0.8, a2 - 0.8 * a1, -0.8 * a2];
-        let truth = DiscreteModel { a, b: vec![0.02, 0.01, -0.005], nk: 2, dt_s: dt, covariance: DMatrix::zeros(6, 6), residual_std: 0.0 };
+        let truth = DiscreteModel {
+            a,
+            b: vec![0.02, 0.01, -0.005],
+            nk: 2,
+            dt_s: dt,
+            covariance: DMatrix::zeros(6, 6),
+            residual_std: 0.0,
+        };
         let u: Vec<f64> = lcg(3, 4000).iter().map(|v| v.signum()).collect();
         let noise = lcg(9, 4000);
         let y: Vec<f64> = truth.simulate(&u).iter().zip(&noise).map(|(v, e)| v + 0.02 * e).collect();

@@ -21,7 +21,9 @@ impl Ilc {
     pub fn norm_optimal(h: &[f64], w: f64) -> Result<Self> {
         let n = h.len();
         if n == 0 || !(w > 0.0 && w.is_finite()) || h.iter().any(|v| !v.is_finite()) {
-            return Err(CalibError::Data(format!("ILC: {n} impulse-response samples and weight {w}: need some, finite, w > 0")));
+            return Err(CalibError::Data(format!(
+                "ILC: {n} impulse-response samples and weight {w}: need some, finite, w > 0"
+            )));
         }
         let g = DMatrix::from_fn(n, n, |i, j| if i >= j { h[i - j] } else { 0.0 });
         let mut a = g.transpose() * &g;
@@ -45,7 +47,12 @@ impl Ilc {
     /// The next trial's input from this trial's input and error (desired minus measured).
     pub fn update(&self, u: &[f64], e: &[f64]) -> Result<Vec<f64>> {
         if u.len() != self.len() || e.len() != self.len() {
-            return Err(CalibError::Data(format!("ILC: trial of {} samples, got {} inputs and {} errors", self.len(), u.len(), e.len())));
+            return Err(CalibError::Data(format!(
+                "ILC: trial of {} samples, got {} inputs and {} errors",
+                self.len(),
+                u.len(),
+                e.len()
+            )));
         }
         let du = &self.l * DVector::from_column_slice(e);
         Ok(u.iter().zip(du.iter()).map(|(a, b)| a + b).collect())
@@ -78,7 +85,8 @@ mod tests {
             h
         };
         let (model, truth) = (plant(0.02, 0.97), plant(0.023, 0.968));
-        let conv = |h: &[f64], u: &[f64]| -> Vec<f64> { (0..n).map(|i| (0..=i).map(|j| h[i - j] * u[j]).sum()).collect() };
+        let conv =
+            |h: &[f64], u: &[f64]| -> Vec<f64> { (0..n).map(|i| (0..=i).map(|j| h[i - j] * u[j]).sum()).collect() };
         let yd: Vec<f64> = (0..n).map(|k| ((k as f64 - 20.0) / 60.0).clamp(0.0, 1.0)).collect();
         let ilc = Ilc::norm_optimal(&model, 1e-4).unwrap();
         let mut u = vec![0.0; n];

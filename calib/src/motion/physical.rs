@@ -128,7 +128,13 @@ const SUBSTEPS: usize = 8;
 
 /// Fits the chain to an encoder record and the measured tool (m, sample time `dt_s`), the
 /// platform mass given, started from two black-box modes (lowest first).
-pub fn fit_chain(encoder_m: &[f64], tool_m: &[f64], dt_s: f64, m2_kg: f64, start_modes: &[Mode]) -> Result<PhysicalFit> {
+pub fn fit_chain(
+    encoder_m: &[f64],
+    tool_m: &[f64],
+    dt_s: f64,
+    m2_kg: f64,
+    start_modes: &[Mode],
+) -> Result<PhysicalFit> {
     if encoder_m.len() != tool_m.len() || encoder_m.len() < 100 {
         return Err(CalibError::TooFew(format!(
             "physical fit: {} encoder and {} tool samples; equal counts of at least 100 needed",
@@ -152,7 +158,8 @@ pub fn fit_chain(encoder_m: &[f64], tool_m: &[f64], dt_s: f64, m2_kg: f64, start
         DVector::from_iterator(tool_m.len() - skip, (skip..tool_m.len()).map(|t| tool_m[t] - sim[t]))
     };
     // Starts: the two modes placed on a grid of link masses.
-    let (w1, w2) = (start_modes[0].frequency_hz * std::f64::consts::TAU, start_modes[1].frequency_hz * std::f64::consts::TAU);
+    let (w1, w2) =
+        (start_modes[0].frequency_hz * std::f64::consts::TAU, start_modes[1].frequency_hz * std::f64::consts::TAU);
     let (s, pr) = (w1 * w1 + w2 * w2, w1 * w1 * w2 * w2);
     let mut best: Option<(f64, ChainParams)> = None;
     for i in 0..13 {
@@ -233,10 +240,9 @@ pub fn fit_chain(encoder_m: &[f64], tool_m: &[f64], dt_s: f64, m2_kg: f64, start
     let j = jacobian(&p, &r0);
     let dof = (r0.len() - 5).max(1) as f64;
     let s2 = r0.norm_squared() / dof;
-    let cov = (j.transpose() * &j)
-        .try_inverse()
-        .ok_or_else(|| CalibError::Numeric("physical fit: the chain parameters are not determined by this record".into()))?
-        * s2;
+    let cov = (j.transpose() * &j).try_inverse().ok_or_else(|| {
+        CalibError::Numeric("physical fit: the chain parameters are not determined by this record".into())
+    })? * s2;
     let v = p.free();
     let sd: Vec<f64> = (0..5).map(|i| v[i] * cov[(i, i)].max(0.0).sqrt()).collect();
     let std = ChainParams { m2_kg: 0.0, ..p.with_free(&sd) };

@@ -116,7 +116,9 @@ impl CompliantAxis {
         if v.iter().any(|x| !x.is_finite() || *x <= 0.0)
             || !(self.d1_n_s_m >= 0.0 && self.d2_n_s_m >= 0.0 && self.d1_n_s_m.is_finite() && self.d2_n_s_m.is_finite())
         {
-            return Err(DatasetError::Input(format!("compliant axis: masses, stiffnesses, damping, tau and dt must be finite and positive: {self:?}")));
+            return Err(DatasetError::Input(format!(
+                "compliant axis: masses, stiffnesses, damping, tau and dt must be finite and positive: {self:?}"
+            )));
         }
         Ok(())
     }
@@ -163,7 +165,10 @@ impl CompliantAxis {
             .collect();
         modes.sort_by(|x, y| x.frequency_hz.total_cmp(&y.frequency_hz));
         if modes.len() != 2 {
-            return Err(DatasetError::Input(format!("compliant axis: {} oscillating modes, expected 2 (overdamped?)", modes.len())));
+            return Err(DatasetError::Input(format!(
+                "compliant axis: {} oscillating modes, expected 2 (overdamped?)",
+                modes.len()
+            )));
         }
         Ok(modes)
     }
