@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release -p ferrocal-datasets --example motion_study -- [--seed S] [--json F]`
 
-use ferrocal_datasets::motion::study::{identify_axis, ilc_experiment, IdentifySettings};
+use ferrocal_datasets::motion::study::{identify_axis, ilc_experiment, IdentifySettings, IlcSettings};
 use ferrocal_datasets::motion::CompliantAxis;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -18,7 +18,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("{}", serde_json::to_string_pretty(&id)?);
     let t = std::time::Instant::now();
     let w: f64 = get("--w").map_or(Ok(1e-4), |s| s.parse())?;
-    let runs = ilc_experiment(&axis, &id, 10, 0.02, 0.15, w, seed)?;
+    let force: f64 = get("--contact-force-n").map_or(Ok(0.0), |s| s.parse())?;
+    let runs =
+        ilc_experiment(&axis, &id, &IlcSettings { weight: w, contact_force_n: force, seed, ..IlcSettings::default() })?;
     eprintln!("ILC {:.1} s", t.elapsed().as_secs_f64());
     for r in &runs {
         println!(

@@ -5,7 +5,7 @@
 //! (same family, different discretisation): these tolerances are what the method achieves when
 //! the model structure is right.
 
-use ferrocal_datasets::motion::study::{identify_axis, ilc_experiment, IdentifySettings, IlcCase};
+use ferrocal_datasets::motion::study::{identify_axis, ilc_experiment, IdentifySettings, IlcCase, IlcSettings};
 use ferrocal_datasets::motion::CompliantAxis;
 
 #[test]
@@ -38,7 +38,7 @@ fn identification_finds_both_modes_within_5_percent_and_tool_side_ilc_beats_actu
 
     // Learning control along a 20 mm move in 0.15 s: actuator-side learning leaves the
     // compliance error in, tool-side learning removes it.
-    let runs = ilc_experiment(&axis, &id, 10, 0.02, 0.15, 1e-4, 7).unwrap();
+    let runs = ilc_experiment(&axis, &id, &IlcSettings { seed: 7, ..IlcSettings::default() }).unwrap();
     let last = |c: IlcCase| *runs.iter().find(|r| r.case == c).unwrap().tool_rms_m.last().unwrap();
     let first = runs[0].tool_rms_m[0];
     let (act, est, meas) = (last(IlcCase::Actuator), last(IlcCase::ToolEstimate), last(IlcCase::ToolMeasurement));
@@ -47,4 +47,14 @@ fn identification_finds_both_modes_within_5_percent_and_tool_side_ilc_beats_actu
     assert!(meas * 5.0 < act, "tool-measurement ILC {meas} m vs actuator-side {act} m");
     // The measured case stops at the tracker's noise (10 µm per sample, averaged by the filter).
     assert!(meas < 20e-6, "tool-measurement ILC {meas} m");
+
+    // A 20 N contact force after the move, which the encoder cannot see: learning on the model's
+    // estimate from the encoder converges to the wrong path, learning on the Kalman estimate
+    // (encoder, model and a 50 Hz camera 12 ms late) does not.
+    let runs =
+        ilc_experiment(&axis, &id, &IlcSettings { seed: 7, contact_force_n: 20.0, ..IlcSettings::default() }).unwrap();
+    let last = |c: IlcCase| *runs.iter().find(|r| r.case == c).unwrap().tool_rms_m.last().unwrap();
+    let (act, est, kal) = (last(IlcCase::Actuator), last(IlcCase::ToolEstimate), last(IlcCase::ToolKalman));
+    assert!(est > 2e-4, "model-only estimate under contact: {est} m");
+    assert!(kal * 3.0 < est && kal * 5.0 < act, "Kalman {kal} m, model only {est} m, actuator {act} m");
 }

@@ -176,21 +176,45 @@ impl CompliantAxis {
     /// Runs the axis from rest at the first reference value over the whole reference, sampled
     /// at `dt_s`: encoder, true and measured tool.
     pub fn run(&self, reference_m: &[f64], noise: SensorNoise, seed: u64) -> Result<AxisRecord> {
+        self.run_with_force(reference_m, &[], noise, seed)
+    }
+
+    /// As [`Self::run`], with a force on the platform (N per sample, held over the sample; a
+    /// process or contact force the encoder does not see). An empty slice means no force.
+    pub fn run_with_force(
+        &self,
+        reference_m: &[f64],
+        platform_force_n: &[f64],
+        noise: SensorNoise,
+        seed: u64,
+    ) -> Result<AxisRecord> {
         self.validate()?;
         if reference_m.iter().any(|r| !r.is_finite()) {
             return Err(DatasetError::Input("compliant axis: a reference value is not finite".into()));
+        }
+        if !platform_force_n.is_empty() && platform_force_n.len() != reference_m.len() {
+            return Err(DatasetError::Input(format!(
+                "compliant axis: {} force samples for {} reference samples",
+                platform_force_n.len(),
+                reference_m.len()
+            )));
+        }
+        if let Some(k) = platform_force_n.iter().position(|f| !f.is_finite()) {
+            return Err(DatasetError::Input(format!("compliant axis: force sample {k} is not finite")));
         }
         if !(noise.encoder_resolution_m >= 0.0 && noise.tool_sigma_m >= 0.0) {
             return Err(DatasetError::Input(format!("compliant axis: negative or NaN sensor noise {noise:?}")));
         }
         let (ac, bc) = self.continuous();
         // Zero-order-hold discretisation by the exponential of the augmented matrix.
-        let mut aug = SMatrix::<f64, 6, 6>::zeros();
+        let mut aug = SMatrix::<f64, 7, 7>::zeros();
         aug.fixed_view_mut::<5, 5>(0, 0).copy_from(&(ac * self.dt_s));
         aug.fixed_view_mut::<5, 1>(0, 5).copy_from(&(bc * self.dt_s));
+        aug[(4, 6)] = self.dt_s / self.m2_kg;
         let e = aug.exp();
         let ad = e.fixed_view::<5, 5>(0, 0).into_owned();
         let bd = e.fixed_view::<5, 1>(0, 5).into_owned();
+        let bf = e.fixed_view::<5, 1>(0, 6).into_owned();
         let r0 = reference_m.first().copied().unwrap_or(0.0);
         let mut x = SVector::<f64, 5>::new(r0, r0, 0.0, r0, 0.0);
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -209,7 +233,7 @@ impl CompliantAxis {
             let eps = if noise.tool_sigma_m > 0.0 { normal.sample(&mut rng) } else { 0.0 };
             rec.tool_measured_m.push(x[3] + eps);
             let delayed = if k >= self.servo_delay_samples { reference_m[k - self.servo_delay_samples] } else { r0 };
-            x = ad * x + bd * delayed;
+            x = ad * x + bd * delayed + bf * platform_force_n.get(k).copied().unwrap_or(0.0);
         }
         Ok(rec)
     }

@@ -5,6 +5,7 @@
 
 use ferrocal_calib::motion::identify::{self, DiscreteModel, Mode};
 use ferrocal_calib::motion::ilc::{rms, Ilc};
+use ferrocal_calib::motion::kalman::{EstimatorNoise, ToolEstimator};
 use ferrocal_calib::motion::physical::{self, PhysicalFit};
 use serde::Serialize;
 
@@ -209,8 +210,53 @@ pub enum IlcCase {
     Actuator,
     /// The error from the tool estimated by the physical model from the encoder.
     ToolEstimate,
-    /// The error from the measured tool (tracker or camera at the sample rate).
+    /// The error from the measured tool (a tracker at the sample rate).
     ToolMeasurement,
+    /// The error from the Kalman estimate of the tool: encoder, physical model and the camera
+    /// (every few samples, delayed).
+    ToolKalman,
+}
+
+/// Settings of the learning-control experiment.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IlcSettings {
+    /// Trials after the first.
+    pub iterations: usize,
+    /// Length of the quintic move, m.
+    pub distance_m: f64,
+    /// Duration of the move, s.
+    pub move_s: f64,
+    /// Input weight of the norm-optimal update.
+    pub weight: f64,
+    /// A contact force on the platform that ramps in over 0.1 s after the move ends (0: none),
+    /// N: what the encoder cannot see and a camera can.
+    pub contact_force_n: f64,
+    /// Camera frame period, samples.
+    pub camera_every: usize,
+    /// Camera latency, samples.
+    pub camera_delay_samples: usize,
+    /// Camera noise, m.
+    pub camera_sigma_m: f64,
+    /// Seed of the sensor noise.
+    pub seed: u64,
+}
+
+impl Default for IlcSettings {
+    /// Ten trials of a 20 mm move in 0.15 s, weight 1e-4, no contact force, a 50 Hz camera
+    /// (every 5th sample at 4 ms) 12 ms late with 30 µm.
+    fn default() -> Self {
+        Self {
+            iterations: 10,
+            distance_m: 0.02,
+            move_s: 0.15,
+            weight: 1e-4,
+            contact_force_n: 0.0,
+            camera_every: 5,
+            camera_delay_samples: 3,
+            camera_sigma_m: 30e-6,
+            seed: 1,
+        }
+    }
 }
 
 /// One case's true tool-path RMS error per iteration (0 is the first trial), m.
@@ -224,17 +270,10 @@ pub struct IlcRun {
     pub measured_rms_m: Vec<f64>,
 }
 
-/// Runs `iterations` trials of each case along a quintic move of `distance_m` in `move_s`,
-/// learning matrices from the models identified in `id` (weight `w`).
-pub fn ilc_experiment(
-    axis: &CompliantAxis,
-    id: &IdentifyResult,
-    iterations: usize,
-    distance_m: f64,
-    move_s: f64,
-    w: f64,
-    seed: u64,
-) -> Result<Vec<IlcRun>> {
+/// Runs `s.iterations` trials of each case along a quintic move, learning matrices from the
+/// models identified in `id`.
+pub fn ilc_experiment(axis: &CompliantAxis, id: &IdentifyResult, s: &IlcSettings) -> Result<Vec<IlcRun>> {
+    let (iterations, distance_m, move_s, w, seed) = (s.iterations, s.distance_m, s.move_s, s.weight, s.seed);
     let dt = axis.dt_s;
     let n = ((0.1 + move_s + 0.6) / dt).round() as usize;
     let yd = quintic_move(n, dt, 0.1, move_s, distance_m);
@@ -256,9 +295,20 @@ pub fn ilc_experiment(
         d2_n_s_m: id.physical[4][0],
     };
     let c = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("learning control: {e}"));
+    let t_contact = 0.1 + move_s;
+    let force: Vec<f64> =
+        (0..n).map(|k| s.contact_force_n * ((k as f64 * dt - t_contact) / 0.1).clamp(0.0, 1.0)).collect();
+    let kalman = ToolEstimator::new(
+        &ph,
+        dt,
+        EstimatorNoise { accel_sigma_m_s2: 0.05, force_step_n: 0.5, camera_sigma_m: s.camera_sigma_m },
+        s.camera_delay_samples,
+    )
+    .map_err(c)?;
+    let every = s.camera_every.max(1);
     let noise = SensorNoise { tool_sigma_m: id.settings.tracker_sigma_m, ..SensorNoise::default() };
     let mut runs = Vec::new();
-    for case in [IlcCase::Actuator, IlcCase::ToolEstimate, IlcCase::ToolMeasurement] {
+    for case in [IlcCase::Actuator, IlcCase::ToolEstimate, IlcCase::ToolMeasurement, IlcCase::ToolKalman] {
         let h = match case {
             IlcCase::Actuator => g_act.impulse_response(n),
             _ => g_tool.impulse_response(n),
@@ -272,7 +322,9 @@ pub fn ilc_experiment(
             let mut padded = Vec::with_capacity(n + 1);
             padded.push(yd[0]);
             padded.extend_from_slice(&u);
-            let mut rec = axis.run(&padded, noise, seed + k as u64)?;
+            let mut f = vec![0.0];
+            f.extend_from_slice(&force);
+            let mut rec = axis.run_with_force(&padded, &f, noise, seed + k as u64)?;
             for s in [&mut rec.encoder_m, &mut rec.tool_true_m, &mut rec.tool_measured_m] {
                 s.remove(0);
             }
@@ -280,6 +332,10 @@ pub fn ilc_experiment(
                 IlcCase::Actuator => rec.encoder_m.clone(),
                 IlcCase::ToolEstimate => ph.simulate(&rec.encoder_m, dt, 8),
                 IlcCase::ToolMeasurement => rec.tool_measured_m.clone(),
+                IlcCase::ToolKalman => {
+                    let camera = camera_frames(&rec.tool_true_m, every, s.camera_sigma_m, seed + 500 + k as u64);
+                    kalman.estimate(&rec.encoder_m, &camera, dt).map_err(c)?.iter().map(|e| e.position_m).collect()
+                }
             };
             let e: Vec<f64> = yd.iter().zip(&seen).map(|(a, b)| a - b).collect();
             let truth_e: Vec<f64> = yd.iter().zip(&rec.tool_true_m).map(|(a, b)| a - b).collect();
@@ -292,4 +348,13 @@ pub fn ilc_experiment(
         runs.push(run);
     }
     Ok(runs)
+}
+
+/// The camera's frames of a tool path: every `every`-th sample with normal noise.
+fn camera_frames(tool_m: &[f64], every: usize, sigma_m: f64, seed: u64) -> Vec<Option<f64>> {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let normal = Normal::new(0.0, sigma_m.max(f64::MIN_POSITIVE)).expect("finite sigma");
+    tool_m.iter().enumerate().map(|(k, y)| (k % every == 0).then(|| y + normal.sample(&mut rng))).collect()
 }
