@@ -253,22 +253,18 @@ fn simulate_with_gradient(m: &DiscreteModel, u: &[f64], skip: usize) -> (Vec<f64
     let wy = filter(&[1.0], &den, &dy);
     let (na, nb) = (m.a.len(), m.b.len());
     let rows = u.len() - skip;
+    // The simulation starts at the steady state of the first input, `y0 = (sum b / sum A) u0`:
+    // its derivatives enter every sample.
+    let sum_a: f64 = den.iter().sum();
+    let (dy0_da, dy0_db) = (-y0 / sum_a, u0 / sum_a);
     let psi = DMatrix::from_fn(rows, na + nb, |r, c| {
         let t = r + skip;
         if c < na {
             let k = c + 1;
-            if t >= k {
-                -wy[t - k]
-            } else {
-                0.0
-            }
+            dy0_da - if t >= k { wy[t - k] } else { 0.0 }
         } else {
             let k = m.nk + c - na;
-            if t >= k {
-                wu[t - k]
-            } else {
-                0.0
-            }
+            dy0_db + if t >= k { wu[t - k] } else { 0.0 }
         }
     });
     (yhat, psi)
@@ -277,15 +273,20 @@ fn simulate_with_gradient(m: &DiscreteModel, u: &[f64], skip: usize) -> (Vec<f64
 /// The output-error fit of orders `na`, `nb` and dead time `nk`: Steiglitz-McBride from the ARX
 /// fit, then Levenberg-Marquardt on the simulation error. Refuses an unstable result.
 pub fn fit_output_error(u: &[f64], y: &[f64], na: usize, nb: usize, nk: usize, dt_s: f64) -> Result<DiscreteModel> {
-    let mut m = fit_arx(u, y, na, nb, nk, dt_s)?;
-    // Steiglitz-McBride.
+    let arx = fit_arx(u, y, na, nb, nk, dt_s)?;
+    let mut m = arx.clone();
+    // Steiglitz-McBride on the deviations from the first samples (the record starts at rest, so
+    // the filters start at rest too).
+    let (u0, y0) = (u[0], y[0]);
+    let du: Vec<f64> = u.iter().map(|v| v - u0).collect();
+    let dy: Vec<f64> = y.iter().map(|v| v - y0).collect();
     for _ in 0..30 {
         if !m.is_stable() {
             break;
         }
         let den = m.den();
-        let uf = filter(&[1.0], &den, u);
-        let yf = filter(&[1.0], &den, y);
+        let uf = filter(&[1.0], &den, &du);
+        let yf = filter(&[1.0], &den, &dy);
         let next = fit_arx(&uf, &yf, na, nb, nk, dt_s)?;
         let change = next.a.iter().zip(&m.a).map(|(p, q)| (p - q).abs()).fold(0.0, f64::max);
         m = next;
@@ -307,6 +308,10 @@ pub fn fit_output_error(u: &[f64], y: &[f64], na: usize, nb: usize, nk: usize, d
         let yhat = m.simulate(u);
         (skip..u.len()).map(|t| (y[t] - yhat[t]).powi(2)).sum()
     };
+    // Start from the better of the least-squares and Steiglitz-McBride models.
+    if arx.is_stable() && cost(&arx) < cost(&m) {
+        m = arx;
+    }
     let mut c = cost(&m);
     let mut mu = 1e-3;
     for _ in 0..100 {

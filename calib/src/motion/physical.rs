@@ -79,6 +79,20 @@ impl ChainParams {
         m
     }
 
+    /// The frequency response from the carriage to the platform at `f_hz`:
+    /// `X2 / A = [(-w^2 M + j w D + K)^-1 (k1 + j w d1, 0)]_2`.
+    pub fn frequency_response(&self, f_hz: f64) -> nalgebra::Complex<f64> {
+        use nalgebra::Complex;
+        let w = std::f64::consts::TAU * f_hz;
+        let [m, d, k] = self.mdk();
+        let z = |i: usize, j: usize| Complex::new(k[i][j] - w * w * m[i][j], w * d[i][j]);
+        let (a, b, c, e) = (z(0, 0), z(0, 1), z(1, 0), z(1, 1));
+        let det = a * e - b * c;
+        let f = Complex::new(self.k1_n_m, w * self.d1_n_s_m);
+        // x2 = (-c f) / det
+        -c * f / det
+    }
+
     /// The tool position for the encoder record (m, sample time `dt_s`), from rest at its first
     /// value; `substeps` Runge-Kutta steps per sample.
     pub fn simulate(&self, encoder_m: &[f64], dt_s: f64, substeps: usize) -> Vec<f64> {

@@ -111,6 +111,18 @@ impl CompliantAxis {
         }
     }
 
+    /// The true chain in the form the physical fit estimates.
+    pub fn chain(&self) -> ferrocal_calib::motion::physical::ChainParams {
+        ferrocal_calib::motion::physical::ChainParams {
+            m1_kg: self.m1_kg,
+            m2_kg: self.m2_kg,
+            k1_n_m: self.k1_n_m,
+            k2_n_m: self.k2_n_m,
+            d1_n_s_m: self.d1_n_s_m,
+            d2_n_s_m: self.d2_n_s_m,
+        }
+    }
+
     fn validate(&self) -> Result<()> {
         let v = [self.m1_kg, self.m2_kg, self.k1_n_m, self.k2_n_m, self.servo_tau_s, self.dt_s];
         if v.iter().any(|x| !x.is_finite() || *x <= 0.0)
