@@ -150,8 +150,14 @@ fn identification_section(axis: &CompliantAxis, id: &IdentifyResult) -> Section 
         ),
     );
     let e = &id.frequency_errors;
-    let worst =
-        e.tracker.iter().chain(&e.physical).chain(std::iter::once(&e.camera_first)).fold(0.0f64, |m, v| m.max(v.abs()));
+    let worst = e
+        .tracker
+        .iter()
+        .chain(&e.chain)
+        .chain(&e.physical)
+        .chain(std::iter::once(&e.camera_first))
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let pct = |v: &[f64]| v.iter().map(|x| format!("{:+.3} %", 100.0 * x)).collect::<Vec<_>>().join(", ");
     let min_val = [&id.actuator, &id.tool_tracker, &id.chain_tracker, &id.tool_camera]
         .iter()
         .map(|m| m.validation_fit_percent)
@@ -162,14 +168,13 @@ fn identification_section(axis: &CompliantAxis, id: &IdentifyResult) -> Section 
             Check::from_bool(
                 "resonances within 5 % of the truth",
                 worst < 0.05
-                    && e.tracker.len() == 2
-                    && e.physical.len() == 2
-                    && e.tracker.iter().all(|v| v.is_finite()),
+                    && [&e.tracker, &e.chain, &e.physical].iter().all(|v| v.len() == 2 && v.iter().all(|x| x.is_finite())),
                 format!(
-                    "largest relative error {:.2} % (black box {:?}, physical {:?}, camera first mode {:+.3} %)",
+                    "largest relative error {:.2} % (reference -> tool: {}; encoder -> tool: {}; physical: {}; camera, first mode: {:+.3} %)",
                     100.0 * worst,
-                    e.tracker.iter().map(|v| format!("{:+.3} %", 100.0 * v)).collect::<Vec<_>>(),
-                    e.physical.iter().map(|v| format!("{:+.3} %", 100.0 * v)).collect::<Vec<_>>(),
+                    pct(&e.tracker),
+                    pct(&e.chain),
+                    pct(&e.physical),
                     100.0 * e.camera_first
                 ),
             ),
