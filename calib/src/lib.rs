@@ -12,6 +12,7 @@
 //! - [`kinematic`]: kinematic calibration; [`design`]: pose and experiment design;
 //! - [`dynamics`]: force-sensor models and hexapod dynamics identification;
 //! - [`diagnose`]: missing physics found by cross-validated candidate effects;
+//! - [`motion`]: black-box and physical identification of compliant axes, learning control;
 //! - [`stiffness`]: elastostatic identification with model reduction to practically identifiable
 //!   parameters, experiment design and compliance compensation.
 //!
@@ -34,6 +35,7 @@ pub mod identifiability;
 pub mod kinematic;
 pub mod lsq;
 pub mod measurement;
+pub mod motion;
 pub mod stiffness;
 
 pub use error::{CalibError, Result};

@@ -12,6 +12,8 @@
 //!   recorded sessions it writes.
 //! - [`dynsim`]: simulated dynamics data: the force-sensing end-effector on a hexapod and the
 //!   hexapod's actuator forces with friction, noise, sampling and payload steps.
+//! - [`motion`]: the compliant actuator axis of a Gantry-Tau-like machine (drive, links,
+//!   platform) for identification and learning control, with encoder and tool sensors.
 //! - [`stiffsim`]: the elastostatic cell (a compliant KR 270-like arm with a gravity
 //!   compensator, a laser tracker measuring reflectors under payloads).
 //! - [`checks`]: the pass/fail criteria of `ferrocal demo` and the UR5 target reproduction.
@@ -31,6 +33,7 @@ pub mod formats;
 pub mod handeye;
 pub mod import;
 pub mod measure;
+pub mod motion;
 pub mod recording;
 pub mod render;
 pub mod sim;

@@ -21,6 +21,7 @@ mod import_measurements;
 mod import_ur10;
 mod import_ur5;
 mod measure_recording;
+mod motion_study;
 mod plan_l1;
 mod plan_support;
 mod render_targets;

@@ -63,6 +63,9 @@ pub enum Command {
     Dynamics(crate::commands::dynamics::DynamicsArgs),
     /// Elastostatic (compliance) identification with practical identifiability and compensation.
     Stiffness(crate::commands::stiffness::StiffnessArgs),
+    /// Compliance dynamics, tool estimation and learning control on a simulated compliant axis
+    /// (identification with validation, Bode plot, pole map, ILC over trials).
+    Motion(crate::commands::motion::MotionArgs),
 }
 
 /// `ferrocal demo`.

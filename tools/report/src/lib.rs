@@ -23,6 +23,7 @@ pub mod demo;
 pub mod diagnose;
 pub mod dynamics;
 pub mod handeye;
+pub mod motion;
 pub mod plan;
 pub mod plot;
 pub mod recording;

@@ -8,6 +8,7 @@ pub mod detect;
 pub mod diagnose;
 mod doctor;
 pub mod dynamics;
+pub mod motion;
 pub mod plan;
 mod robot;
 pub mod simulate;
@@ -41,6 +42,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Export(a) => calibrate::run_export(&a),
         Command::Dynamics(a) => dynamics::run(&a),
         Command::Stiffness(a) => stiffness::run(&a),
+        Command::Motion(a) => motion::run(&a),
     }
 }
 
