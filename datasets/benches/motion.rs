@@ -1,0 +1,53 @@
+//! Motion identification and learning-control speed (issue [motion]): the output-error fits of a
+//! 60 s record at 250 Hz (15,000 samples; the order-1 actuator model and the order-5
+//! reference-to-tool model), the physical chain fit of the same record, the whole
+//! identification experiment (records simulated, every model fitted and validated), and one
+//! learning-control iteration (a 0.85 s trial of 212 samples: the trial run and the update), with
+//! the learning matrix's construction apart.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use ferrocal_calib::motion::identify::fit_output_error;
+use ferrocal_calib::motion::ilc::Ilc;
+use ferrocal_calib::motion::physical::fit_chain;
+use ferrocal_datasets::motion::study::{identify_axis, IdentifySettings};
+use ferrocal_datasets::motion::{quintic_move, random_binary_reference, CompliantAxis, SensorNoise};
+
+fn bench(c: &mut Criterion) {
+    let axis = CompliantAxis::l1_like();
+    let dt = axis.dt_s;
+    let n = (60.0 / dt) as usize;
+    let r = random_binary_reference(n, 1, 0.002, 1);
+    let rec = axis.run(&r, SensorNoise::default(), 1).unwrap();
+    let mut g = c.benchmark_group("motion");
+    g.sample_size(10);
+    g.bench_function("output_error_order1_60s", |b| {
+        b.iter(|| fit_output_error(&r, &rec.encoder_m, 1, 1, 6, dt).unwrap())
+    });
+    g.bench_function("output_error_order5_60s", |b| {
+        b.iter(|| fit_output_error(&r, &rec.tool_measured_m, 5, 5, 6, dt).unwrap())
+    });
+    let start = fit_output_error(&rec.encoder_m, &rec.tool_measured_m, 4, 4, 1, dt).unwrap().modes();
+    g.bench_function("physical_chain_60s", |b| {
+        b.iter(|| fit_chain(&rec.encoder_m, &rec.tool_measured_m, dt, axis.m2_kg, &start).unwrap())
+    });
+    g.bench_function("identification_experiment_60s_30s", |b| {
+        b.iter(|| identify_axis(&axis, &IdentifySettings::default()).unwrap())
+    });
+    let id = identify_axis(&axis, &IdentifySettings::default()).unwrap();
+    let trial = 212;
+    let h = id.tool_tracker.model().impulse_response(trial);
+    g.bench_function("ilc_learning_matrix_212", |b| b.iter(|| Ilc::norm_optimal(&h, 1e-4).unwrap()));
+    let ilc = Ilc::norm_optimal(&h, 1e-4).unwrap();
+    let yd = quintic_move(trial, dt, 0.1, 0.15, 0.02);
+    g.bench_function("ilc_iteration_212", |b| {
+        b.iter(|| {
+            let rec = axis.run(&yd, SensorNoise::default(), 2).unwrap();
+            let e: Vec<f64> = yd.iter().zip(&rec.tool_measured_m).map(|(a, b)| a - b).collect();
+            ilc.update(&yd, &e).unwrap()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
