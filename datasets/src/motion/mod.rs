@@ -24,6 +24,7 @@
 //! the recorded encoder, a different discretisation of the same structure.
 
 pub mod study;
+pub mod tracking;
 
 use nalgebra::{SMatrix, SVector};
 use rand::{Rng, SeedableRng};

@@ -9,7 +9,8 @@ use ferrocal_calib::check::Check;
 use ferrocal_datasets::motion::study::{
     identify_axis, ilc_experiment, IdentifyResult, IdentifySettings, IlcRun, IlcSettings,
 };
-use ferrocal_datasets::motion::CompliantAxis;
+use ferrocal_datasets::motion::tracking::{TrackedSequence, Tracker, TrackingSettings};
+use ferrocal_datasets::motion::{quintic_move, CompliantAxis, SensorNoise};
 use serde_json::json;
 
 use crate::plot::{self, Series};
@@ -261,7 +262,73 @@ fn ilc_section(runs: &[IlcRun], s: &IlcSettings, id_suffix: &str) -> Section {
     sec
 }
 
-/// Runs the experiments: identification, learning control without and with a contact force.
+/// The vision-tracking section: a chessboard on the moving tool, rendered with motion blur.
+fn tracking_section(s: &TrackingSettings, seq: &TrackedSequence) -> Section {
+    let mut sec =
+        Section::new("motion-tracking", "Vision tracking of the moving tool (rendered frames with motion blur)");
+    sec.text(format!(
+        "A {}x{} camera (f = {:.0} px) {:.2} m from a {}x{} chessboard of {:.0} mm squares on the tool; one frame every {} axis samples, {:.1} ms exposure rendered as the mean of {} sub-frames (the plate moves during the exposure), shot and read noise, the sub-pixel edge detector and the pose with the corners' covariances; positions along the axis relative to a still frame (the tare). Latency (exposure's second half and {:.1} ms processing): {:.1} ms = {} samples. The camera model is the renderer's own (a calibrated camera assumed).",
+        s.width_px, s.height_px, s.focal_px, s.distance_m, s.board_inner.0, s.board_inner.1, 1e3 * s.square_m, s.frame_every, 1e3 * s.exposure_s, s.sub_frames, 1e3 * s.processing_s, 1e3 * seq.latency_s, seq.latency_samples
+    ));
+    let err: Vec<(f64, f64)> =
+        seq.frames.iter().map(|f| (f.sample as f64, 1e6 * (f.position_m - f.truth_mean_m))).collect();
+    let up: Vec<(f64, f64)> = seq.frames.iter().map(|f| (f.sample as f64, 3e6 * f.std_m)).collect();
+    let down: Vec<(f64, f64)> = up.iter().map(|p| (p.0, -p.1)).collect();
+    sec.figure(
+        "Tracking error per frame against the exposure-averaged truth, with the stated +-3 sigma",
+        plot::xy_plot(
+            "vision tracking",
+            "axis sample",
+            "error (µm)",
+            &[
+                Series { name: "error", points: &err, line: false },
+                Series { name: "+3 sigma", points: &up, line: true },
+                Series { name: "-3 sigma", points: &down, line: true },
+            ],
+        ),
+    );
+    let n = seq.frames.len().max(1) as f64;
+    let rms = (seq.frames.iter().map(|f| (f.position_m - f.truth_mean_m).powi(2)).sum::<f64>() / n).sqrt();
+    let z = (seq.frames.iter().map(|f| ((f.position_m - f.truth_mean_m) / f.std_m).powi(2)).sum::<f64>() / n).sqrt();
+    let sigma = (seq.frames.iter().map(|f| f.std_m.powi(2)).sum::<f64>() / n).sqrt();
+    sec.check(Check::from_bool(
+        "tracked positions within their stated uncertainty",
+        seq.missed.is_empty() && !seq.frames.is_empty() && z < 3.0,
+        format!(
+            "{} frames, {} missed; RMS error {:.2} µm, stated sigma {:.2} µm (RMS of error / sigma {z:.2})",
+            seq.frames.len(),
+            seq.missed.len(),
+            1e6 * rms,
+            1e6 * sigma
+        ),
+    ));
+    sec
+}
+
+/// Tracks the tool along the learning-control move (the first trial, no learning) and returns
+/// the sequence with its settings.
+fn tracking_experiment(axis: &CompliantAxis, quick: bool, seed: u64) -> Result<(TrackingSettings, TrackedSequence)> {
+    let s = if quick {
+        TrackingSettings {
+            width_px: 640,
+            height_px: 400,
+            focal_px: 700.0,
+            distance_m: 0.6,
+            seed,
+            ..TrackingSettings::default()
+        }
+    } else {
+        TrackingSettings { seed, ..TrackingSettings::default() }
+    };
+    let il = IlcSettings::default();
+    let n = ((0.1 + il.move_s + 0.2) / axis.dt_s).round() as usize;
+    let rec = axis.run(&quintic_move(n, axis.dt_s, 0.1, il.move_s, il.distance_m), SensorNoise::default(), seed)?;
+    let seq = Tracker::new(&s)?.track(&rec.tool_true_m, axis.dt_s)?;
+    Ok((s, seq))
+}
+
+/// Runs the experiments: identification, vision tracking, learning control without and with a
+/// contact force (the Kalman case with the tracked camera's latency).
 pub fn study_sections(seed: u64, quick: bool, contact_force_n: f64, progress: &dyn Fn(&str)) -> Result<Vec<Section>> {
     let axis = CompliantAxis::l1_like();
     let settings = if quick {
@@ -272,12 +339,20 @@ pub fn study_sections(seed: u64, quick: bool, contact_force_n: f64, progress: &d
     progress("identification");
     let id = identify_axis(&axis, &settings)?;
     let mut out = vec![identification_section(&axis, &id)];
+    progress("vision tracking");
+    let (ts, seq) = tracking_experiment(&axis, quick, seed)?;
+    out.push(tracking_section(&ts, &seq));
     progress("learning control");
-    let s0 = IlcSettings { seed, ..IlcSettings::default() };
+    let s0 = IlcSettings {
+        seed,
+        camera_every: ts.frame_every,
+        camera_delay_samples: seq.latency_samples,
+        ..IlcSettings::default()
+    };
     out.push(ilc_section(&ilc_experiment(&axis, &id, &s0)?, &s0, ""));
     if contact_force_n > 0.0 {
         progress("learning control under a contact force");
-        let s1 = IlcSettings { seed, contact_force_n, ..IlcSettings::default() };
+        let s1 = IlcSettings { contact_force_n, ..s0.clone() };
         out.push(ilc_section(&ilc_experiment(&axis, &id, &s1)?, &s1, "-contact"));
     }
     Ok(out)
@@ -318,6 +393,6 @@ mod tests {
         assert_eq!(s.id, "motion");
         assert!(s.status.as_ref().is_some_and(Check::passed), "{:?}", s.status);
         let figures = s.blocks.iter().filter(|b| matches!(b, crate::report::Block::Figure { .. })).count();
-        assert_eq!(figures, 4, "Bode, pole map and two learning curves");
+        assert_eq!(figures, 5, "Bode, pole map, tracking errors and two learning curves");
     }
 }
