@@ -162,7 +162,7 @@ impl Tracker {
         let mut mean = sum.ok_or_else(|| DatasetError::Input("vision tracking: no sub-frame".into()))?;
         let k = 1.0 / positions_m.len() as f32;
         mean.electrons.iter_mut().for_each(|v| *v *= k);
-        Ok(self.renderer.config().sensor.expose(&mean, seed)?)
+        self.renderer.config().sensor.expose(&mean, seed)
     }
 
     /// The plate's pose in one image: position (m) in the camera and its covariance (m^2), the
