@@ -10,6 +10,7 @@ use ferrocal_calib::motion::identify::fit_output_error;
 use ferrocal_calib::motion::ilc::Ilc;
 use ferrocal_calib::motion::physical::fit_chain;
 use ferrocal_datasets::motion::study::{identify_axis, IdentifySettings};
+use ferrocal_datasets::motion::tracking::{Tracker, TrackingSettings};
 use ferrocal_datasets::motion::{quintic_move, random_binary_reference, CompliantAxis, SensorNoise};
 
 fn bench(c: &mut Criterion) {
@@ -46,6 +47,12 @@ fn bench(c: &mut Criterion) {
             ilc.update(&yd, &e).unwrap()
         })
     });
+    let tracker = Tracker::new(&TrackingSettings::default()).unwrap();
+    let subs: Vec<f64> = (0..8).map(|j| 1e-4 * j as f64).collect();
+    g.bench_function("render_blurred_1mp_frame_8_subframes", |b| b.iter(|| tracker.expose(&subs, 3).unwrap()));
+    let frame = tracker.expose(&subs, 3).unwrap();
+    assert_eq!(frame.width() * frame.height(), 1280 * 800);
+    g.bench_function("track_1mp_frame", |b| b.iter(|| tracker.measure(&frame).unwrap()));
     g.finish();
 }
 
