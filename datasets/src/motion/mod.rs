@@ -23,6 +23,7 @@
 //! `ferrocal_calib::motion::physical` integrates the chain by its own Runge-Kutta code driven by
 //! the recorded encoder, a different discretisation of the same structure.
 
+pub mod leadthrough;
 pub mod study;
 pub mod tracking;
 
@@ -164,6 +165,22 @@ impl CompliantAxis {
         (a, b)
     }
 
+    /// The exact sampled system over `[a, x1, v1, x2, v2]` (zero-order hold on the delayed
+    /// reference and on a platform force): transition, reference input, force input.
+    pub(crate) fn discrete(&self) -> (SMatrix<f64, 5, 5>, SVector<f64, 5>, SVector<f64, 5>) {
+        let (ac, bc) = self.continuous();
+        let mut aug = SMatrix::<f64, 7, 7>::zeros();
+        aug.fixed_view_mut::<5, 5>(0, 0).copy_from(&(ac * self.dt_s));
+        aug.fixed_view_mut::<5, 1>(0, 5).copy_from(&(bc * self.dt_s));
+        aug[(4, 6)] = self.dt_s / self.m2_kg;
+        let e = aug.exp();
+        (
+            e.fixed_view::<5, 5>(0, 0).into_owned(),
+            e.fixed_view::<5, 1>(0, 5).into_owned(),
+            e.fixed_view::<5, 1>(0, 6).into_owned(),
+        )
+    }
+
     /// The structure's two modes (the pole pairs of the links-and-platform chain with the
     /// carriage held), lowest first.
     pub fn modes(&self) -> Result<Vec<TrueMode>> {
@@ -218,16 +235,7 @@ impl CompliantAxis {
         if !(noise.encoder_resolution_m >= 0.0 && noise.tool_sigma_m >= 0.0) {
             return Err(DatasetError::Input(format!("compliant axis: negative or NaN sensor noise {noise:?}")));
         }
-        let (ac, bc) = self.continuous();
-        // Zero-order-hold discretisation by the exponential of the augmented matrix.
-        let mut aug = SMatrix::<f64, 7, 7>::zeros();
-        aug.fixed_view_mut::<5, 5>(0, 0).copy_from(&(ac * self.dt_s));
-        aug.fixed_view_mut::<5, 1>(0, 5).copy_from(&(bc * self.dt_s));
-        aug[(4, 6)] = self.dt_s / self.m2_kg;
-        let e = aug.exp();
-        let ad = e.fixed_view::<5, 5>(0, 0).into_owned();
-        let bd = e.fixed_view::<5, 1>(0, 5).into_owned();
-        let bf = e.fixed_view::<5, 1>(0, 6).into_owned();
+        let (ad, bd, bf) = self.discrete();
         let r0 = reference_m.first().copied().unwrap_or(0.0);
         let mut x = SVector::<f64, 5>::new(r0, r0, 0.0, r0, 0.0);
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
