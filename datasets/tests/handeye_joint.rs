@@ -31,7 +31,10 @@ fn joint_adjustment_is_within_1_5x_of_the_tracker_model_with_parameters_within_3
         r.joint_coverage.max_z,
         r.joint_s0
     );
-    assert!(r.joint_coverage.n >= 20, "{} free robot parameters", r.joint_coverage.n);
+    // The selection keeps the tool (the plate on the flange) and the joint zero offsets before
+    // per-joint corrections, so fewer robot parameters are free than the 26 of the earlier
+    // selection (20 on this seed, 19 with a standard deviation in the joint adjustment).
+    assert!(r.joint_coverage.n >= 15, "{} free robot parameters", r.joint_coverage.n);
     assert!(
         r.joint.rms_mm <= 1.5 * r.tracker.rms_mm,
         "joint {:.4} mm against the tracker model's {:.4} mm",

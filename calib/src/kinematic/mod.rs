@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
 use crate::frames::{fit_rigid, log6};
-use crate::identifiability::{analyze, Identifiability};
+use crate::identifiability::Identifiability;
 use crate::lsq::{covariance, solve, LmOptions, LmSummary, Loss};
 use crate::measurement::PoseMeasurement;
 
@@ -36,6 +36,7 @@ pub mod correct;
 mod model;
 mod problem;
 mod refit;
+mod select;
 mod split;
 #[cfg(test)]
 mod tests;
@@ -44,6 +45,8 @@ use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
 use problem::{whitening_matrices, KinProblem};
 pub use refit::{refit_frame, FrameRefit};
+use select::analyze_subset;
+pub use select::{describe_trade_offs, TradeOff, TradePartner};
 pub use split::{split_rows, split_rows_by_plane, split_rows_in_blocks, SplitPlane};
 
 /// Which of the model's own parameters are free.
@@ -465,7 +468,8 @@ pub fn calibrate(
     }
     let (cov, s0) = covariance(&res.jacobian, &res.residuals)?;
     let j_after = problem.full_jacobian(&full)?;
-    let id_after = analyze_subset(&scaled(&j_after), &layout.names, &allowed, opts.rank_tolerance)?;
+    let serial = matches!(model, RobotModel::Serial(_));
+    let id_after = analyze_subset(&scaled(&j_after), &layout.names, &allowed, opts.rank_tolerance, serial)?;
     let mut out_params = Vec::with_capacity(layout.len());
     for i in 0..layout.len() {
         let k = free.iter().position(|&f| f == i);
@@ -638,7 +642,8 @@ fn structural_selection(
         return Err(CalibError::Data("nothing to identify: every parameter is fixed by the options".into()));
     }
     let j0 = problem.full_jacobian(start)?;
-    let id_before = analyze_subset(&scaled(&j0), &layout.names, &allowed, opts.rank_tolerance)?;
+    let serial = matches!(problem.base_model, RobotModel::Serial(_));
+    let id_before = analyze_subset(&scaled(&j0), &layout.names, &allowed, opts.rank_tolerance, serial)?;
     for &i in &id_before.fixed {
         fixed_reason[allowed[i]] =
             Some("not identifiable from these measurements (redundant with the kept parameters)".into());
@@ -687,28 +692,6 @@ pub(crate) fn prediction_jacobian(
     };
     // The residual is measured minus predicted: its Jacobian is minus the prediction's.
     Ok(-problem.full_jacobian(&start)?)
-}
-
-/// Identifiability over the columns `cols` of `a` (names taken from `names`). Where parameters
-/// are redundant, the pivoted QR keeps the robot model's own parameters first, then joint
-/// offsets, the tool offset and last the device frame (their columns are weighted 1, 0.8, 0.7
-/// and 0.5 for the pivoting), so a redundant frame is what gets fixed, as in the source's
-/// identification "in the measuring device's frame".
-fn analyze_subset(a: &DMatrix<f64>, names: &[String], cols: &[usize], tol: f64) -> Result<Identifiability> {
-    let weight = |n: &str| {
-        if n.starts_with("frame.") {
-            0.5
-        } else if n.starts_with("target_tool.") {
-            0.7
-        } else if n.starts_with("offset.") {
-            0.8
-        } else {
-            1.0
-        }
-    };
-    let sub = DMatrix::from_fn(a.nrows(), cols.len(), |i, j| a[(i, cols[j])] * weight(&names[cols[j]]));
-    let sub_names: Vec<String> = cols.iter().map(|&c| names[c].clone()).collect();
-    analyze(&sub, &sub_names, tol)
 }
 
 /// Plain-words advice for what the data cannot identify: joints that barely moved.
