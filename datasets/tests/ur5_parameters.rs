@@ -57,6 +57,8 @@ fn tool_offset_and_zero_offsets_are_identified_as_themselves() {
     assert!((z.against[0].per_unit - 1.0).abs() < 1e-6, "{z:?}");
     let rz = trades.iter().find(|t| t.name == "joint2.corr_rz_rad").expect("joint2.corr_rz fixed");
     assert_eq!(rz.against[0].name, "offset.q3_rad", "{rz:?}");
-    let dead = trades.iter().find(|t| t.name == "offset.q6_rad").expect("offset.q6 fixed");
-    assert!(dead.against.is_empty(), "{dead:?}");
+    // Joint 6's zero offset only turns the target's small lateral offset (0.2 mm) about the
+    // flange axis: it trades against the tool's x and y at under 1 mm per rad.
+    let q6 = trades.iter().find(|t| t.name == "offset.q6_rad").expect("offset.q6 fixed");
+    assert!(q6.against.iter().all(|p| p.name.starts_with("target_tool.") && p.per_unit.abs() < 1e-3), "{q6:?}");
 }

@@ -45,7 +45,7 @@ use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
 use problem::{whitening_matrices, KinProblem};
 pub use refit::{refit_frame, FrameRefit};
-use select::analyze_subset;
+use select::{analyze_subset, frames_first};
 pub use select::{describe_trade_offs, TradeOff, TradePartner};
 pub use split::{split_rows, split_rows_by_plane, split_rows_in_blocks, SplitPlane};
 
@@ -409,9 +409,11 @@ pub fn calibrate(
     let all = problem.free.clone();
     let train_before = problem.calibrated(&start)?.evaluate(rows)?;
 
-    // Structural identifiability at the start, on the scaled Jacobian.
+    // Frames, tool and zero offsets first; structural identifiability there, on the scaled
+    // Jacobian.
+    let at = frames_first(&mut problem, &layout, opts)?;
     let scaled = |jac: &DMatrix<f64>| scale_columns(jac, &layout);
-    let (mut fixed_reason, allowed, id_before) = structural_selection(&problem, &layout, &start, opts)?;
+    let (mut fixed_reason, allowed, id_before) = structural_selection(&problem, &layout, &at, opts)?;
     let mut free: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
     if rows.len() * problem.block() <= free.len() {
         return Err(CalibError::TooFew(format!(
@@ -423,7 +425,7 @@ pub fn calibrate(
     }
     problem.free = free.clone();
     let lm = LmOptions { loss: opts.loss, ..opts.lm.clone() };
-    let x0: Vec<f64> = free.iter().map(|&i| start[i]).collect();
+    let x0: Vec<f64> = free.iter().map(|&i| at[i]).collect();
     let mut res = solve(&problem, &x0, &lm)?;
     let mut full = problem.full(&res.x);
 
@@ -449,7 +451,7 @@ pub fn calibrate(
             }
             free.retain(|i| !weak.contains(i));
             problem.free = free.clone();
-            let x0: Vec<f64> = free.iter().map(|&i| start[i]).collect();
+            let x0: Vec<f64> = free.iter().map(|&i| at[i]).collect();
             res = solve(&problem, &x0, &lm)?;
             full = problem.full(&res.x);
             let rms_after = problem.calibrated(&full)?.evaluate(rows)?.rms_mm;
@@ -506,7 +508,8 @@ pub fn calibrate(
 
 /// The candidates [`calibrate`] would identify from `rows` with `opts`: its candidate layout,
 /// and the indices (into the layout) of the candidates its structural identifiability analysis
-/// at the start keeps free, with that analysis. The same selection `calibrate` makes before
+/// keeps free (at the frames-first fit of a serial chain, see [`select::frames_first`], else at
+/// the start), with that analysis. The same selection `calibrate` makes before
 /// it solves (no practical-identifiability reduction, which needs the solution); other
 /// adjustments that estimate the same robot from other observations (the joint adjustment of
 /// robot and camera, [`crate::handeye::joint`]) take their robot parameters from it.
@@ -523,8 +526,9 @@ pub fn identifiable_candidates(
     }
     let use_ori = opts.use_orientation && rows.iter().all(|r| r.orientation.is_some());
     let layout = StateLayout::new(model, if use_ori { 6 } else { 3 }, &opts.model_params, &opts.effects);
-    let problem = start_problem(model, rows, opts, &layout, use_ori)?;
-    let (fixed_reason, _, id) = structural_selection(&problem, &layout, &problem.start, opts)?;
+    let mut problem = start_problem(model, rows, opts, &layout, use_ori)?;
+    let at = frames_first(&mut problem, &layout, opts)?;
+    let (fixed_reason, _, id) = structural_selection(&problem, &layout, &at, opts)?;
     let free = (0..layout.len()).filter(|i| fixed_reason[*i].is_none()).collect();
     Ok((layout, free, id))
 }

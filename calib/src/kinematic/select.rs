@@ -11,12 +11,15 @@
 //! before them explains ([`priority`], [`ferrocal_lsq::identifiability::analyze_prioritized`]).
 //! Parallel robots keep their earlier soft preference (column weights, [`weight`]).
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, Isometry3};
 use serde::Serialize;
 
-use super::KinematicCalibration;
+use super::problem::KinProblem;
+use super::{scale_columns, KinematicCalibration, KinematicOptions, StateLayout};
 use crate::error::Result;
+use crate::frames::exp6;
 use crate::identifiability::{analyze, Identifiability};
+use crate::lsq::{solve, LmOptions};
 
 /// The selection rank of candidate `name` of a serial chain (lower is kept first).
 pub(crate) fn priority(name: &str) -> u32 {
@@ -52,9 +55,20 @@ pub(crate) fn weight(name: &str, serial: bool) -> f64 {
     }
 }
 
+/// The smallest singular value, relative to the largest, that the selection of a serial chain
+/// counts as identified (when the options' `rank_tolerance` is smaller). The columns are scaled
+/// to 1 mm / 1 mrad, so the largest singular value is about a 1 mm shift of the device frame:
+/// a combination below 1e-4 of it moves the measurements by less than 0.1 um per mm or mrad,
+/// which no device resolves. With the target close to the last joint's axis (the UR5 tracker
+/// table: 0.2 mm off it, 33 mm out) the wrist's correction terms are separated from the zero
+/// offsets only by that lever (singular values 4e-5 and 3e-6 of the largest); kept, they made
+/// the zero offset of joint 5 a +-0.4 rad parameter.
+pub(crate) const SERIAL_MIN_REL_SINGULAR: f64 = 1e-4;
+
 /// Identifiability over the columns `cols` of `a` (names taken from `names`): for a serial chain
-/// the prioritized selection ([`priority`]), for a parallel robot the pivoted QR of the columns
-/// weighted by [`weight`].
+/// the prioritized selection ([`priority`]) with a relative tolerance of at least
+/// [`SERIAL_MIN_REL_SINGULAR`], for a parallel robot the pivoted QR of the columns weighted by
+/// [`weight`].
 pub(crate) fn analyze_subset(
     a: &DMatrix<f64>,
     names: &[String],
@@ -66,10 +80,75 @@ pub(crate) fn analyze_subset(
     let sub = DMatrix::from_fn(a.nrows(), cols.len(), |i, j| a[(i, cols[j])] * weight(&names[cols[j]], serial));
     if serial {
         let prio: Vec<u32> = sub_names.iter().map(|n| priority(n)).collect();
+        let tol = tol.max(SERIAL_MIN_REL_SINGULAR);
         Ok(ferrocal_lsq::identifiability::analyze_prioritized(&sub, &sub_names, &prio, tol)?)
     } else {
         analyze(&sub, &sub_names, tol)
     }
+}
+
+/// The frames-first fit of a serial chain, before the selection: the device frame, the tool and
+/// the joint zero offsets that the options leave free (those of them the Jacobian at the start
+/// identifies, by [`analyze_subset`]) fitted alone, the link geometry at its nominal values, by
+/// a short Levenberg-Marquardt. `problem`'s registrations `f0` and `tool0` are re-based on the
+/// fitted frames (so the frame and tool increments are zero there) and the returned candidate
+/// vector carries the fitted zero offsets; the selection is judged on the Jacobian at this
+/// point. At the raw start the target sits on the flange (tool = 0), where the last joint's
+/// zero offset and the corrections about axes through the flange have no effect and look
+/// redundant, and a far-off frame mixes frame and joint columns; once the tool is known they
+/// separate. Returns the start unchanged for parallel robots, the closure cost, or when the
+/// fit fails or does not lower the cost.
+pub(super) fn frames_first(
+    problem: &mut KinProblem,
+    layout: &StateLayout,
+    opts: &KinematicOptions,
+) -> Result<Vec<f64>> {
+    let start = problem.start.clone();
+    if !matches!(problem.base_model, ferrocal_robot::RobotModel::Serial(_))
+        || problem.cost != super::Cost::ForwardKinematics
+    {
+        return Ok(start);
+    }
+    let mut cols: Vec<usize> = Vec::new();
+    if opts.estimate_device_frame && opts.fixed_device_frame.is_none() {
+        cols.extend(layout.frame.clone());
+    }
+    if opts.estimate_tool {
+        cols.extend(layout.tool.clone());
+    }
+    if opts.joint_offsets {
+        cols.extend(layout.offsets.clone());
+    }
+    if cols.is_empty() {
+        return Ok(start);
+    }
+    let j0 = scale_columns(&problem.full_jacobian(&start)?, layout);
+    let id = analyze_subset(&j0, &layout.names, &cols, opts.rank_tolerance, true)?;
+    let free: Vec<usize> = cols.iter().enumerate().filter(|(k, _)| !id.fixed.contains(k)).map(|(_, &c)| c).collect();
+    if free.is_empty() || problem.rows.len() * problem.block() <= free.len() {
+        return Ok(start);
+    }
+    let all_free = std::mem::replace(&mut problem.free, free.clone());
+    let x0: Vec<f64> = free.iter().map(|&i| start[i]).collect();
+    let lm = LmOptions { max_iterations: 30, loss: opts.loss, ..opts.lm.clone() };
+    let fitted = solve(&*problem, &x0, &lm);
+    problem.free = all_free;
+    let Ok(res) = fitted else { return Ok(start) };
+    if !(res.summary.final_cost < res.summary.initial_cost) {
+        return Ok(start);
+    }
+    let mut at = start.clone();
+    for (k, &i) in free.iter().enumerate() {
+        at[i] = res.x[k];
+    }
+    let t = &at[layout.tool.clone()];
+    let tool = if t.len() == 6 { exp6(t) } else { Isometry3::translation(t[0], t[1], t[2]) };
+    problem.f0 = exp6(&at[layout.frame.clone()]) * problem.f0;
+    problem.tool0 *= tool;
+    for i in layout.frame.clone().chain(layout.tool.clone()) {
+        at[i] = start[i];
+    }
+    Ok(at)
 }
 
 /// One kept parameter a fixed one trades against.
