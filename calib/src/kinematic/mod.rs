@@ -34,6 +34,7 @@ use crate::measurement::PoseMeasurement;
 
 pub mod correct;
 mod model;
+mod point_start;
 mod problem;
 mod refit;
 mod select;
@@ -570,7 +571,8 @@ fn start_problem<'a>(
 
 /// The start of the device frame and the tool frame: the given device frame, else the rigid
 /// registration of the nominal model's positions to the measured ones, or (with orientations)
-/// the closed form of `AX = ZB` when it fits the training positions better.
+/// the closed form of `AX = ZB`, or (positions only, serial chains) the closed form of the device
+/// frame and the target point ([`point_start`]) when it fits the training positions better.
 fn start_frames(
     model: &RobotModel,
     rows: &[&PoseMeasurement],
@@ -592,7 +594,17 @@ fn start_frames(
             // closed form (AX = ZB): needed when the target sits far from the flange on a robot
             // whose flange origin hardly moves (a positioner). The start that fits the training
             // positions better is taken, so the positions-only start stays where it serves.
-            match use_ori.then(|| pose_start(&nominal, rows)).flatten() {
+            // With positions only, a serial chain's device frame and target point follow in
+            // closed form too (point_start): needed when the device is far off and the target far
+            // from the flange (the rigid registration of flange origins then misses by metres).
+            let closed = if use_ori {
+                pose_start(&nominal, rows)
+            } else if matches!(model, RobotModel::Serial(_)) {
+                point_start::device_and_point(&nominal, &measured)
+            } else {
+                None
+            };
+            match closed {
                 Some(closed) if start_rms(&nominal, &measured, &closed) < start_rms(&nominal, &measured, &rigid) => {
                     closed
                 }

@@ -133,10 +133,10 @@ pub(super) fn frames_first(
     let lm = LmOptions { max_iterations: 30, loss: opts.loss, ..opts.lm.clone() };
     let fitted = solve(&*problem, &x0, &lm);
     problem.free = all_free;
-    let Ok(res) = fitted else { return Ok(start) };
-    if !(res.summary.final_cost < res.summary.initial_cost) {
-        return Ok(start);
-    }
+    let res = match fitted {
+        Ok(res) if res.summary.final_cost < res.summary.initial_cost => res,
+        _ => return Ok(start),
+    };
     let mut at = start.clone();
     for (k, &i) in free.iter().enumerate() {
         at[i] = res.x[k];
