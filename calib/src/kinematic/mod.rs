@@ -311,8 +311,9 @@ pub struct KinematicCalibration {
     pub free: Vec<usize>,
     /// A-posteriori standard deviation of unit weight (1 when the noise model is right).
     pub s0: f64,
-    /// Identifiability at the start values (over the candidates the options leave free; its
-    /// `names` say which).
+    /// Identifiability where the selection is judged (a serial chain: after the frames-first
+    /// fit, `select::frames_first`; else at the start values) over the candidates the options
+    /// leave free (its `names` say which).
     pub identifiability_before: Identifiability,
     /// Identifiability at the solution (all candidates).
     pub identifiability_after: Identifiability,
@@ -623,10 +624,10 @@ fn scale_columns(jac: &DMatrix<f64>, layout: &StateLayout) -> DMatrix<f64> {
     s
 }
 
-/// The structural identifiability at the start: which candidates the options fix, and, over
-/// the others, the pivoted QR of the scaled Jacobian (see [`analyze_subset`]). Returns the
-/// reason every fixed candidate is fixed, the candidates the options leave free and the
-/// analysis.
+/// The structural identifiability at `start` (the selection point): which candidates the
+/// options fix, and, over the others, the selection on the scaled Jacobian (see
+/// [`analyze_subset`]). Returns the reason every fixed candidate is fixed, the candidates the
+/// options leave free and the analysis.
 #[allow(clippy::type_complexity)]
 fn structural_selection(
     problem: &KinProblem,
@@ -652,7 +653,7 @@ fn structural_selection(
             fixed_reason[i] = Some("joint offsets not identified (option)".into());
         }
     }
-    // Structural identifiability at the start over the candidates the options leave free.
+    // Structural identifiability at the selection point over the candidates the options leave free.
     let allowed: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
     if allowed.is_empty() {
         return Err(CalibError::Data("nothing to identify: every parameter is fixed by the options".into()));

@@ -158,7 +158,7 @@ pub struct TradePartner {
     pub name: String,
     /// The change of the kept parameter (in its unit) that has the same effect on the
     /// measurements as a unit change of the fixed one (in its unit), in the least-squares
-    /// sense over the measured poses, at the start values.
+    /// sense over the measured poses, where the selection was judged.
     pub per_unit: f64,
 }
 
@@ -173,7 +173,7 @@ pub struct TradeOff {
 }
 
 impl KinematicCalibration {
-    /// For every candidate the structural analysis at the start fixed: the kept parameters it
+    /// For every candidate the structural selection fixed: the kept parameters it
     /// is redundant with (from the least-squares fit of its Jacobian column by the kept ones),
     /// with the exchange rate in the parameters' own units.
     pub fn trade_offs(&self) -> Vec<TradeOff> {
