@@ -20,8 +20,9 @@ fn joint_adjustment_is_within_1_5x_of_the_tracker_model_with_parameters_within_3
     let seed = 3;
     let r = run_joint_study(&config, seed).unwrap();
     eprintln!(
-        "seed {seed}: held-out RMS tracker {:.4}, two-step {:.4} (true camera {:.4}), joint {:.4}, nominal {:.4} mm; joint parameters within 3 sigma {}/{} (max z {:.2}), s0 {:.3}",
+        "seed {seed}: held-out RMS tracker {:.4} (floor {:.4}), two-step {:.4} (true camera {:.4}), joint {:.4}, nominal {:.4} mm; joint parameters within 3 sigma {}/{} (max z {:.2}), s0 {:.3}",
         r.tracker.rms_mm,
+        r.noise_floor_mm,
         r.two_step.rms_mm,
         r.two_step_true_camera.rms_mm,
         r.joint.rms_mm,
@@ -31,7 +32,21 @@ fn joint_adjustment_is_within_1_5x_of_the_tracker_model_with_parameters_within_3
         r.joint_coverage.max_z,
         r.joint_s0
     );
-    assert!(r.joint_coverage.n >= 20, "{} free robot parameters", r.joint_coverage.n);
+    // The selection keeps the plate's pose on the flange as the tool (not a robot parameter)
+    // and the joint zero offsets before per-joint corrections: the 26 robot parameters of the
+    // earlier selection counted joint 6's corrections, which are that pose. On this seed 19
+    // are free: the zero offsets of joints 1-5 and 14 corrections of joints 1-5 (joint 6's zero
+    // offset is the plate's rotation about the flange axis).
+    assert!(r.joint_coverage.n >= 19, "{} free robot parameters", r.joint_coverage.n);
+    // The tracker calibration itself reaches the held-out table's noise floor (it was 0.249 mm
+    // against a floor of about 0.03 mm when the selection was judged with the target on the
+    // flange, which fixed joint 5's corrections and joint 6's zero offset).
+    assert!(
+        r.tracker.rms_mm <= 1.5 * r.noise_floor_mm,
+        "tracker model {:.4} mm, noise floor {:.4} mm",
+        r.tracker.rms_mm,
+        r.noise_floor_mm
+    );
     assert!(
         r.joint.rms_mm <= 1.5 * r.tracker.rms_mm,
         "joint {:.4} mm against the tracker model's {:.4} mm",

@@ -32,4 +32,5 @@ mod sim_end_to_end;
 mod stiffness_arm;
 mod stiffness_diagnose;
 mod stiffness_tables;
+mod ur5_parameters;
 mod vision_render_calibration;

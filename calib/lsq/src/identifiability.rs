@@ -65,6 +65,12 @@ pub struct Identifiability {
     pub fixed: Vec<usize>,
     /// Relative tolerance used for the rank.
     pub tolerance: f64,
+    /// Per parameter: the kept parameters a fixed one trades against, as `(kept index, c)`
+    /// with the fixed column `a_j ~ sum c_k a_k` over the kept columns (columns of `a` as
+    /// given, so in its scaling), strongest first; only terms carrying at least 5 % of the
+    /// column are listed. Empty for kept parameters and for those with no effect at all.
+    #[serde(default)]
+    pub trades_against: Vec<Vec<(usize, f64)>>,
 }
 
 impl Identifiability {
@@ -121,6 +127,29 @@ pub(crate) fn to_faer(a: &DMatrix<f64>) -> Mat<f64> {
 /// Analyses `a` (residuals x parameters, already whitened and column-scaled). A singular value
 /// below `rel_tol * sigma_max` counts as zero.
 pub fn analyze(a: &DMatrix<f64>, names: &[String], rel_tol: f64) -> Result<Identifiability> {
+    analyze_impl(a, names, rel_tol, None)
+}
+
+/// Like [`analyze`], but which of several redundant parameters are kept follows `priority`
+/// (one rank per parameter, lower kept first) instead of the column norms alone: a pivoted
+/// Gram-Schmidt that takes the columns of the first priority (largest remaining norm first)
+/// while their remaining norm exceeds `rel_tol * sigma_max`, then those of the next priority
+/// against what is kept, and so on; the numerical rank (from the SVD) bounds how many are kept.
+/// A parameter of a later priority is thus fixed whenever the earlier ones already explain
+/// its column, however large its norm.
+pub fn analyze_prioritized(
+    a: &DMatrix<f64>,
+    names: &[String],
+    priority: &[u32],
+    rel_tol: f64,
+) -> Result<Identifiability> {
+    if priority.len() != a.ncols() {
+        return Err(LsqError::Setup(format!("{} priorities for {} parameters", priority.len(), a.ncols())));
+    }
+    analyze_impl(a, names, rel_tol, Some(priority))
+}
+
+fn analyze_impl(a: &DMatrix<f64>, names: &[String], rel_tol: f64, priority: Option<&[u32]>) -> Result<Identifiability> {
     let (m, n) = a.shape();
     if names.len() != n {
         return Err(LsqError::Setup(format!("{} names for {n} parameters", names.len())));
@@ -197,13 +226,17 @@ pub fn analyze(a: &DMatrix<f64>, names: &[String], rel_tol: f64) -> Result<Ident
             group_of[i] = Some(groups.len() - 1);
         }
     }
-    // Pivoted QR decides which parameters to keep.
-    let qr = fa.col_piv_qr();
-    let r = qr.R();
-    let (fwd, _) = qr.P().arrays();
-    let pivot_order: Vec<usize> = fwd.to_vec();
+    // Pivoted QR (or its prioritized form) decides which parameters to keep.
     let kmax = m.min(n);
-    let r_diagonal: Vec<f64> = (0..kmax).map(|i| r[(i, i)].abs()).collect();
+    let (pivot_order, r_diagonal) = match priority {
+        Some(p) => prioritized_pivots(a, p, rank, rel_tol * smax),
+        None => {
+            let qr = fa.col_piv_qr();
+            let r = qr.R();
+            let (fwd, _) = qr.P().arrays();
+            (fwd.to_vec(), (0..kmax).map(|i| r[(i, i)].abs()).collect())
+        }
+    };
     let mut fixed: Vec<usize> = pivot_order.iter().skip(rank).copied().collect();
     fixed.sort_unstable();
     let groups: Vec<CoupledGroup> = groups
@@ -234,6 +267,7 @@ pub fn analyze(a: &DMatrix<f64>, names: &[String], rel_tol: f64) -> Result<Ident
         let lo = sv.iter().copied().fold(f64::INFINITY, f64::min);
         (hi / lo, hi * hi / lo)
     };
+    let trades_against = trade_offs(a, &kept)?;
     Ok(Identifiability {
         names: names.to_vec(),
         rank,
@@ -246,7 +280,95 @@ pub fn analyze(a: &DMatrix<f64>, names: &[String], rel_tol: f64) -> Result<Ident
         pivot_order,
         fixed,
         tolerance: rel_tol,
+        trades_against,
     })
+}
+
+/// The pivot order and `|R_ii|` of a Gram-Schmidt with column pivoting that exhausts each
+/// priority (ascending) before the next; columns whose remaining norm is at most `abs_tol` wait
+/// until every priority has had its turn, and at most `rank` columns are taken by priority.
+fn prioritized_pivots(a: &DMatrix<f64>, priority: &[u32], rank: usize, abs_tol: f64) -> (Vec<usize>, Vec<f64>) {
+    let n = a.ncols();
+    let mut w = a.clone();
+    let mut taken = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    let mut diag = Vec::with_capacity(n);
+    let mut levels: Vec<u32> = priority.to_vec();
+    levels.sort_unstable();
+    levels.dedup();
+    let best = |w: &DMatrix<f64>, taken: &[bool], level: Option<u32>| {
+        (0..n)
+            .filter(|&j| !taken[j] && level.is_none_or(|l| priority[j] == l))
+            .map(|j| (j, w.column(j).norm()))
+            .max_by(|x, y| x.1.total_cmp(&y.1))
+    };
+    let take = |w: &mut DMatrix<f64>, taken: &mut [bool], j: usize, norm: f64| {
+        taken[j] = true;
+        if norm <= 0.0 {
+            return;
+        }
+        let q = w.column(j) / norm;
+        for c in (0..n).filter(|&c| !taken[c]) {
+            // Twice, for the orthogonality the rank decisions rely on.
+            for _ in 0..2 {
+                let d = q.dot(&w.column(c));
+                w.column_mut(c).axpy(-d, &q, 1.0);
+            }
+        }
+    };
+    let levels_then_rest = levels.iter().map(|&l| Some(l)).chain(std::iter::once(None));
+    for level in levels_then_rest {
+        while order.len() < rank {
+            let Some((j, norm)) = best(&w, &taken, level) else { break };
+            if level.is_some() && norm <= abs_tol {
+                break;
+            }
+
+            take(&mut w, &mut taken, j, norm);
+            order.push(j);
+            diag.push(norm);
+        }
+    }
+    // The rest, largest remaining norm first.
+    while let Some((j, norm)) = best(&w, &taken, None) {
+        take(&mut w, &mut taken, j, norm);
+        order.push(j);
+        diag.push(norm);
+    }
+    diag.truncate(a.nrows().min(n));
+    (order, diag)
+}
+
+/// For every column not in `kept`: the kept columns it is (in the least-squares sense) a
+/// combination of, `(index, coefficient)` for the terms carrying at least 5 % of the column's
+/// norm, strongest first (see [`Identifiability::trades_against`]).
+fn trade_offs(a: &DMatrix<f64>, kept: &[usize]) -> Result<Vec<Vec<(usize, f64)>>> {
+    let n = a.ncols();
+    let mut out = vec![Vec::new(); n];
+    let others: Vec<usize> = (0..n).filter(|j| !kept.contains(j)).collect();
+    if kept.is_empty() || others.is_empty() {
+        return Ok(out);
+    }
+    let ak = DMatrix::from_fn(a.nrows(), kept.len(), |i, j| a[(i, kept[j])]);
+    let b = DMatrix::from_fn(a.nrows(), others.len(), |i, j| a[(i, others[j])]);
+    let svd = ak.clone().svd(true, true);
+    let eps = svd.singular_values.max() * 1e-12;
+    let c = svd.solve(&b, eps).map_err(|e| LsqError::Numeric(format!("trade-off solve failed: {e}")))?;
+    let knorm: Vec<f64> = (0..kept.len()).map(|k| ak.column(k).norm()).collect();
+    let amax = (0..n).map(|j| a.column(j).norm()).fold(0.0, f64::max);
+    for (col, &j) in others.iter().enumerate() {
+        let own = a.column(j).norm();
+        if own <= 1e-9 * amax {
+            continue;
+        }
+        let mut terms: Vec<(usize, f64, f64)> = (0..kept.len())
+            .map(|k| (kept[k], c[(k, col)], (c[(k, col)] * knorm[k]).abs()))
+            .filter(|t| t.2 >= 0.05 * own)
+            .collect();
+        terms.sort_by(|x, y| y.2.total_cmp(&x.2));
+        out[j] = terms.into_iter().map(|(k, c, _)| (k, c)).collect();
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -276,5 +398,32 @@ mod tests {
         assert_eq!(g.deficiency, 1);
         let text = id.describe_groups().join("\n");
         assert!(text.contains("offset_a") && text.contains("offset_b"), "{text}");
+    }
+
+    #[test]
+    fn priority_decides_which_redundant_parameter_is_kept() {
+        // y = p0 t + 3 p1 + p2 (p1 has the larger column) + 0.5 p3 t: with p2 preferred, p1 is
+        // fixed however large its column, and it trades against p2 with coefficient 3; p3
+        // against p0 with 0.5.
+        let m = 20;
+        let a = DMatrix::from_fn(m, 4, |i, j| match j {
+            0 => i as f64 * 0.1,
+            1 => 3.0,
+            2 => 1.0,
+            _ => i as f64 * 0.05,
+        });
+        let names: Vec<String> = ["slope", "big", "small", "slope_b"].iter().map(|s| s.to_string()).collect();
+        let plain = analyze(&a, &names, 1e-9).unwrap();
+        assert!(plain.fixed.contains(&2), "plain pivoting keeps the larger column: {:?}", plain.fixed);
+        let id = analyze_prioritized(&a, &names, &[1, 1, 0, 2], 1e-9).unwrap();
+        assert_eq!(id.rank, 2);
+        assert_eq!(id.fixed, vec![1, 3]);
+        assert_eq!(id.trades_against[1].len(), 1);
+        assert_eq!(id.trades_against[1][0].0, 2);
+        assert!((id.trades_against[1][0].1 - 3.0).abs() < 1e-9, "{:?}", id.trades_against[1]);
+        assert_eq!(id.trades_against[3][0].0, 0);
+        assert!((id.trades_against[3][0].1 - 0.5).abs() < 1e-9, "{:?}", id.trades_against[3]);
+        assert!(id.trades_against[0].is_empty() && id.trades_against[2].is_empty());
+        assert!(analyze_prioritized(&a, &names, &[0, 1], 1e-9).is_err());
     }
 }

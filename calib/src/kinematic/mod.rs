@@ -28,14 +28,16 @@ use serde::{Deserialize, Serialize};
 use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
 use crate::frames::{fit_rigid, log6};
-use crate::identifiability::{analyze, Identifiability};
+use crate::identifiability::Identifiability;
 use crate::lsq::{covariance, solve, LmOptions, LmSummary, Loss};
 use crate::measurement::PoseMeasurement;
 
 pub mod correct;
 mod model;
+mod point_start;
 mod problem;
 mod refit;
+mod select;
 mod split;
 #[cfg(test)]
 mod tests;
@@ -44,6 +46,8 @@ use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
 use problem::{whitening_matrices, KinProblem};
 pub use refit::{refit_frame, FrameRefit};
+use select::{analyze_subset, frames_first};
+pub use select::{describe_trade_offs, TradeOff, TradePartner};
 pub use split::{split_rows, split_rows_by_plane, split_rows_in_blocks, SplitPlane};
 
 /// Which of the model's own parameters are free.
@@ -307,8 +311,9 @@ pub struct KinematicCalibration {
     pub free: Vec<usize>,
     /// A-posteriori standard deviation of unit weight (1 when the noise model is right).
     pub s0: f64,
-    /// Identifiability at the start values (over the candidates the options leave free; its
-    /// `names` say which).
+    /// Identifiability where the selection is judged (a serial chain: after the frames-first
+    /// fit, `select::frames_first`; else at the start values) over the candidates the options
+    /// leave free (its `names` say which).
     pub identifiability_before: Identifiability,
     /// Identifiability at the solution (all candidates).
     pub identifiability_after: Identifiability,
@@ -406,9 +411,11 @@ pub fn calibrate(
     let all = problem.free.clone();
     let train_before = problem.calibrated(&start)?.evaluate(rows)?;
 
-    // Structural identifiability at the start, on the scaled Jacobian.
+    // Frames, tool and zero offsets first; structural identifiability there, on the scaled
+    // Jacobian.
+    let at = frames_first(&mut problem, &layout, opts)?;
     let scaled = |jac: &DMatrix<f64>| scale_columns(jac, &layout);
-    let (mut fixed_reason, allowed, id_before) = structural_selection(&problem, &layout, &start, opts)?;
+    let (mut fixed_reason, allowed, id_before) = structural_selection(&problem, &layout, &at, opts)?;
     let mut free: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
     if rows.len() * problem.block() <= free.len() {
         return Err(CalibError::TooFew(format!(
@@ -420,7 +427,7 @@ pub fn calibrate(
     }
     problem.free = free.clone();
     let lm = LmOptions { loss: opts.loss, ..opts.lm.clone() };
-    let x0: Vec<f64> = free.iter().map(|&i| start[i]).collect();
+    let x0: Vec<f64> = free.iter().map(|&i| at[i]).collect();
     let mut res = solve(&problem, &x0, &lm)?;
     let mut full = problem.full(&res.x);
 
@@ -446,7 +453,7 @@ pub fn calibrate(
             }
             free.retain(|i| !weak.contains(i));
             problem.free = free.clone();
-            let x0: Vec<f64> = free.iter().map(|&i| start[i]).collect();
+            let x0: Vec<f64> = free.iter().map(|&i| at[i]).collect();
             res = solve(&problem, &x0, &lm)?;
             full = problem.full(&res.x);
             let rms_after = problem.calibrated(&full)?.evaluate(rows)?.rms_mm;
@@ -465,7 +472,8 @@ pub fn calibrate(
     }
     let (cov, s0) = covariance(&res.jacobian, &res.residuals)?;
     let j_after = problem.full_jacobian(&full)?;
-    let id_after = analyze_subset(&scaled(&j_after), &layout.names, &allowed, opts.rank_tolerance)?;
+    let serial = matches!(model, RobotModel::Serial(_));
+    let id_after = analyze_subset(&scaled(&j_after), &layout.names, &allowed, opts.rank_tolerance, serial)?;
     let mut out_params = Vec::with_capacity(layout.len());
     for i in 0..layout.len() {
         let k = free.iter().position(|&f| f == i);
@@ -502,7 +510,8 @@ pub fn calibrate(
 
 /// The candidates [`calibrate`] would identify from `rows` with `opts`: its candidate layout,
 /// and the indices (into the layout) of the candidates its structural identifiability analysis
-/// at the start keeps free, with that analysis. The same selection `calibrate` makes before
+/// keeps free (at the frames-first fit of a serial chain, see [`select::frames_first`], else at
+/// the start), with that analysis. The same selection `calibrate` makes before
 /// it solves (no practical-identifiability reduction, which needs the solution); other
 /// adjustments that estimate the same robot from other observations (the joint adjustment of
 /// robot and camera, [`crate::handeye::joint`]) take their robot parameters from it.
@@ -519,8 +528,9 @@ pub fn identifiable_candidates(
     }
     let use_ori = opts.use_orientation && rows.iter().all(|r| r.orientation.is_some());
     let layout = StateLayout::new(model, if use_ori { 6 } else { 3 }, &opts.model_params, &opts.effects);
-    let problem = start_problem(model, rows, opts, &layout, use_ori)?;
-    let (fixed_reason, _, id) = structural_selection(&problem, &layout, &problem.start, opts)?;
+    let mut problem = start_problem(model, rows, opts, &layout, use_ori)?;
+    let at = frames_first(&mut problem, &layout, opts)?;
+    let (fixed_reason, _, id) = structural_selection(&problem, &layout, &at, opts)?;
     let free = (0..layout.len()).filter(|i| fixed_reason[*i].is_none()).collect();
     Ok((layout, free, id))
 }
@@ -562,7 +572,8 @@ fn start_problem<'a>(
 
 /// The start of the device frame and the tool frame: the given device frame, else the rigid
 /// registration of the nominal model's positions to the measured ones, or (with orientations)
-/// the closed form of `AX = ZB` when it fits the training positions better.
+/// the closed form of `AX = ZB`, or (positions only, serial chains) the closed form of the device
+/// frame and the target point ([`point_start`]) when it fits the training positions better.
 fn start_frames(
     model: &RobotModel,
     rows: &[&PoseMeasurement],
@@ -584,7 +595,17 @@ fn start_frames(
             // closed form (AX = ZB): needed when the target sits far from the flange on a robot
             // whose flange origin hardly moves (a positioner). The start that fits the training
             // positions better is taken, so the positions-only start stays where it serves.
-            match use_ori.then(|| pose_start(&nominal, rows)).flatten() {
+            // With positions only, a serial chain's device frame and target point follow in
+            // closed form too (point_start): needed when the device is far off and the target far
+            // from the flange (the rigid registration of flange origins then misses by metres).
+            let closed = if use_ori {
+                pose_start(&nominal, rows)
+            } else if matches!(model, RobotModel::Serial(_)) {
+                point_start::device_and_point(&nominal, &measured)
+            } else {
+                None
+            };
+            match closed {
                 Some(closed) if start_rms(&nominal, &measured, &closed) < start_rms(&nominal, &measured, &rigid) => {
                     closed
                 }
@@ -603,10 +624,10 @@ fn scale_columns(jac: &DMatrix<f64>, layout: &StateLayout) -> DMatrix<f64> {
     s
 }
 
-/// The structural identifiability at the start: which candidates the options fix, and, over
-/// the others, the pivoted QR of the scaled Jacobian (see [`analyze_subset`]). Returns the
-/// reason every fixed candidate is fixed, the candidates the options leave free and the
-/// analysis.
+/// The structural identifiability at `start` (the selection point): which candidates the
+/// options fix, and, over the others, the selection on the scaled Jacobian (see
+/// [`analyze_subset`]). Returns the reason every fixed candidate is fixed, the candidates the
+/// options leave free and the analysis.
 #[allow(clippy::type_complexity)]
 fn structural_selection(
     problem: &KinProblem,
@@ -632,13 +653,14 @@ fn structural_selection(
             fixed_reason[i] = Some("joint offsets not identified (option)".into());
         }
     }
-    // Structural identifiability at the start over the candidates the options leave free.
+    // Structural identifiability at the selection point over the candidates the options leave free.
     let allowed: Vec<usize> = all.iter().copied().filter(|i| fixed_reason[*i].is_none()).collect();
     if allowed.is_empty() {
         return Err(CalibError::Data("nothing to identify: every parameter is fixed by the options".into()));
     }
     let j0 = problem.full_jacobian(start)?;
-    let id_before = analyze_subset(&scaled(&j0), &layout.names, &allowed, opts.rank_tolerance)?;
+    let serial = matches!(problem.base_model, RobotModel::Serial(_));
+    let id_before = analyze_subset(&scaled(&j0), &layout.names, &allowed, opts.rank_tolerance, serial)?;
     for &i in &id_before.fixed {
         fixed_reason[allowed[i]] =
             Some("not identifiable from these measurements (redundant with the kept parameters)".into());
@@ -687,28 +709,6 @@ pub(crate) fn prediction_jacobian(
     };
     // The residual is measured minus predicted: its Jacobian is minus the prediction's.
     Ok(-problem.full_jacobian(&start)?)
-}
-
-/// Identifiability over the columns `cols` of `a` (names taken from `names`). Where parameters
-/// are redundant, the pivoted QR keeps the robot model's own parameters first, then joint
-/// offsets, the tool offset and last the device frame (their columns are weighted 1, 0.8, 0.7
-/// and 0.5 for the pivoting), so a redundant frame is what gets fixed, as in the source's
-/// identification "in the measuring device's frame".
-fn analyze_subset(a: &DMatrix<f64>, names: &[String], cols: &[usize], tol: f64) -> Result<Identifiability> {
-    let weight = |n: &str| {
-        if n.starts_with("frame.") {
-            0.5
-        } else if n.starts_with("target_tool.") {
-            0.7
-        } else if n.starts_with("offset.") {
-            0.8
-        } else {
-            1.0
-        }
-    };
-    let sub = DMatrix::from_fn(a.nrows(), cols.len(), |i, j| a[(i, cols[j])] * weight(&names[cols[j]]));
-    let sub_names: Vec<String> = cols.iter().map(|&c| names[c].clone()).collect();
-    analyze(&sub, &sub_names, tol)
 }
 
 /// Plain-words advice for what the data cannot identify: joints that barely moved.

@@ -9,7 +9,9 @@
 //! - True robot: [`crate::sim::TrueRobot`] with [`crate::sim::GeometricErrors`] offsets on
 //!   exactly the model parameters the kinematic calibration's selection keeps free on the
 //!   training poses (per-joint correction transforms: lengths with
-//!   [`JointStudyConfig::length_sigma_mm`], angles with [`JointStudyConfig::angle_sigma_mrad`]).
+//!   [`JointStudyConfig::length_sigma_mm`], angles with [`JointStudyConfig::angle_sigma_mrad`]),
+//!   and on the joint zero offsets it keeps free (drawn as angles, placed on the true chain's
+//!   `joint<k>.theta_offset_rad`, which is the same freedom).
 //!   Errors in the other parameters would be absorbed into equivalent combinations of the free
 //!   ones: the held-out figures would be the same, but the parameter-against-truth check would
 //!   compare different things.
@@ -367,15 +369,17 @@ fn coverage(params: &[ParamResult], truth: &[ParamResult]) -> Coverage {
 }
 
 /// The free robot parameters of `params` (model parameters and joint offsets) against the true
-/// robot's values as drawn (`truth` by model parameter name; joint offsets are zero in the
-/// truth), without regard to the gauge: parameters redundant with a frame or tool coordinate
+/// robot's values as drawn (`truth` by model parameter name; a joint offset is compared with
+/// the true chain's `joint<k>.theta_offset_rad`, whose nominal value is zero in the `ur5`
+/// preset), without regard to the gauge: parameters redundant with a frame or tool coordinate
 /// held at its start value differ from these by the start's error.
 fn coverage_raw(params: &[ParamResult], truth: &[(String, f64)]) -> Coverage {
     let mut c = Coverage::default();
     for p in params.iter().filter(|p| p.free && !p.name.starts_with("frame.") && !p.name.starts_with("target_tool.")) {
         let Some(sd) = p.std else { continue };
-        let t = if p.name.starts_with("offset.") {
-            0.0
+        let t = if let Some(k) = p.name.strip_prefix("offset.q").and_then(|r| r.strip_suffix("_rad")) {
+            let name = format!("joint{k}.theta_offset_rad");
+            truth.iter().find(|(n, _)| *n == name).map_or(0.0, |(_, v)| *v)
         } else {
             match truth.iter().find(|(n, _)| *n == p.name) {
                 Some((_, v)) => *v,
@@ -430,6 +434,15 @@ pub(crate) fn draw_cell(config: &JointStudyConfig, seed: u64) -> Result<Cell> {
     let mut errors = GeometricErrors::default();
     let len = Normal::new(0.0, config.length_sigma_mm * 1e-3).map_err(|e| DatasetError::Input(e.to_string()))?;
     let ang = Normal::new(0.0, config.angle_sigma_mrad * 1e-3).map_err(|e| DatasetError::Input(e.to_string()))?;
+    // Joint zero offsets the selection keeps: the true chain's DH angle offsets (the same freedom).
+    let revolute_offsets = free.iter().filter(|&&i| layout.offsets.contains(&i) && layout.names[i].ends_with("_rad"));
+    for &i in revolute_offsets {
+        let k = i - layout.offsets.start + 1;
+        let name = format!("joint{k}.theta_offset_rad");
+        if params.iter().any(|p| p.name == name) {
+            errors.offsets.insert(name, ang.sample(&mut rng));
+        }
+    }
     for &i in free.iter().filter(|&&i| layout.model.contains(&i)) {
         let p = &params[layout.model_index[i - layout.model.start]];
         let v = match p.unit {

@@ -281,8 +281,11 @@ pub fn with_effects(opts: &KinematicOptions, effects: &str) -> Result<KinematicO
 
 /// `ferrocal diagnose`'s effects for the positioner, found on `train` alone. Diagnose fits
 /// positions only, and from its start (camera frame at identity, target mount at the flange) the
-/// positioner's geometric fit does not converge (286 mm RMS): the target is 0.85 m off the last
-/// link and the camera 1.3 m away. So the camera frame and the target mount of the nominal
+/// positioner's geometric fit did not converge (286 mm RMS): the target is 0.85 m off the last
+/// link and the camera 1.3 m away. (Since the positions-only closed-form start of the device
+/// frame and target point, `calib::kinematic::point_start`, the positions-only calibration
+/// starts at 0.449 mm RMS and diagnose on the raw chain names the same two effects; the frames
+/// are still placed here, as when the demo's numbers were measured.) So the camera frame and the target mount of the nominal
 /// chain fitted on `train` (frames only, with orientations) are put into the model (its base
 /// and tool), and diagnose (its default options, the position sigma of `opts`) runs on that.
 /// Returns the effect list (`""`: none) and the report.

@@ -40,6 +40,7 @@ pub fn report_json(
             "singular_values": cal.identifiability_after.singular_values,
             "classes": cal.identifiability_before.names.iter().zip(&cal.identifiability_before.classes).map(|(n, c)| json!({"name": n, "class": c})).collect::<Vec<_>>(),
             "coupled_groups": cal.identifiability_before.describe_groups(),
+            "trades_against": cal.trade_offs(),
         },
         "practical_dropped": cal.practical_dropped,
         "advice": cal.advice,
@@ -106,7 +107,7 @@ pub fn calibration_sections(
     out.push(s);
     let mut p = Section::new("calibration-parameters", "Identified parameters");
     p.table(
-        "Parameters (lengths in mm, angles in mrad for readability; nu = parameter-to-noise ratio)",
+        "Parameters (lengths in mm, angles in mrad; nu = parameter-to-noise ratio)",
         &["parameter", "start", "value", "std", "nu", "status"],
         cal.params
             .iter()
@@ -116,7 +117,7 @@ pub fn calibration_sections(
                     _ => 1.0,
                 };
                 vec![
-                    q.name.clone(),
+                    display_name(&q.name, f),
                     format!("{:.4}", q.start * f),
                     format!("{:.4}", q.value * f),
                     q.std.map(|v| format!("{:.4}", v * f)).unwrap_or_default(),
@@ -126,6 +127,9 @@ pub fn calibration_sections(
             })
             .collect(),
     );
+    for t in ferrocal_calib::kinematic::describe_trade_offs(&cal.trade_offs()) {
+        p.text(format!("Fixed: {t} (exchange rates in the parameters' own units, m and rad)"));
+    }
     for g in cal.identifiability_before.describe_groups() {
         p.text(format!("Coupled: {g}"));
     }
@@ -244,4 +248,58 @@ pub fn evaluate_json(cm: &CalibratedModel, rows: &[PoseMeasurement]) -> Result<(
         "per_pose": per_pose,
     });
     Ok((out, stats))
+}
+
+/// A parameter name for a table whose values are shown in mm and mrad (factor `f` = 1000):
+/// the unit suffix follows the values (`joint2.corr_x_m` -> `joint2.corr_x_mm`,
+/// `offset.q1_rad` -> `offset.q1_mrad`).
+fn display_name(name: &str, f: f64) -> String {
+    if f != 1e3 {
+        return name.to_string();
+    }
+    if let Some(stem) = name.strip_suffix("_m") {
+        format!("{stem}_mm")
+    } else if let Some(stem) = name.strip_suffix("_rad") {
+        format!("{stem}_mrad")
+    } else {
+        name.to_string()
+    }
+}
+
+/// The physical parameters a metrologist reads, for the terminal: the target-to-flange
+/// (tool) offset, the joint zero offsets (mrad, or mm for prismatic joints; "fixed" where the
+/// data could not identify them) and, for every fixed candidate, what it trades against.
+pub fn physical_summary(cal: &KinematicCalibration) -> Vec<String> {
+    let mut out = Vec::new();
+    let t = cal.calibrated.tool.translation.vector * 1e3;
+    out.push(format!(
+        "tool offset (target in the flange frame): ({:.3}, {:.3}, {:.3}) mm, length {:.3} mm",
+        t.x,
+        t.y,
+        t.z,
+        t.norm()
+    ));
+    let offsets: Vec<String> = cal
+        .params
+        .iter()
+        .filter(|p| p.name.starts_with("offset."))
+        .map(|p| {
+            let label = display_name(&p.name, 1e3);
+            let label = label.trim_start_matches("offset.");
+            match p.std {
+                Some(sd) => format!("{label} {:+.4} +- {:.4}", p.value * 1e3, sd * 1e3),
+                None => format!("{label} fixed"),
+            }
+        })
+        .collect();
+    out.push(format!("joint zero offsets: {}", offsets.join(", ")));
+    let trades = ferrocal_calib::kinematic::describe_trade_offs(&cal.trade_offs());
+    if !trades.is_empty() {
+        out.push(format!(
+            "{} candidates fixed as redundant (each at its start value; rates per unit, in m and rad):",
+            trades.len()
+        ));
+        out.extend(trades.into_iter().map(|t| format!("  {t}")));
+    }
+    out
 }

@@ -293,6 +293,9 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
             .map(|(_, b, a)| format!("; held out ({} poses): mean {:.4} -> {:.4} mm", a.n, b.mean_mm, a.mean_mm))
             .unwrap_or_default()
     );
+    for line in ferrocal_report::calibrate::physical_summary(cal) {
+        eprintln!("{line}");
+    }
     Ok(ExitCode::SUCCESS)
 }
 
