@@ -265,6 +265,8 @@ struct Full {
     names: Vec<String>,
     values: Vec<f64>,
     crosstalk: Option<Matrix6<f64>>,
+    /// Cross-talk directions fitted (the identifiable ones), when cross-talk is modelled.
+    crosstalk_dirs: usize,
     rms_n: f64,
 }
 
@@ -304,7 +306,13 @@ impl ForceFamily<'_> {
         let f = force_crosstalk::fit(&a, &self.y, &load, &rows);
         let pred = force_crosstalk::predict(&a, &load, &f, &rows);
         let rms_n = ((&self.y - pred).norm_squared() / self.y.len().max(1) as f64).sqrt();
-        Ok(Full { names: m.names(), values: f.theta.iter().copied().collect(), crosstalk: Some(f.c), rms_n })
+        Ok(Full {
+            names: m.names(),
+            values: f.theta.iter().copied().collect(),
+            crosstalk: Some(f.c),
+            crosstalk_dirs: f.identifiable,
+            rms_n,
+        })
     }
 
     fn cv(&self, m: SensorModel, crosstalk: bool) -> Result<(Vec<f64>, DMatrix<f64>)> {
@@ -317,7 +325,7 @@ impl ForceFamily<'_> {
 }
 
 fn linear_full(f: LinearFit) -> Full {
-    Full { names: f.names.clone(), values: f.values.clone(), crosstalk: None, rms_n: f.rms_residual }
+    Full { names: f.names.clone(), values: f.values.clone(), crosstalk: None, crosstalk_dirs: 0, rms_n: f.rms_residual }
 }
 
 fn mass_cog(f: &Full) -> (f64, f64) {
@@ -415,6 +423,7 @@ impl Family for ForceFamily<'_> {
                 }
             }
             parameters.insert("largest_crosstalk".into(), cm.amax());
+            parameters.insert("crosstalk_directions_fitted".into(), new_fit.crosstalk_dirs as f64);
         }
         Ok(Some(AllFit { effect: *c, parameters, overlap_sine: None, data: new_fit }))
     }
@@ -500,10 +509,12 @@ impl ForceFamily<'_> {
         parameters.insert("mass_before_kg".into(), m_before);
         parameters.insert("mass_after_kg".into(), m_after);
         let statement = format!(
-            "each sensor reads fractions of the other sensors' loads (cross-talk): the largest identified is {:.2} % of sensor {}'s load in sensor {}; modelling it lowers the held-out force RMS from {before:.3} to {after:.3} N (p = {p:.1e} after correcting for {m} candidates) and moves the identified mass from {m_before:.2} to {m_after:.2} kg. From one payload only the part of the cross-talk that differs from the rigid body's gravity pattern shows: the coefficients are the smallest that explain it (a second payload separates them)",
+            "each sensor reads fractions of the other sensors' loads (cross-talk): the largest identified is {:.2} % of sensor {}'s load in sensor {}; modelling it lowers the held-out force RMS from {before:.3} to {after:.3} N (p = {p:.1e} after correcting for {m} candidates) and moves the identified mass from {m_before:.2} to {m_after:.2} kg. From one payload only part of the cross-talk shows: {dirs} of its 30 directions, those that neither leave every load unchanged nor repeat a change of mass, centre of gravity or offsets (angle sine below {min_sine}), which are projected out and not claimed; the coefficients are the smallest that produce the fitted part, a lower bound of the true ones",
             c[(bi, bj)] * 100.0,
             bj + 1,
-            bi + 1
+            bi + 1,
+            dirs = fit.data.crosstalk_dirs,
+            min_sine = force_crosstalk::MIN_SINE,
         );
         self.crosstalk = true;
         self.current_fit = fit.data;
@@ -631,7 +642,12 @@ pub fn diagnose_force_sensor(
                         candidate: r.label.clone(),
                         heldout_rms_n: r.heldout_after,
                         p_value: r.p_corrected,
-                        verdict: best_verdict(r, opts.alpha, opts.min_improvement, ""),
+                        verdict: best_verdict(
+                            r,
+                            opts.alpha,
+                            opts.min_improvement,
+                            "rejected as physically implausible",
+                        ),
                     })
                     .collect()
             })
