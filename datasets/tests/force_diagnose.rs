@@ -102,6 +102,17 @@ fn crosstalk_study() {
             let rec = record(&sim, 120, seed);
             let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
             let got: Vec<String> = rep.findings.iter().map(|f| f.effect.clone()).collect();
+            if frac > 0.0 && got != ["sensor_crosstalk"] {
+                for c in rep.candidates.iter().flatten() {
+                    eprintln!(
+                        "  {frac} seed {seed}: {:.4} N p {:.1e} {}: {}",
+                        c.heldout_rms_n,
+                        c.p_value,
+                        &c.candidate[..16],
+                        c.verdict
+                    );
+                }
+            }
             *tally.entry(got.join("+")).or_insert(0) += 1;
         }
         eprintln!("crosstalk {frac}: {tally:?}");
