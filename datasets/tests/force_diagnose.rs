@@ -89,7 +89,7 @@ fn too_few_poses_decline() {
 }
 
 /// The study behind docs/diagnose.md's cross-talk numbers (20 seeds per fraction, 10 deformed
-/// end-effectors): `cargo test -p ferrocal-datasets --test integration crosstalk_study -- --ignored --nocapture`.
+/// end-effectors with and without 1.5 % cross-talk): `cargo test -p ferrocal-datasets --test integration crosstalk_study -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn crosstalk_study() {
@@ -116,6 +116,15 @@ fn crosstalk_study() {
             *tally.entry(got.join("+")).or_insert(0) += 1;
         }
         eprintln!("crosstalk {frac}: {tally:?}");
+    }
+    for seed in 20..30 {
+        let pattern = ferrocal_datasets::dynsim::tables::crosstalk_pattern(0.015);
+        let sim = PlatformSim { crosstalk: pattern, ..PlatformSim::preset() };
+        let reg = SensorRegressor::new(sim.sensors.clone(), sim.deformation.reference_xy_m).unwrap();
+        let rec = record(&sim, 120, seed);
+        let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
+        let got: Vec<String> = rep.findings.iter().map(|f| f.effect.clone()).collect();
+        eprintln!("deformation and 1.5 % cross-talk, seed {seed}: {got:?} model {}", rep.final_fit.model);
     }
     for seed in 20..30 {
         let sim = PlatformSim::preset();

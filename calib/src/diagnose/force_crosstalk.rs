@@ -33,7 +33,7 @@ pub(super) struct CrosstalkFit {
 }
 
 /// The load forces (no offsets) per pose of `rows` under `theta`: `a` is the model's
-/// regressor (6 rows per pose), `load` marks its load columns (not the offsets).
+/// regressor (6 rows per pose), `load` marks the columns whose forces the cross-talk acts on.
 fn loads(a: &DMatrix<f64>, theta: &DVector<f64>, load: &[bool], rows: &[usize]) -> Vec<[f64; 6]> {
     rows.iter()
         .map(|&k| {
