@@ -43,34 +43,39 @@ fn a_rigid_end_effector_gives_no_findings() {
         let rec = record(&sim, 120, seed);
         let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
         assert!(rep.findings.is_empty(), "seed {seed}: {:#?}", rep.findings);
+        assert!(rep.candidates.iter().flatten().all(|c| !c.verdict.is_empty()), "{:#?}", rep.candidates);
         assert!(!rep.unexplained.structure_found, "seed {seed}: {:?}", rep.unexplained);
         assert!((rep.mass_kg[0] - sim.truth().body.mass_kg).abs() < 0.01 * sim.truth().body.mass_kg);
     }
 }
 
-/// Not yet passing: the cross-talk candidate has the best held-out figure (0.381 N against
-/// model 4's 0.389 N, p = 1.5e-21 on seed 7) but is not accepted (the minimum-norm coefficients
-/// of the linearised fit are presumably beyond the 5 % plausibility bound: most of `C` trades with
-/// the rigid body's gravity terms at one payload). Run with `--ignored`.
+/// Cross-talk of 1 % and 2 % (two seeds) is found and nothing else is claimed; the identified part
+/// is a lower bound of the true coefficients (at one payload only 8 of the 30 directions of `C`
+/// show beyond the rigid body and the offsets: see `force_crosstalk`). Every candidate row names
+/// its verdict.
 #[test]
-#[ignore]
 fn sensor_crosstalk_is_found_when_present_and_not_claimed_when_absent() {
     // A rigid end-effector whose sensors pick up 1.5 % of the next sensor's load and -0.75 % of
     // the previous one's (`dynamics simulate --crosstalk 0.015`).
-    let pattern = ferrocal_datasets::dynsim::tables::crosstalk_pattern(0.015);
-    for seed in [7, 8] {
+    for (fraction, seed) in [(0.01, 7), (0.02, 8)] {
+        let pattern = ferrocal_datasets::dynsim::tables::crosstalk_pattern(fraction);
         let sim = PlatformSim { deformation: Deformation::none(), crosstalk: pattern, ..PlatformSim::preset() };
         let reg = SensorRegressor::new(sim.sensors.clone(), sim.deformation.reference_xy_m).unwrap();
         let rec = record(&sim, 120, seed);
         let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
         let got: Vec<&str> = rep.findings.iter().map(|f| f.effect.as_str()).collect();
         eprintln!(
-            "seed {seed}: {got:?} held-out {:.3} -> {:.3} N",
+            "{fraction}, seed {seed}: {got:?} held-out {:.3} -> {:.3} N",
             rep.nominal.heldout_rms_n, rep.final_fit.heldout_rms_n
         );
+        assert!(rep.candidates.iter().flatten().all(|c| !c.verdict.is_empty()), "{:#?}", rep.candidates);
         assert_eq!(got, vec!["sensor_crosstalk"], "seed {seed}: {:#?}", rep.candidates);
         let largest = rep.findings[0].parameters["largest_crosstalk"];
-        assert!(largest > 0.002 && largest < 0.05, "largest cross-talk {largest}");
+        // A lower bound of the true largest coefficient, of its order (the minimum-norm part).
+        assert!(largest > 0.2 * fraction && largest < 1.5 * fraction, "largest cross-talk {largest} of {fraction}");
+        // The rigid body is not disturbed by the fitted part (the mass trades are projected out).
+        let mass = sim.truth().body.mass_kg;
+        assert!((rep.mass_kg[1] - mass).abs() < 0.01 * mass, "mass {} vs {mass}", rep.mass_kg[1]);
     }
 }
 
@@ -81,4 +86,52 @@ fn too_few_poses_decline() {
     let rec = record(&sim, 10, 6);
     let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
     assert!(rep.declined.is_some() && rep.findings.is_empty());
+}
+
+/// The study behind docs/diagnose.md's cross-talk numbers (20 seeds per fraction, 10 deformed
+/// end-effectors with and without 1.5 % cross-talk): `cargo test -p ferrocal-datasets --test integration crosstalk_study -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn crosstalk_study() {
+    for frac in [0.0, 0.01, 0.015, 0.02] {
+        let pattern = ferrocal_datasets::dynsim::tables::crosstalk_pattern(frac);
+        let mut tally = std::collections::BTreeMap::new();
+        for seed in 20..40 {
+            let sim = PlatformSim { deformation: Deformation::none(), crosstalk: pattern, ..PlatformSim::preset() };
+            let reg = SensorRegressor::new(sim.sensors.clone(), sim.deformation.reference_xy_m).unwrap();
+            let rec = record(&sim, 120, seed);
+            let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
+            let got: Vec<String> = rep.findings.iter().map(|f| f.effect.clone()).collect();
+            if frac > 0.0 && got != ["sensor_crosstalk"] {
+                for c in rep.candidates.iter().flatten() {
+                    eprintln!(
+                        "  {frac} seed {seed}: {:.4} N p {:.1e} {}: {}",
+                        c.heldout_rms_n,
+                        c.p_value,
+                        &c.candidate[..16],
+                        c.verdict
+                    );
+                }
+            }
+            *tally.entry(got.join("+")).or_insert(0) += 1;
+        }
+        eprintln!("crosstalk {frac}: {tally:?}");
+    }
+    for seed in 20..30 {
+        let pattern = ferrocal_datasets::dynsim::tables::crosstalk_pattern(0.015);
+        let sim = PlatformSim { crosstalk: pattern, ..PlatformSim::preset() };
+        let reg = SensorRegressor::new(sim.sensors.clone(), sim.deformation.reference_xy_m).unwrap();
+        let rec = record(&sim, 120, seed);
+        let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
+        let got: Vec<String> = rep.findings.iter().map(|f| f.effect.clone()).collect();
+        eprintln!("deformation and 1.5 % cross-talk, seed {seed}: {got:?} model {}", rep.final_fit.model);
+    }
+    for seed in 20..30 {
+        let sim = PlatformSim::preset();
+        let reg = SensorRegressor::new(sim.sensors.clone(), sim.deformation.reference_xy_m).unwrap();
+        let rec = record(&sim, 120, seed);
+        let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default()).unwrap();
+        let got: Vec<String> = rep.findings.iter().map(|f| f.effect.clone()).collect();
+        eprintln!("deformation seed {seed}: {got:?} model {}", rep.final_fit.model);
+    }
 }

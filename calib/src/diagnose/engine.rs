@@ -253,6 +253,9 @@ pub trait Family {
     ) -> Result<Finding<Self::Effect>>;
 }
 
+/// The verdict of a candidate the family cannot fit on all the data.
+const NOT_APPLICABLE: &str = "not applicable when fitted on all the data";
+
 /// One candidate while its step runs.
 struct Entry<F: Family> {
     candidate: F::Candidate,
@@ -421,6 +424,8 @@ fn smallest_p<F: Family>(
         }
         e.row.verdict = if i != b {
             Verdict::NotBest
+        } else if fit.is_none() {
+            Verdict::Unscored(NOT_APPLICABLE.into())
         } else if accepted {
             Verdict::Accepted { p_corrected: p }
         } else if let Some(Err(why)) = &plausible {
@@ -549,7 +554,10 @@ fn ranked<F: Family>(
         }
         checked += 1;
         let Some(screen) = entries[idx].screen.as_ref() else { continue };
-        let Some(fit) = family.fit_all(&entries[idx].candidate, screen)? else { continue };
+        let Some(fit) = family.fit_all(&entries[idx].candidate, screen)? else {
+            entries[idx].row.verdict = Verdict::Unscored(NOT_APPLICABLE.into());
+            continue;
+        };
         let row = &mut entries[idx].row;
         row.parameters = fit.parameters.clone();
         row.overlap_sine = fit.overlap_sine;

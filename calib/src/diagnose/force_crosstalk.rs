@@ -28,10 +28,12 @@ pub(super) struct CrosstalkFit {
     pub c: Matrix6<f64>,
     /// The parameters of the fit without cross-talk, whose loads give the cross-talk columns.
     pub theta_loads: DVector<f64>,
+    /// Cross-talk directions fitted (those the model's own columns do not nearly repeat).
+    pub identifiable: usize,
 }
 
 /// The load forces (no offsets) per pose of `rows` under `theta`: `a` is the model's
-/// regressor (6 rows per pose), `load` marks its load columns (not the offsets).
+/// regressor (6 rows per pose), `load` marks the columns whose forces the cross-talk acts on.
 fn loads(a: &DMatrix<f64>, theta: &DVector<f64>, load: &[bool], rows: &[usize]) -> Vec<[f64; 6]> {
     rows.iter()
         .map(|&k| {
@@ -87,19 +89,66 @@ fn min_norm(x: &DMatrix<f64>, y: &DVector<f64>) -> DVector<f64> {
     DVector::from_iterator(x.ncols(), z.iter().zip(&norms).map(|(v, n)| if *n > 0.0 { v / n } else { 0.0 }))
 }
 
-/// Fits the model (regressor `a`, load columns `load`) plus cross-talk on poses `rows` of the
-/// forces `y` (6 per pose).
+/// Smallest sine of the angle between a cross-talk direction and the model's columns for the
+/// direction to be fitted: below it the direction trades with the rigid body, the offsets or
+/// the deformation terms (variance inflation above `1 / MIN_SINE^2` = 100) and is left out.
+pub(super) const MIN_SINE: f64 = 0.1;
+
+/// Fits the model (regressor `a`, load columns `load`) plus the identifiable part of the
+/// cross-talk on poses `rows` of the forces `y` (6 per pose).
+///
+/// The 30 cross-talk columns (built from the loads of the fit without cross-talk) are reduced
+/// to their range (12 of the 30 directions leave every load unchanged: at rest each load is
+/// linear in gravity in the platform frame, so each sensor's 5 coefficients act through 3
+/// numbers), then to the directions whose angle to the model's own columns has a sine of at
+/// least [`MIN_SINE`]: the 4 that reproduce a change of mass and centre of gravity and the one
+/// that, at tilts of a few degrees, nearly repeats the offsets (gravity along the platform's
+/// axis barely changes) are projected out. The reported `C` is the smallest (minimum-norm) one
+/// that produces the fitted part; the part projected out is not claimed.
 pub(super) fn fit(a: &DMatrix<f64>, y: &DVector<f64>, load: &[bool], rows: &[usize]) -> CrosstalkFit {
     let a_r = rows_of(a, rows);
     let y_r = DVector::from_iterator(6 * rows.len(), rows.iter().flat_map(|&k| (0..6).map(move |s| y[6 * k + s])));
     let theta_loads = min_norm(&a_r, &y_r);
     let x = columns(&loads(a, &theta_loads, load, rows));
-    let mut full = DMatrix::zeros(a_r.nrows(), a_r.ncols() + 30);
+    // The range of the cross-talk columns: x = U S V^T, kept where S is not negligible.
+    let svd_x = x.clone().svd(true, true);
+    let (Some(u), Some(v_t)) = (svd_x.u.as_ref(), svd_x.v_t.as_ref()) else {
+        return CrosstalkFit { theta: theta_loads.clone(), c: Matrix6::zeros(), theta_loads, identifiable: 0 };
+    };
+    let smax = svd_x.singular_values.max();
+    let keep: Vec<usize> =
+        (0..svd_x.singular_values.len()).filter(|&k| smax > 0.0 && svd_x.singular_values[k] > smax * 1e-9).collect();
+    let u_r = DMatrix::from_fn(x.nrows(), keep.len(), |r, c| u[(r, keep[c])]);
+    // An orthonormal basis of the model's columns.
+    let svd_a = a_r.clone().svd(true, false);
+    let amax = svd_a.singular_values.max();
+    let ua = svd_a.u.as_ref().expect("requested");
+    let qa_cols: Vec<usize> =
+        (0..svd_a.singular_values.len()).filter(|&k| svd_a.singular_values[k] > amax * 1e-10).collect();
+    let qa = DMatrix::from_fn(a_r.nrows(), qa_cols.len(), |r, c| ua[(r, qa_cols[c])]);
+    // Principal angles between range(x) and the model's columns.
+    let perp = &u_r - &qa * (qa.transpose() * &u_r);
+    let svd_p = perp.svd(false, true);
+    let w_t = svd_p.v_t.as_ref().expect("requested");
+    let dirs: Vec<usize> = (0..svd_p.singular_values.len()).filter(|&k| svd_p.singular_values[k] >= MIN_SINE).collect();
+    // w: coordinates (in u_r) of the kept directions; b = u_r w their columns.
+    let w = DMatrix::from_fn(keep.len(), dirs.len(), |r, c| w_t[(dirs[c], r)]);
+    let b = &u_r * &w;
+    let mut full = DMatrix::zeros(a_r.nrows(), a_r.ncols() + dirs.len());
     full.columns_mut(0, a_r.ncols()).copy_from(&a_r);
-    full.columns_mut(a_r.ncols(), 30).copy_from(&x);
+    full.columns_mut(a_r.ncols(), dirs.len()).copy_from(&b);
     let z = min_norm(&full, &y_r);
     let theta = z.rows(0, a_r.ncols()).into_owned();
-    let cvec = z.rows(a_r.ncols(), 30).into_owned();
+    let coef = z.rows(a_r.ncols(), dirs.len()).into_owned();
+    // The minimum-norm C with x c = b coef: c = V_r S_r^-1 w coef.
+    let t = &w * coef;
+    let mut cvec = DVector::zeros(30);
+    for (k, &kk) in keep.iter().enumerate() {
+        let scale = t[k] / svd_x.singular_values[kk];
+        for j in 0..30 {
+            cvec[j] += v_t[(kk, j)] * scale;
+        }
+    }
     let mut c = Matrix6::zeros();
     let mut col = 0;
     for i in 0..6 {
@@ -110,7 +159,7 @@ pub(super) fn fit(a: &DMatrix<f64>, y: &DVector<f64>, load: &[bool], rows: &[usi
             }
         }
     }
-    CrosstalkFit { theta, c, theta_loads }
+    CrosstalkFit { theta, c, theta_loads, identifiable: dirs.len() }
 }
 
 /// Predicted forces (6 per pose of `rows`) under a fit.
@@ -154,7 +203,7 @@ mod tests {
         c[(3, 4)] = -0.01;
         c[(5, 2)] = 0.02;
         let rows: Vec<usize> = (0..n).collect();
-        let truth = CrosstalkFit { theta: theta.clone(), c, theta_loads: theta };
+        let truth = CrosstalkFit { theta: theta.clone(), c, theta_loads: theta, identifiable: 30 };
         let y = predict(&a, &load, &truth, &rows);
         let got = fit(&a, &y, &load, &rows);
         let back = predict(&a, &load, &got, &rows);

@@ -276,18 +276,45 @@ pub fn fmt_p(p: f64) -> String {
     }
 }
 
-/// The verdict in words of a smallest-p selection (camera, force sensor).
+/// The verdict in words of a smallest-p selection (camera, force sensor): every verdict names
+/// its reason (never an empty string); `implausible` prefixes the family's reason for an
+/// implausible candidate (e.g. `rejected: implausible size`).
 pub fn best_verdict(row: &CandidateRow, alpha: f64, min_improvement: f64, implausible: &str) -> String {
     match &row.verdict {
+        Verdict::Pending => "not decided (not applicable when fitted on all the data)".into(),
+        Verdict::Unscored(why) if why.is_empty() => "could not be scored".into(),
         Verdict::Unscored(why) => why.clone(),
-        Verdict::Accepted { .. } => "accepted".into(),
-        Verdict::Implausible(_) => implausible.into(),
+        Verdict::Accepted { p_corrected } => format!("accepted ({} corrected)", fmt_p(*p_corrected)),
+        Verdict::Implausible(why) => {
+            let lead = if implausible.is_empty() { "rejected as physically implausible" } else { implausible };
+            format!("{lead}: {why}")
+        }
         Verdict::NotSignificant => format!("not significant (p = {:.2e} >= {alpha})", row.p_corrected),
         Verdict::TooSmall => {
             format!("improvement {:.1} % below {:.1} %", row.improvement * 100.0, min_improvement * 100.0)
         }
         Verdict::NotBest => "not the best candidate".into(),
-        _ => String::new(),
+        Verdict::NotExamined => "significant, not examined further this step".into(),
+        Verdict::Overlap(sa) => {
+            format!("rejected: nearly a combination of the base model's parameters (sine of the angle {sa:.3})")
+        }
+        Verdict::Unstable(why) => format!("rejected as unstable across the folds: {why}"),
+        Verdict::RefitFailed(e) => format!("rejected: the full refit failed ({e})"),
+        Verdict::NotConfirmed { improvement, p_corrected } => format!(
+            "rejected by the full refits: held-out improvement {:.2} %, {}",
+            improvement * 100.0,
+            fmt_p(*p_corrected)
+        ),
+        Verdict::Explained { by, p_added, p_rival_added } => format!(
+            "rejected: {by} explains it ({} for it added to {by}, {} the other way)",
+            fmt_p(*p_added),
+            fmt_p(*p_rival_added)
+        ),
+        Verdict::NotSeparable { with, p_added, p_rival_added } => format!(
+            "not claimed: the held-out data cannot tell it from {with} ({} and {})",
+            fmt_p(*p_added),
+            fmt_p(*p_rival_added)
+        ),
     }
 }
 

@@ -522,7 +522,7 @@ pub fn compensated_calibration(
 /// The kinematic verdict of a candidate row in words (`m`: candidates of the step).
 fn verdict_words(row: &CandidateRow, m: usize, opts: &DiagnoseOptions) -> String {
     match &row.verdict {
-        Verdict::Pending => String::new(),
+        Verdict::Pending => "not decided (not applicable when fitted on all the data)".into(),
         Verdict::Unscored(why) => why.clone(),
         Verdict::TooSmall => format!(
             "held-out improvement {:.2} % below {:.1} %",
