@@ -258,6 +258,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8], inputs: &[&Path]) -> Result<()> {
         let _ = std::fs::remove_file(&tmp);
         w(e)
     })?;
+    crate::pause_before_commit();
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         w(e)
