@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
