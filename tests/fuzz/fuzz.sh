@@ -14,5 +14,5 @@ here="$(cd "$(dirname "$0")" && pwd)"
 mkdir -p "$corpus" "artifacts/$target"
 RUSTC_WRAPPER="$here/rustc-sancov.sh" cargo build --manifest-path "$here/Cargo.toml" --bin "$target"
 bin="${CARGO_TARGET_DIR:-$here/target}/debug/$target"
-exec nice -n 19 "$bin" "$corpus" -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=10 \
+exec nice -n 19 "$bin" "$corpus" -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=10 -max_len=8192 \
     -artifact_prefix="artifacts/$target/" -print_final_stats=1
