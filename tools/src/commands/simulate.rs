@@ -112,6 +112,8 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
     outputs.extend(args.robot_out.as_deref());
     outputs.extend(args.intrinsics_out.as_deref());
     ferrocal_report::check_outputs(&outputs, &[&args.input])?;
+    // Every output is composed first and all are written as one commit at the end.
+    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     let (set, kinds) = match args.kind {
         ImportKind::IcHandeye => {
             let cam = args.intrinsics_out.as_deref();
@@ -120,7 +122,8 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
         ImportKind::IcKinematic => {
             let s = ferrocal_datasets::handeye::read_ic_kinematic(&args.input, args.test_every)?;
             if let Some(p) = &args.robot_out {
-                ferrocal_datasets::handeye::ic_kinematic::write_ic_positioner_urdf(p, &args.input)?;
+                let urdf = ferrocal_datasets::handeye::ic_kinematic::ic_positioner_urdf(&args.input)?;
+                files.push((p.as_path(), urdf.into_bytes()));
             }
             let n = s.n_joints();
             (s, vec![JointKind::Revolute; n])
@@ -153,7 +156,10 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
     }
     opts.length_unit = LengthUnit::Mm;
     opts.comments = vec![format!("imported by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), args.input.display())];
-    import::write_measurements(&args.out, &set, &opts).with_context(|| format!("writing {}", args.out.display()))?;
+    let table =
+        import::measurements_to_string(&set, &opts).with_context(|| format!("writing {}", args.out.display()))?;
+    files.insert(0, (args.out.as_path(), table.into_bytes()));
+    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     eprintln!("{} rows written to {}", set.rows.len(), args.out.display());
     Ok(ExitCode::SUCCESS)
 }
