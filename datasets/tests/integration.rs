@@ -20,6 +20,7 @@ mod import_images;
 mod import_measurements;
 mod import_ur10;
 mod import_ur5;
+mod input_properties;
 mod measure_recording;
 mod motion_study;
 mod plan_l1;

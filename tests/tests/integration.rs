@@ -4,6 +4,7 @@
 mod cli;
 mod compensate;
 mod handeye;
+mod kill;
 mod measure;
 mod positioner;
 mod reliability;

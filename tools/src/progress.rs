@@ -14,6 +14,19 @@ pub fn bar(len: u64, msg: &str) -> ProgressBar {
     pb
 }
 
+/// A spinner with the elapsed time, for a long step that reports no progress of its own
+/// (hidden when stderr is not a terminal, like the bars).
+pub fn spinner(msg: &str) -> ProgressBar {
+    let pb = ProgressBar::new_spinner();
+    pb.set_style(
+        ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    pb.set_message(msg.to_string());
+    pb.enable_steady_tick(std::time::Duration::from_millis(250));
+    pb
+}
+
 /// Progress bars by label: a new label finishes the previous bar; a bar finishes at its length.
 #[derive(Default)]
 pub struct Bars(std::cell::RefCell<Option<(String, ProgressBar)>>);

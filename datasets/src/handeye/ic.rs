@@ -204,14 +204,21 @@ pub fn import_ic_handeye(
     }
     let text = super::poses::flange_poses_to_string(&set.rows, &comments);
     let cal = dir.join("cal_data.yaml");
-    super::poses::write_atomic(out, text.as_bytes(), &[cal.as_path()])?;
-    if let Some(path) = intrinsics_out {
-        let camera = set.camera.ok_or_else(|| DatasetError::Invalid {
-            location: Location::line(&cal, 1),
-            message: "no 'intrinsics' to write".into(),
-        })?;
-        let yaml = ferrocal_vision::camera::io::to_opencv_yaml(&camera)?;
-        super::poses::write_atomic(path, yaml.as_bytes(), &[cal.as_path(), out])?;
+    // The table and the camera are composed first and written as one commit.
+    let yaml = match intrinsics_out {
+        Some(_) => {
+            let camera = set.camera.ok_or_else(|| DatasetError::Invalid {
+                location: Location::line(&cal, 1),
+                message: "no 'intrinsics' to write".into(),
+            })?;
+            Some(ferrocal_vision::camera::io::to_opencv_yaml(&camera)?)
+        }
+        None => None,
+    };
+    let mut files: Vec<(&Path, &[u8])> = vec![(out, text.as_bytes())];
+    if let (Some(path), Some(yaml)) = (intrinsics_out, &yaml) {
+        files.push((path, yaml.as_bytes()));
     }
+    super::poses::write_all_atomic(&files, &[cal.as_path()])?;
     Ok(set)
 }

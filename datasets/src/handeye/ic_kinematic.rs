@@ -109,6 +109,11 @@ pub fn ic_positioner_nominal() -> SerialChain {
 
 /// Writes [`ic_positioner_nominal`] as URDF to `out` (atomically, never onto `input`).
 pub fn write_ic_positioner_urdf(out: &Path, input: &Path) -> Result<()> {
+    super::poses::write_atomic(out, ic_positioner_urdf(input)?.as_bytes(), &[input])
+}
+
+/// [`ic_positioner_nominal`] as URDF text, its comment naming `input`.
+pub fn ic_positioner_urdf(input: &Path) -> Result<String> {
     let chain = ic_positioner_nominal();
     let frames = ferrocal_robot::serial::UrdfFrames {
         root_link: "positioner_base".into(),
@@ -120,9 +125,8 @@ pub fn write_ic_positioner_urdf(out: &Path, input: &Path) -> Result<()> {
         env!("CARGO_PKG_VERSION"),
         input.display()
     );
-    let urdf = ferrocal_robot::serial::to_urdf(&chain, &[0.0, 0.0], &frames, &comment)
-        .map_err(|e| DatasetError::Input(format!("the positioner model: {e}")))?;
-    super::poses::write_atomic(out, urdf.as_bytes(), &[input])
+    ferrocal_robot::serial::to_urdf(&chain, &[0.0, 0.0], &frames, &comment)
+        .map_err(|e| DatasetError::Input(format!("the positioner model: {e}")))
 }
 
 #[cfg(test)]

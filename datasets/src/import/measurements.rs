@@ -603,7 +603,8 @@ impl Layout {
             }
             return Err(e);
         }
-        let mut joint_cols = Vec::with_capacity(n);
+        // n comes from a header name (`q99999999_rad`): the columns present bound the allocation.
+        let mut joint_cols = Vec::with_capacity(joints.len());
         for i in 1..=n {
             match joints.get(&i) {
                 Some(j) => joint_cols.push(*j),

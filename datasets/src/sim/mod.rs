@@ -577,11 +577,18 @@ pub fn simulate(
     })();
     match result {
         Ok(m) => {
-            if out.exists() {
-                std::fs::remove_dir_all(out)
-                    .map_err(|source| DatasetError::Write { path: out.to_path_buf(), source })?;
+            // The commit: an existing folder is moved aside first and removed after the new one
+            // is in place, so a kill at any moment leaves the old session or the new one.
+            crate::pause_before_commit();
+            let old = tmp.with_file_name(format!(".{}.old-{}", folder_name(out), std::process::id()));
+            let had = out.exists();
+            if had {
+                std::fs::rename(out, &old).map_err(|source| DatasetError::Write { path: out.to_path_buf(), source })?;
             }
             std::fs::rename(&tmp, out).map_err(|source| DatasetError::Write { path: out.to_path_buf(), source })?;
+            if had {
+                let _ = std::fs::remove_dir_all(&old);
+            }
             Ok(m)
         }
         Err(e) => {
@@ -591,11 +598,14 @@ pub fn simulate(
     }
 }
 
+fn folder_name(out: &Path) -> &str {
+    out.file_name().and_then(|n| n.to_str()).unwrap_or("session")
+}
+
 fn sibling_tmp(out: &Path) -> Result<PathBuf, DatasetError> {
     let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     std::fs::create_dir_all(parent).map_err(|source| DatasetError::Write { path: parent.to_path_buf(), source })?;
-    let name = out.file_name().and_then(|n| n.to_str()).unwrap_or("session");
-    let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
+    let tmp = parent.join(format!(".{}.partial-{}", folder_name(out), std::process::id()));
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(|source| DatasetError::Write { path: tmp.clone(), source })?;
     }

@@ -30,4 +30,6 @@ pub mod recording;
 pub mod report;
 pub mod stiffness;
 
-pub use report::{check_outputs, inline_png, write_all_atomic, write_atomic, Block, Provenance, Report, Section};
+pub use report::{
+    check_outputs, inline_png, write_all_atomic, write_atomic, Block, Provenance, Report, Section, StagedFolder,
+};

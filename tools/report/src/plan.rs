@@ -22,7 +22,7 @@ use nalgebra::Vector3;
 use serde_json::json;
 
 use crate::plot::{self, Series};
-use crate::report::{write_atomic, Provenance, Report, Section};
+use crate::report::{Provenance, Report, Section, StagedFolder};
 
 /// What `ferrocal plan` was asked for: the plan file, the output folder and the overrides of the
 /// plan file's settings.
@@ -42,6 +42,8 @@ pub struct PlanRequest {
     pub random_subsets: usize,
     /// Override of the seed of the random pool, subsets and simulations.
     pub seed: Option<u64>,
+    /// Replace `out` when it exists and is not empty (refused otherwise).
+    pub force: bool,
 }
 
 /// What `ferrocal plan` wrote.
@@ -58,6 +60,14 @@ pub struct PlanOutcome {
 /// Runs the flow of `ferrocal plan` and writes its files into `args.out`: `log` receives progress
 /// lines, `on_run(k, runs)` the progress of the simulated calibrations.
 pub fn run(args: &PlanRequest, log: &dyn Fn(&str), on_run: &dyn Fn(usize, usize)) -> Result<PlanOutcome> {
+    // The run folder is written aside and moved into place at the end (a killed or failed plan
+    // leaves no new file beside old ones): check it can be, before any work.
+    StagedFolder::check(&args.out, args.force)?;
+    if let (Ok(p), Ok(o)) = (args.plan.canonicalize(), args.out.canonicalize()) {
+        if p.starts_with(&o) {
+            bail!("{} holds the plan file {}; choose another folder", args.out.display(), args.plan.display());
+        }
+    }
     let mut plan = PlanFile::from_file(&args.plan)?;
     if let Some(c) = args.criterion {
         plan.design.criterion = c;
@@ -117,27 +127,29 @@ pub fn run(args: &PlanRequest, log: &dyn Fn(&str), on_run: &dyn Fn(usize, usize)
             path.measurements()
         ),
     ];
-    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
-    write_atomic(&args.out.join("poses.csv"), path_csv(&model, &path, true)?.as_bytes())?;
-    write_atomic(&args.out.join("path.csv"), path_csv(&model, &path, false)?.as_bytes())?;
+    // Every file composed first, then written aside and moved into place together.
+    let mut files: Vec<(String, Vec<u8>)> = vec![
+        ("poses.csv".into(), path_csv(&model, &path, true)?.into_bytes()),
+        ("path.csv".into(), path_csv(&model, &path, false)?.into_bytes()),
+    ];
     let grid_path = measure_steps(&design.kinematic.poses, &design.grid_indices);
-    write_atomic(&args.out.join("grid_poses.csv"), path_csv(&model, &grid_path, true)?.as_bytes())?;
+    files.push(("grid_poses.csv".into(), path_csv(&model, &grid_path, true)?.into_bytes()));
     let rapid = rapid_module(&model, &path, plan.path.dwell_s, &plan.program, &header)?;
-    write_atomic(&args.out.join("program.mod"), rapid.as_bytes())?;
+    files.push(("program.mod".into(), rapid.into_bytes()));
     let g = gcode(&model, &path, plan.path.dwell_s, &plan.program, &header)?;
-    write_atomic(&args.out.join("program.ngc"), g.text.as_bytes())?;
+    files.push(("program.ngc".into(), g.text.clone().into_bytes()));
     let krl_file = format!("{}.src", plan.program.krl_name);
-    write_atomic(&args.out.join(&krl_file), krl(&model, &path, plan.path.dwell_s, &plan.program, &header)?.as_bytes())?;
+    files.push((krl_file.clone(), krl(&model, &path, plan.path.dwell_s, &plan.program, &header)?.into_bytes()));
     // URScript only for a six-joint revolute arm; other machines get no script (said in the report).
     let ur_script = match urscript(&model, &path, plan.path.dwell_s, &plan.program, &header) {
         Ok(text) => {
-            write_atomic(&args.out.join("program.script"), text.as_bytes())?;
+            files.push(("program.script".into(), text.into_bytes()));
             None
         }
         Err(e) => Some(e.to_string()),
     };
     let session = session_plan_toml(&design.map.home, &path, plan.path.dwell_s);
-    write_atomic(&args.out.join("session_plan.toml"), session.as_bytes())?;
+    files.push(("session_plan.toml".into(), session.into_bytes()));
 
     // Report.
     let mut prov = Provenance::new(json!({
@@ -157,8 +169,15 @@ pub fn run(args: &PlanRequest, log: &dyn Fn(&str), on_run: &dyn Fn(usize, usize)
     rep.sections.push(selection_section(&design, random, args.random_subsets));
     rep.sections.push(prediction_section(&design, mc.as_ref()));
     rep.sections.push(path_section(&model, &path, &plan, g.max_chord_deviation_mm, &krl_file, ur_script.as_deref()));
-    let html = rep.write(&args.out)?;
-    Ok(PlanOutcome { passed: design.passed, measurements: path.measurements(), html })
+    files.push(("report.json".into(), serde_json::to_string_pretty(&rep.to_json())?.into_bytes()));
+    files.push(("index.html".into(), rep.to_html().into_bytes()));
+    let staged = StagedFolder::create(&args.out)?;
+    for (name, bytes) in &files {
+        let p = staged.path().join(name);
+        std::fs::write(&p, bytes).with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    let out = staged.commit()?;
+    Ok(PlanOutcome { passed: design.passed, measurements: path.measurements(), html: out.join("index.html") })
 }
 
 /// Formats a parameter value in its unit (mm for metres, 1e-3 for dimensionless, mrad).
@@ -629,6 +648,7 @@ mod tests {
             wanted: Some(40),
             random_subsets: 50,
             seed: None,
+            force: false,
         };
         let outcome = run(&args, &|_| {}, &|_, _| {}).unwrap();
         assert!(outcome.measurements >= 40 && outcome.html.exists());

@@ -2,7 +2,7 @@
 //! images and the poses table of `handeye`, no session manifest, no truth) measured by one camera
 //! into a measurement table with each pose's covariance (`ferrocal_datasets::recording`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
@@ -15,7 +15,7 @@ use ferrocal_vision::calib::CalibrationOptions;
 use serde_json::json;
 
 use crate::handeye::MountArg;
-use crate::report::write_atomic;
+use crate::report::write_all_atomic;
 
 /// The recording half of `ferrocal measure` (without `--session`).
 #[derive(Debug, Args)]
@@ -71,6 +71,11 @@ pub fn run(
             }
         }
     }
+    let outputs: Vec<&Path> = out.iter().chain(json_out.iter()).map(|p| p.as_path()).collect();
+    let inputs: Vec<&Path> = paths.iter().map(PathBuf::as_path).chain([poses.as_path()]).collect();
+    crate::report::check_outputs(&outputs, &inputs)?;
+    // The table and the JSON are composed first and written together at the end.
+    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     let opts = RecordingOptions {
         mount: crate::handeye::mount_of(a.mount),
         camera: a.intrinsics.as_deref().map(read_camera_file).transpose()?,
@@ -106,7 +111,9 @@ pub fn run(
         if let Some(s) = &m.source {
             wopts.comments.push(format!("source: {s}"));
         }
-        import::write_measurements(out, rows, &wopts).with_context(|| format!("writing {}", out.display()))?;
+        let text =
+            import::measurements_to_string(rows, &wopts).with_context(|| format!("writing {}", out.display()))?;
+        files.push((out.as_path(), text.into_bytes()));
         println!("table {} ({} rows)", out.display(), rows.rows.len());
     }
     if let Some(j) = json_out {
@@ -136,8 +143,9 @@ pub fn run(
                 "sigma_rotation_deg": p.sigma_rotation_deg(),
             })).collect::<Vec<_>>(),
         });
-        write_atomic(j, serde_json::to_string_pretty(&v)?.as_bytes())?;
+        files.push((j.as_path(), serde_json::to_string_pretty(&v)?.into_bytes()));
     }
+    write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     Ok(ExitCode::SUCCESS)
 }
 

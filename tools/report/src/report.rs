@@ -387,6 +387,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create folder {}", dir.display()))?;
     let written =
         std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display())).and_then(|_| {
+            ferrocal_datasets::pause_before_commit();
             std::fs::rename(&tmp, path).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))
         });
     if written.is_err() {
@@ -420,6 +421,7 @@ pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
             return Err(e);
         }
     }
+    ferrocal_datasets::pause_before_commit();
     for (k, (tmp, path)) in staged.iter().enumerate() {
         if let Err(e) = std::fs::rename(tmp, path) {
             cleanup(&staged[k..]);
@@ -427,6 +429,105 @@ pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A run folder written aside and moved into place: the files are written into a hidden sibling
+/// folder (`.NAME.partial-PID`), and [`commit`](Self::commit) renames it to the target, so that
+/// the target holds either the complete set of a run or what it held before, never a mix.
+/// Dropped without a commit (an error on the way), the sibling is removed. A process killed
+/// before the commit leaves only the hidden sibling.
+#[derive(Debug)]
+pub struct StagedFolder {
+    target: PathBuf,
+    staged: PathBuf,
+    committed: bool,
+}
+
+impl StagedFolder {
+    /// Checks that `target` can take a run folder: absent, an empty folder, or (with `force`) a
+    /// folder to replace; a symbolic link, a file or device, and a non-empty folder without
+    /// `force` are refused. Call before any work, then [`create`](Self::create) to write.
+    pub fn check(target: &Path, force: bool) -> Result<()> {
+        match std::fs::symlink_metadata(target) {
+            Err(_) => Ok(()),
+            Ok(m) if m.file_type().is_symlink() => anyhow::bail!(
+                "{} is a symbolic link; refusing to replace it (name the folder it points to, or another path)",
+                target.display()
+            ),
+            Ok(m) if !m.is_dir() => anyhow::bail!("{} exists and is not a folder", target.display()),
+            Ok(_) => {
+                let empty = std::fs::read_dir(target)
+                    .with_context(|| format!("cannot read {}", target.display()))?
+                    .next()
+                    .is_none();
+                if empty || force {
+                    Ok(())
+                } else {
+                    anyhow::bail!(
+                        "{} exists and is not empty; choose another folder or pass --force to replace it",
+                        target.display()
+                    )
+                }
+            }
+        }
+    }
+
+    /// Creates the hidden sibling folder that the run writes into.
+    pub fn create(target: &Path) -> Result<Self> {
+        let (dir, name) = folder_parts(target);
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create folder {}", dir.display()))?;
+        let staged = dir.join(format!(".{name}.partial-{}", std::process::id()));
+        if staged.exists() {
+            std::fs::remove_dir_all(&staged).with_context(|| format!("cannot remove {}", staged.display()))?;
+        }
+        std::fs::create_dir(&staged).with_context(|| format!("cannot create folder {}", staged.display()))?;
+        Ok(Self { target: target.to_path_buf(), staged, committed: false })
+    }
+
+    /// The folder to write the run's files into.
+    pub fn path(&self) -> &Path {
+        &self.staged
+    }
+
+    /// Moves the written folder into place. An existing target is first renamed aside (to
+    /// `.NAME.old-PID`) and removed after the move, so an interrupted commit leaves the old
+    /// folder aside or the new one in place, never a mix of both.
+    pub fn commit(mut self) -> Result<PathBuf> {
+        ferrocal_datasets::pause_before_commit();
+        let (dir, name) = folder_parts(&self.target);
+        let old = dir.join(format!(".{name}.old-{}", std::process::id()));
+        let had_target = std::fs::symlink_metadata(&self.target).is_ok();
+        if had_target {
+            std::fs::rename(&self.target, &old)
+                .with_context(|| format!("cannot move {} aside", self.target.display()))?;
+        }
+        if let Err(e) = std::fs::rename(&self.staged, &self.target) {
+            if had_target {
+                let _ = std::fs::rename(&old, &self.target);
+            }
+            return Err(e)
+                .with_context(|| format!("cannot move {} to {}", self.staged.display(), self.target.display()));
+        }
+        self.committed = true;
+        if had_target {
+            let _ = std::fs::remove_dir_all(&old);
+        }
+        Ok(self.target.clone())
+    }
+}
+
+impl Drop for StagedFolder {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.staged);
+        }
+    }
+}
+
+/// The parent folder (`.` for a bare name) and the file name of a folder path.
+fn folder_parts(path: &Path) -> (&Path, String) {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    (dir, path.file_name().and_then(|n| n.to_str()).unwrap_or("out").to_string())
 }
 
 const CSS: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}\

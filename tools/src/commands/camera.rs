@@ -8,12 +8,12 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
 use ferrocal_report::camera_report::{camera_report, stereo_report, CameraReportInput, StereoReportInput};
-use ferrocal_report::report::{write_atomic, Provenance};
+use ferrocal_report::report::{check_outputs, write_all_atomic, Provenance};
 use ferrocal_vision::calib::corners::{
     detect_pattern_views, detect_view_slots, CornerMethod, SkippedImage, SubpixWindow,
 };
@@ -274,9 +274,24 @@ fn too_few(what: &str, usable: usize, total: usize, skipped: &[SkippedImage]) ->
     )
 }
 
-fn write_json(path: &Path, v: &Value) -> Result<()> {
-    crate::report::write_atomic(path, serde_json::to_string_pretty(v)?.as_bytes())
-        .with_context(|| format!("writing {}", path.display()))
+/// The outputs of one command, composed first and written together (`write_all_atomic`): a
+/// failure on the way writes none of them.
+#[derive(Default)]
+struct Outputs(Vec<(PathBuf, Vec<u8>)>);
+
+impl Outputs {
+    fn json(&mut self, path: &Path, v: &Value) -> Result<()> {
+        self.0.push((path.to_path_buf(), serde_json::to_string_pretty(v)?.into_bytes()));
+        Ok(())
+    }
+
+    fn text(&mut self, path: &Path, text: &str) {
+        self.0.push((path.to_path_buf(), text.as_bytes().to_vec()));
+    }
+
+    fn write(&self) -> Result<()> {
+        write_all_atomic(&self.0.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect::<Vec<_>>())
+    }
 }
 
 fn print_camera(label: &str, cal: &CameraCalibration) {
@@ -315,6 +330,10 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
     let (pattern, _, options) = a.solve.options()?;
     let mut skipped = Vec::new();
     let paths = expand_image_specs(&a.images, &mut skipped);
+    let outputs: Vec<&Path> =
+        [&a.json, &a.opencv_yaml, &a.ros_yaml, &a.report].into_iter().flatten().map(PathBuf::as_path).collect();
+    check_outputs(&outputs, &paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    let mut out = Outputs::default();
     let found = detect_pattern_views(&paths, &pattern, a.solve.corner_method());
     skipped.extend(found.skipped);
     report_skipped(&skipped);
@@ -367,13 +386,13 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
         v["corners"] = json!(a.solve.corner_method());
         v["held_out"] = json!(held_out);
         v["skipped"] = skipped_json(&skipped);
-        write_json(p, &v)?;
+        out.json(p, &v)?;
     }
     if let Some(p) = &a.opencv_yaml {
-        write_text(p, &io::to_opencv_yaml(&cal.camera)?)?;
+        out.text(p, &io::to_opencv_yaml(&cal.camera)?);
     }
     if let Some(p) = &a.ros_yaml {
-        write_text(p, &io::to_ros_yaml(&cal.camera, &a.camera_name)?)?;
+        out.text(p, &io::to_ros_yaml(&cal.camera, &a.camera_name)?);
     }
     if let Some(p) = &a.report {
         let mut prov = Provenance::new(json!({"pattern": pattern.to_string(), "corners": a.solve.corner_method(),
@@ -386,8 +405,9 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
             held_out: held_out.as_ref(),
             provenance: prov,
         };
-        write_atomic(p, camera_report(cal, input).to_html().as_bytes())?;
+        out.text(p, &camera_report(cal, input).to_html());
     }
+    out.write()?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -417,7 +437,11 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
     .into_iter()
     .flatten()
     .collect();
-    check_outputs(&outputs, &inputs)?;
+    check_outputs(
+        &outputs.iter().map(|p| p.as_path()).collect::<Vec<_>>(),
+        &inputs.iter().map(|p| p.as_path()).collect::<Vec<_>>(),
+    )?;
+    let mut out = Outputs::default();
     let method = a.solve.corner_method();
     let (left, ls) = detect_view_slots(&left_paths, &pattern, method);
     let (right, rs) = detect_view_slots(&right_paths, &pattern, method);
@@ -481,26 +505,27 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
         let mut v = stereo_json(&st, n_pairs, &pattern.pattern(), a.solve.fix_aspect, &skipped);
         v["rectification"] =
             pair.as_ref().map_or(Value::Null, |pair| rectification_json(pair, row_rms_px, corners.len()));
-        write_json(p, &v)?;
+        out.json(p, &v)?;
     }
     for (cal, path) in [(st.left(), &a.left_opencv_yaml), (st.right(), &a.right_opencv_yaml)] {
         if let Some(p) = path {
-            write_text(p, &io::to_opencv_yaml(&cal.camera)?)?;
+            out.text(p, &io::to_opencv_yaml(&cal.camera)?);
         }
     }
     let Some(pair) = &pair else {
+        out.write()?;
         return Ok(ExitCode::SUCCESS);
     };
     if a.left_ros_yaml.is_some() || a.right_ros_yaml.is_some() {
         let (l, r) = io::to_ros_stereo_yaml(pair, "left", "right")?;
         for (text, path) in [(l, &a.left_ros_yaml), (r, &a.right_ros_yaml)] {
             if let Some(p) = path {
-                write_text(p, &text)?;
+                out.text(p, &text);
             }
         }
     }
     if let Some(p) = &a.opencv_stereo_yaml {
-        write_text(p, &io::to_opencv_stereo_yaml(pair)?)?;
+        out.text(p, &io::to_opencv_stereo_yaml(pair)?);
     }
     if let Some(p) = &a.report {
         let mut prov = Provenance::new(json!({"pattern": pattern.to_string(), "corners": a.solve.corner_method(),
@@ -515,9 +540,9 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
             corners: &corners,
             provenance: prov,
         };
-        write_atomic(p, stereo_report(&st, input).to_html().as_bytes())
-            .with_context(|| format!("writing {}", p.display()))?;
+        out.text(p, &stereo_report(&st, input).to_html());
     }
+    out.write()?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -541,28 +566,4 @@ fn rectification_json(pair: &io::StereoPair, row_rms_px: f64, n_corners: usize) 
         "n_corner_pairs": n_corners,
         "method": "Bouguet (OpenCV stereoRectify, alpha = -1, CALIB_ZERO_DISPARITY); T, P2 and Q in metres",
     })
-}
-
-/// Writes a text output atomically, naming the file on failure.
-fn write_text(path: &Path, text: &str) -> Result<()> {
-    write_atomic(path, text.as_bytes()).with_context(|| format!("writing {}", path.display()))
-}
-
-/// Refuses outputs that would overwrite an input image or each other.
-fn check_outputs(outputs: &[&PathBuf], inputs: &[&PathBuf]) -> Result<()> {
-    let canon = |p: &Path| {
-        let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-        abs.canonicalize().unwrap_or(abs)
-    };
-    let ins: Vec<PathBuf> = inputs.iter().map(|p| canon(p)).collect();
-    for (i, o) in outputs.iter().enumerate() {
-        let c = canon(o);
-        if ins.contains(&c) {
-            bail!("camera stereo: output {} is one of the input images; choose another file", o.display());
-        }
-        if outputs[..i].iter().any(|q| canon(q) == c) {
-            bail!("camera stereo: {} is given for two outputs", o.display());
-        }
-    }
-    Ok(())
 }

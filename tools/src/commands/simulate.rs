@@ -1,7 +1,7 @@
 //! `ferrocal simulate` and `ferrocal import`: recorded sessions from a simulated cell, and real
 //! recordings converted into the measurement table.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
@@ -112,6 +112,8 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
     outputs.extend(args.robot_out.as_deref());
     outputs.extend(args.intrinsics_out.as_deref());
     ferrocal_report::check_outputs(&outputs, &[&args.input])?;
+    // Every output is composed first and all are written as one commit at the end.
+    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     let (set, kinds) = match args.kind {
         ImportKind::IcHandeye => {
             let cam = args.intrinsics_out.as_deref();
@@ -120,7 +122,8 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
         ImportKind::IcKinematic => {
             let s = ferrocal_datasets::handeye::read_ic_kinematic(&args.input, args.test_every)?;
             if let Some(p) = &args.robot_out {
-                ferrocal_datasets::handeye::ic_kinematic::write_ic_positioner_urdf(p, &args.input)?;
+                let urdf = ferrocal_datasets::handeye::ic_kinematic::ic_positioner_urdf(&args.input)?;
+                files.push((p.as_path(), urdf.into_bytes()));
             }
             let n = s.n_joints();
             (s, vec![JointKind::Revolute; n])
@@ -153,7 +156,10 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
     }
     opts.length_unit = LengthUnit::Mm;
     opts.comments = vec![format!("imported by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), args.input.display())];
-    import::write_measurements(&args.out, &set, &opts).with_context(|| format!("writing {}", args.out.display()))?;
+    let table =
+        import::measurements_to_string(&set, &opts).with_context(|| format!("writing {}", args.out.display()))?;
+    files.insert(0, (args.out.as_path(), table.into_bytes()));
+    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     eprintln!("{} rows written to {}", set.rows.len(), args.out.display());
     Ok(ExitCode::SUCCESS)
 }
@@ -211,6 +217,10 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
             anyhow::bail!("measure: refusing to overwrite {}, a file of the session", out.display());
         }
     }
+    let outputs: Vec<&Path> = [Some(out.as_path()), args.json.as_deref()].into_iter().flatten().collect();
+    let inputs: Vec<&Path> =
+        [args.tracker.as_deref(), args.robot.as_deref().map(Path::new)].into_iter().flatten().collect();
+    ferrocal_report::check_outputs(&outputs, &inputs)?;
     eprintln!("measuring {} ...", session.display());
     let m = measure_session(session, &opts).with_context(|| format!("measure: {}", session.display()))?;
     for s in &m.skipped {
@@ -225,7 +235,10 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
         format!("measured by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), session.display()),
         "positions and orientations of the target in the first camera's frame; cov_*: each pose's covariance".into(),
     ];
-    import::write_measurements(out, &m.rows, &wopts).with_context(|| format!("writing {}", out.display()))?;
+    // The table and the summary are composed first and written together at the end.
+    let table_text =
+        import::measurements_to_string(&m.rows, &wopts).with_context(|| format!("writing {}", out.display()))?;
+    let mut files: Vec<(&Path, Vec<u8>)> = vec![(out.as_path(), table_text.into_bytes())];
     let sigmas: Vec<f64> = m.rows.rows.iter().filter_map(|r| r.sigma_m.map(|s| s * 1e3)).collect();
     let median_sigma_mm = {
         let mut s = sigmas;
@@ -269,7 +282,8 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
                 "sigma_rotation_deg": p.estimate.sigma_rotation_deg().as_slice(),
             })).collect::<Vec<_>>(),
         });
-        ferrocal_report::write_atomic(j, serde_json::to_string_pretty(&v)?.as_bytes())?;
+        files.push((j.as_path(), serde_json::to_string_pretty(&v)?.into_bytes()));
     }
+    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     Ok(ExitCode::SUCCESS)
 }

@@ -208,7 +208,8 @@ impl<'a> Doc<'a> {
                 perr(self.source_name, data_entry.line, format!("'{key}.data' holds '{item}', not a finite number"))
             })?);
         }
-        if data.len() != rows * cols {
+        // rows and cols come from the file: their product may overflow.
+        if rows.checked_mul(cols) != Some(data.len()) {
             return Err(perr(
                 self.source_name,
                 data_entry.line,

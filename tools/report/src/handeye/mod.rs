@@ -171,6 +171,15 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
     let (Some(poses_path), Some(pattern_text), Some(mount)) = (&a.poses, &a.pattern, a.mount) else {
         bail!("handeye: --poses, --pattern and --mount are required");
     };
+    let outputs: Vec<&Path> = [&a.json, &a.report, &a.out].into_iter().flatten().map(PathBuf::as_path).collect();
+    let mut inputs: Vec<&Path> = vec![poses_path.as_path()];
+    inputs.extend(a.intrinsics.as_deref());
+    inputs.extend(a.robot.as_deref().map(Path::new));
+    inputs.extend(a.images.iter().map(PathBuf::as_path));
+    crate::report::check_outputs(&outputs, &inputs)?;
+    // Every output is composed first and all are written together at the end: a failing joint
+    // adjustment leaves no summary or report of half a run.
+    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     let mount = mount_of(mount);
     let pattern: ferrocal_vision::detect::Pattern = pattern_text.parse()?;
     let table = read_handeye_poses(poses_path)?;
@@ -219,7 +228,8 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
     skipped_json.extend(result.skipped.iter().map(|s| json!({"image": s.name, "reason": s.reason})));
     let source = table.source.as_deref();
     if let Some(p) = &a.json {
-        write_json(p, &json::handeye_json(&result, &baselines, Value::Array(skipped_json), source))?;
+        let v = json::handeye_json(&result, &baselines, Value::Array(skipped_json), source);
+        files.push((p, serde_json::to_string_pretty(&v)?.into_bytes()));
     }
     if let Some(h) = &a.report {
         let mut prov =
@@ -227,7 +237,7 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
         prov.add_input(poses_path);
         let mut rep = Report::new(&format!("Hand-eye calibration ({}, {})", mount.name(), pattern_text), prov);
         rep.sections.extend(html::handeye_sections(&result, &baselines, source));
-        write_atomic(h, rep.to_html().as_bytes())?;
+        files.push((h, rep.to_html().into_bytes()));
     }
     print_summary(&result, best_baseline(&baselines), source);
     if let (Some(out), Some(model), Some(spec)) = (&a.out, &robot, &a.robot) {
@@ -249,7 +259,7 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
         }
         let joint = calibrate_joint_from(model, &scaled, &joints, result.clone(), &joint_options)
             .context("handeye: the joint adjustment of robot and camera")?;
-        write_atomic(out, serde_json::to_string_pretty(&joint.file(spec))?.as_bytes())?;
+        files.push((out, serde_json::to_string_pretty(&joint.file(spec))?.into_bytes()));
         let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
         println!(
             "joint adjustment: {} robot parameters, chain RMS train {:.4} px, held-out {} px, s0 {:.3}; calibration written to {}",
@@ -260,6 +270,7 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
             out.display()
         );
     }
+    crate::report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     Ok(ExitCode::SUCCESS)
 }
 
