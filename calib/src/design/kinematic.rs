@@ -110,19 +110,6 @@ pub fn scale_of(name: &str, model: &RobotModel) -> f64 {
     }
 }
 
-/// Column weight of the pivoted QR (as in `calibrate`: keep the model's parameters first).
-fn pivot_weight(name: &str) -> f64 {
-    if name.starts_with("frame.") {
-        0.5
-    } else if name.starts_with("target_tool.") {
-        0.7
-    } else if name.starts_with("offset.") {
-        0.8
-    } else {
-        1.0
-    }
-}
-
 /// A pool of robot poses for kinematic calibration.
 #[derive(Clone, Debug)]
 pub struct KinematicPool {
@@ -169,7 +156,9 @@ pub fn kinematic_pool(
         whitened.rows_mut(3 * k, 3).copy_from(&wk);
         winv.push(li);
     }
-    let weighted = DMatrix::from_fn(whitened.nrows(), c, |r, s| whitened[(r, s)] * pivot_weight(&names_all[s]));
+    let weighted = DMatrix::from_fn(whitened.nrows(), c, |r, s| {
+        whitened[(r, s)] * crate::kinematic::select::parallel_weight(&names_all[s])
+    });
     let id = analyze(&weighted, &names_all, opts.rank_tolerance)?;
     let kept = id.kept();
     let names: Vec<String> = kept.iter().map(|&i| names_all[i].clone()).collect();

@@ -198,21 +198,33 @@ fn cross_validate(
     y: &DVector<f64>,
     folds: usize,
 ) -> Result<(Vec<f64>, DMatrix<f64>)> {
-    let n = poses.len();
     let a = regressor(reg, model, poses)?;
+    fold_residuals(poses.len(), folds, y, |train, test| {
+        let fitted =
+            fit(&rows_of(&a, train), &vec_of(y, train), &model.names(), &Weighting::Unit, &LinearOptions::default())?;
+        Ok(fitted.predict(&rows_of(&a, test))?)
+    })
+}
+
+/// The K-fold loop of the cross-validations: pose `i` is in fold `i % K`; `predict(train, test)`
+/// gives the six forces of every test pose (in `test`'s order). Per pose: the held-out squared
+/// force error and the residual per sensor.
+fn fold_residuals(
+    n: usize,
+    folds: usize,
+    y: &DVector<f64>,
+    mut predict: impl FnMut(&[usize], &[usize]) -> Result<DVector<f64>>,
+) -> Result<(Vec<f64>, DMatrix<f64>)> {
     let k = folds.clamp(2, n);
     let mut sse = vec![0.0; n];
     let mut res = DMatrix::zeros(n, 6);
     for f in 0..k {
         let train: Vec<usize> = (0..n).filter(|i| i % k != f).collect();
         let test: Vec<usize> = (0..n).filter(|i| i % k == f).collect();
-        let fitted =
-            fit(&rows_of(&a, &train), &vec_of(y, &train), &model.names(), &Weighting::Unit, &LinearOptions::default())?;
-        let pred = fitted.predict(&rows_of(&a, &test))?;
-        let yt = vec_of(y, &test);
+        let pred = predict(&train, &test)?;
         for (t, &i) in test.iter().enumerate() {
             for s in 0..6 {
-                let r = yt[6 * t + s] - pred[6 * t + s];
+                let r = y[6 * i + s] - pred[6 * t + s];
                 sse[i] += r * r;
                 res[(i, s)] = r;
             }
@@ -229,26 +241,12 @@ fn cross_validate_crosstalk(
     y: &DVector<f64>,
     folds: usize,
 ) -> Result<(Vec<f64>, DMatrix<f64>)> {
-    let n = poses.len();
     let a = regressor(reg, model, poses)?;
     let load = load_columns(model);
-    let k = folds.clamp(2, n);
-    let mut sse = vec![0.0; n];
-    let mut res = DMatrix::zeros(n, 6);
-    for f in 0..k {
-        let train: Vec<usize> = (0..n).filter(|i| i % k != f).collect();
-        let test: Vec<usize> = (0..n).filter(|i| i % k == f).collect();
-        let fitted = force_crosstalk::fit(&a, y, &load, &train);
-        let pred = force_crosstalk::predict(&a, &load, &fitted, &test);
-        for (t, &i) in test.iter().enumerate() {
-            for s in 0..6 {
-                let r = y[6 * i + s] - pred[6 * t + s];
-                sse[i] += r * r;
-                res[(i, s)] = r;
-            }
-        }
-    }
-    Ok((sse, res))
+    fold_residuals(poses.len(), folds, y, |train, test| {
+        let fitted = force_crosstalk::fit(&a, y, &load, train);
+        Ok(force_crosstalk::predict(&a, &load, &fitted, test))
+    })
 }
 
 /// The load columns the cross-talk acts on: the rigid body's (gravity) loads. The cross-talk of

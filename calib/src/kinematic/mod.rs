@@ -37,7 +37,7 @@ mod model;
 mod point_start;
 mod problem;
 mod refit;
-mod select;
+pub(crate) mod select;
 mod split;
 #[cfg(test)]
 mod tests;

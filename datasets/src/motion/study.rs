@@ -126,6 +126,21 @@ pub struct IdentifyResult {
     pub frequency_errors: FrequencyErrors,
 }
 
+impl IdentifyResult {
+    /// The fitted physical chain as parameters, with the platform mass `m2_kg` it was fitted
+    /// with (given, not fitted).
+    pub fn physical_chain(&self, m2_kg: f64) -> physical::ChainParams {
+        physical::ChainParams {
+            m1_kg: self.physical[0][0],
+            m2_kg,
+            k1_n_m: self.physical[1][0],
+            k2_n_m: self.physical[2][0],
+            d1_n_s_m: self.physical[3][0],
+            d2_n_s_m: self.physical[4][0],
+        }
+    }
+}
+
 /// Relative frequency errors, fractions.
 #[derive(Clone, Debug, Serialize)]
 pub struct FrequencyErrors {
@@ -296,14 +311,7 @@ pub fn ilc_experiment(axis: &CompliantAxis, id: &IdentifyResult, s: &IlcSettings
     let n = ((0.1 + move_s + 0.6) / dt).round() as usize;
     let yd = quintic_move(n, dt, 0.1, move_s, distance_m);
     let (g_act, g_tool) = (id.actuator.model(), id.tool_tracker.model());
-    let ph = physical::ChainParams {
-        m1_kg: id.physical[0][0],
-        m2_kg: axis.m2_kg,
-        k1_n_m: id.physical[1][0],
-        k2_n_m: id.physical[2][0],
-        d1_n_s_m: id.physical[3][0],
-        d2_n_s_m: id.physical[4][0],
-    };
+    let ph = id.physical_chain(axis.m2_kg);
     let c = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("learning control: {e}"));
     let t_contact = 0.1 + move_s;
     let force: Vec<f64> =

@@ -89,14 +89,7 @@ fn identification_section(axis: &CompliantAxis, id: &IdentifyResult) -> Section 
     );
     // Bode magnitude: the truth's chain, the black box and the physical fit.
     let chain_true = axis.chain();
-    let chain_fit = ferrocal_calib::motion::physical::ChainParams {
-        m1_kg: id.physical[0][0],
-        m2_kg: axis.m2_kg,
-        k1_n_m: id.physical[1][0],
-        k2_n_m: id.physical[2][0],
-        d1_n_s_m: id.physical[3][0],
-        d2_n_s_m: id.physical[4][0],
-    };
+    let chain_fit = id.physical_chain(axis.m2_kg);
     let black = id.chain_tracker.model();
     let nyquist = 0.5 / axis.dt_s;
     let freqs: Vec<f64> =
