@@ -13,4 +13,6 @@
 pub mod identify;
 pub mod ilc;
 pub mod kalman;
+pub mod mimo_fit;
+pub mod mimo_frf;
 pub mod physical;

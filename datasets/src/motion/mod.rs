@@ -23,6 +23,8 @@
 //! `ferrocal_calib::motion::physical` integrates the chain by its own Runge-Kutta code driven by
 //! the recorded encoder, a different discretisation of the same structure.
 
+pub mod cell;
+pub mod cell_study;
 pub mod leadthrough;
 pub mod study;
 pub mod tracking;
