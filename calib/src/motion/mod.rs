@@ -15,4 +15,5 @@ pub mod ilc;
 pub mod kalman;
 pub mod mimo_fit;
 pub mod mimo_frf;
+pub mod mimo_ilc;
 pub mod physical;

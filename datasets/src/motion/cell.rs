@@ -296,6 +296,21 @@ impl CompliantCell {
         tool_sigma_m: f64,
         seed: u64,
     ) -> Result<CellRecord> {
+        let r0 = reference_m.first().copied().unwrap_or([0.0; 3]);
+        self.run_from(r0, reference_m, encoder_resolution_m, tool_sigma_m, seed)
+    }
+
+    /// As [`Self::run`], from rest with the motors at `start_m` whatever the first reference
+    /// (a learning trial's initial state stays put while its references change); the references
+    /// before the dead time has passed are `start_m`.
+    pub fn run_from(
+        &self,
+        start_m: [f64; 3],
+        reference_m: &[[f64; 3]],
+        encoder_resolution_m: f64,
+        tool_sigma_m: f64,
+        seed: u64,
+    ) -> Result<CellRecord> {
         self.validate()?;
         if let Some(k) = reference_m.iter().position(|r| r.iter().any(|v| !v.is_finite())) {
             return Err(DatasetError::Input(format!("compliant cell: reference sample {k} is not finite")));
@@ -305,7 +320,7 @@ impl CompliantCell {
                 "compliant cell: encoder resolution {encoder_resolution_m} m and tool sigma {tool_sigma_m} m must not be negative"
             )));
         }
-        let r0 = reference_m.first().copied().unwrap_or([0.0; 3]);
+        let r0 = start_m;
         let mut x = self.equilibrium(r0)?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let normal = Normal::new(0.0, tool_sigma_m.max(f64::MIN_POSITIVE)).expect("finite sigma");

@@ -4,6 +4,7 @@
 //! singular values' peaks (non-parametric), and the linear physical model of
 //! `ferrocal_calib::motion::mimo_fit` fitted to the record and validated on another.
 
+use ferrocal_calib::motion::identify::{self, DiscreteModel};
 use ferrocal_calib::motion::mimo_fit::{self, CellFit, CellGeometry, CellStructure};
 use ferrocal_calib::motion::mimo_frf;
 use serde::Serialize;
@@ -96,6 +97,12 @@ pub struct CellIdentifyResult {
     pub model_singular: Vec<[f64; 3]>,
     /// Mean coherence of the outputs with the inputs.
     pub coherence: Vec<f64>,
+    /// Each drive's closed loop fitted from its reference to its encoder (order 1):
+    /// `(pole, dead time in samples, static gain)`.
+    pub actuators: Vec<(f64, usize, f64)>,
+    /// The drives' fitted models.
+    #[serde(skip)]
+    pub actuator_models: Vec<DiscreteModel>,
     /// The geometry used by the fit.
     #[serde(skip)]
     pub geometry: Option<CellGeometry>,
@@ -185,6 +192,16 @@ pub fn identify_cell(
             relative_error: m.frequency_hz / t.frequency_hz - 1.0,
         })
         .collect();
+    progress("cell: the drives' closed loops");
+    let mut actuator_models = Vec::new();
+    for i in 0..3 {
+        let r: Vec<f64> = est.reference_m.iter().map(|v| v[i]).collect();
+        let a: Vec<f64> = est.encoder_m.iter().map(|v| v[i]).collect();
+        let c = |e| DatasetError::Input(format!("cell identification: drive {}: {e}", i + 1));
+        let nk = identify::estimate_delay(&r, &a, 1, 1, 12, cell.dt_s).map_err(c)?;
+        actuator_models.push(identify::fit_output_error(&r, &a, 1, 1, nk, cell.dt_s).map_err(c)?);
+    }
+    let actuators = actuator_models.iter().map(|m| (-m.a[0], m.nk, m.dc_gain())).collect();
     let tv = cell.structure();
     let truth_free = [
         tv.link_n_m[0],
@@ -225,6 +242,8 @@ pub fn identify_cell(
         frequency_hz: frf.frequency_hz.clone(),
         measured_singular: frf.singular.clone(),
         model_singular,
+        actuators,
+        actuator_models,
         coherence: frf.coherence.iter().map(|c| c.iter().sum::<f64>() / 3.0).collect(),
         geometry: Some(geometry),
         fit: Some(fit),
@@ -246,6 +265,9 @@ mod tests {
         eprintln!("fit {} / {} %", r.estimation_fit_percent, r.validation_fit_percent);
         assert!(r.physical_modes.iter().all(|m| m.relative_error.abs() < 0.05), "{:?}", r.physical_modes);
         assert!(r.validation_fit_percent > 90.0, "{}", r.validation_fit_percent);
+        for (pole, nk, gain) in &r.actuators {
+            assert!((pole - 0.9647).abs() < 2e-3 && *nk == 6 && (gain - 1.0).abs() < 0.01, "{:?}", r.actuators);
+        }
         // The measured response agrees with the model's where it is coherent.
         let close = (0..r.frequency_hz.len())
             .filter(|&k| r.coherence[k] > 0.95)

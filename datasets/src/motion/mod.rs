@@ -24,6 +24,7 @@
 //! the recorded encoder, a different discretisation of the same structure.
 
 pub mod cell;
+pub mod cell_ilc;
 pub mod cell_study;
 pub mod leadthrough;
 pub mod study;
