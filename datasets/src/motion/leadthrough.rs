@@ -56,6 +56,35 @@ impl Default for LeadSettings {
     }
 }
 
+impl LeadSettings {
+    /// Checks the settings; the error names the first bad field and its value.
+    pub fn validate(&self) -> Result<()> {
+        let positive = [
+            ("admittance_n_s_m", self.admittance_n_s_m),
+            ("hand_stiffness_n_m", self.hand_stiffness_n_m),
+            ("move_s", self.move_s),
+        ];
+        let non_negative = [
+            ("force_cutoff_hz", self.force_cutoff_hz),
+            ("hand_damping_n_s_m", self.hand_damping_n_s_m),
+            ("sensor_sigma_n", self.sensor_sigma_n),
+        ];
+        let bad = |field: &str, v: f64, what: &str| {
+            Err(DatasetError::Input(format!("lead-through: {field} = {v} must be {what}")))
+        };
+        if let Some((f, v)) = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
+            return bad(f, *v, "finite and positive");
+        }
+        if let Some((f, v)) = non_negative.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+            return bad(f, *v, "finite and not negative");
+        }
+        if !self.distance_m.is_finite() {
+            return bad("distance_m", self.distance_m, "finite");
+        }
+        Ok(())
+    }
+}
+
 /// What a run shows.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct LeadResult {
@@ -82,19 +111,7 @@ pub struct LeadResult {
 
 /// Runs a lead-through on `axis`.
 pub fn lead_through(axis: &CompliantAxis, s: &LeadSettings) -> Result<LeadResult> {
-    let finite_pos = |v: f64| v.is_finite() && v > 0.0;
-    if !(finite_pos(s.admittance_n_s_m)
-        && finite_pos(s.hand_stiffness_n_m)
-        && finite_pos(s.move_s)
-        && s.distance_m.is_finite()
-        && s.hand_damping_n_s_m >= 0.0
-        && s.force_cutoff_hz >= 0.0
-        && s.sensor_sigma_n >= 0.0
-        && s.force_cutoff_hz.is_finite()
-        && s.sensor_sigma_n.is_finite())
-    {
-        return Err(DatasetError::Input(format!("lead-through: settings must be finite and positive: {s:?}")));
-    }
+    s.validate()?;
     let dt = axis.dt_s;
     let n = ((0.2 + s.move_s + 1.5) / dt).round() as usize;
     let hand = quintic_move(n, dt, 0.2, s.move_s, s.distance_m);
@@ -192,6 +209,28 @@ pub fn stability_map(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each bad setting is refused with its field's name; the defaults pass.
+    #[test]
+    fn bad_lead_settings_name_their_field() {
+        assert!(LeadSettings::default().validate().is_ok());
+        let d = LeadSettings::default;
+        for (s, field) in [
+            (LeadSettings { admittance_n_s_m: 0.0, ..d() }, "admittance_n_s_m"),
+            (LeadSettings { admittance_n_s_m: f64::NAN, ..d() }, "admittance_n_s_m"),
+            (LeadSettings { hand_stiffness_n_m: -1.0, ..d() }, "hand_stiffness_n_m"),
+            (LeadSettings { move_s: f64::INFINITY, ..d() }, "move_s"),
+            (LeadSettings { force_cutoff_hz: -5.0, ..d() }, "force_cutoff_hz"),
+            (LeadSettings { hand_damping_n_s_m: f64::NAN, ..d() }, "hand_damping_n_s_m"),
+            (LeadSettings { sensor_sigma_n: -0.1, ..d() }, "sensor_sigma_n"),
+            (LeadSettings { distance_m: f64::NAN, ..d() }, "distance_m"),
+        ] {
+            let e = lead_through(&CompliantAxis::l1_like(), &s).unwrap_err().to_string();
+            assert!(e.contains(field), "{field}: {e}");
+        }
+        // A zero filter cut-off (no filter) and zero noise are allowed.
+        assert!(LeadSettings { force_cutoff_hz: 0.0, sensor_sigma_n: 0.0, ..d() }.validate().is_ok());
+    }
 
     /// A 100 N s/m admittance guides the tool 100 mm with about 9 N and settles on the goal;
     /// one ten times lighter diverges; a heavier one needs proportionally more push.
