@@ -77,7 +77,8 @@ fn identification_section(axis: &CompliantAxis, id: &IdentifyResult) -> Section 
         ],
     );
     let names = ["m1 (kg)", "k1 (N/m)", "k2 (N/m)", "d1 (N s/m)", "d2 (N s/m)"];
-    let truth = [axis.m1_kg, axis.k1_n_m, axis.k2_n_m, axis.d1_n_s_m, axis.d2_n_s_m];
+    let c = &axis.chain;
+    let truth = [c.m1_kg, c.k1_n_m, c.k2_n_m, c.d1_n_s_m, c.d2_n_s_m];
     sec.table(
         "Physical chain (the record determines the modes; m1 and k1 only through their ratio when m1 is poorly excited)",
         &["parameter", "fitted", "std", "truth"],
@@ -89,8 +90,8 @@ fn identification_section(axis: &CompliantAxis, id: &IdentifyResult) -> Section 
             .collect(),
     );
     // Bode magnitude: the truth's chain, the black box and the physical fit.
-    let chain_true = axis.chain();
-    let chain_fit = id.physical_chain(axis.m2_kg);
+    let chain_true = axis.chain;
+    let chain_fit = id.physical_chain(axis.chain.m2_kg);
     let black = id.chain_tracker.model();
     let nyquist = 0.5 / axis.dt_s;
     let freqs: Vec<f64> =
