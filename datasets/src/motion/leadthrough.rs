@@ -13,6 +13,9 @@
 //! The operator is a spring and damper (`k_h`, `d_h`, a relaxed human arm) whose other end
 //! follows the intended path; the force on the tool is what the hand's spring and damper carry.
 
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
 use super::{quintic_move, CompliantAxis};
@@ -33,7 +36,7 @@ pub struct LeadSettings {
     pub distance_m: f64,
     /// Duration of the intended move, s.
     pub move_s: f64,
-    /// Force-sensor noise, N (deterministic pseudo-noise from `seed`).
+    /// Standard deviation of the force sensor's Gaussian noise, N (seeded by `seed`).
     pub sensor_sigma_n: f64,
     /// Seed of the sensor noise.
     pub seed: u64,
@@ -99,7 +102,7 @@ pub struct LeadResult {
     /// RMS of the tool's ringing in the last second (its position minus its 0.1 s moving mean),
     /// m: near zero when the loop is stable.
     pub final_oscillation_m: f64,
-    /// Whether the run stayed bounded and did not ring (ringing below 10 µm, no divergence).
+    /// Whether the run stayed bounded and did not ring (ringing below 100 µm, no divergence).
     pub stable: bool,
     /// Tool position per sample, m.
     pub tool_m: Vec<f64>,
@@ -123,12 +126,9 @@ pub fn lead_through(axis: &CompliantAxis, s: &LeadSettings) -> Result<LeadResult
         if s.force_cutoff_hz > 0.0 { 1.0 - (-std::f64::consts::TAU * s.force_cutoff_hz * dt).exp() } else { 1.0 };
     let mut filtered = 0.0;
     let (mut tool, mut force) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    let mut state = s.seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-    let mut noise = || {
-        // A small linear congruential generator: uniform, scaled to the stated sigma.
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * s.sensor_sigma_n * 12f64.sqrt()
-    };
+    let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
+    let normal = Normal::new(0.0, s.sensor_sigma_n).expect("validated sigma");
+    let mut noise = || normal.sample(&mut rng);
     for k in 0..n {
         let v_hand = if k + 1 < n { (hand[k + 1] - hand[k]) / dt } else { 0.0 };
         let f = s.hand_stiffness_n_m * (hand[k] - x[3]) + s.hand_damping_n_s_m * (v_hand - x[4]);
