@@ -60,6 +60,11 @@ fn each_motion_experiment_runs_alone_and_reports_its_numbers() {
     assert!(l["stable"].as_bool().unwrap() && num(&l["final_error_m"]).abs() < 1e-3);
     assert!(num(&l["force_rms_n"]) > 1.0 && num(&l["force_rms_n"]) < 20.0, "{l}");
     assert_eq!(l["stability_map"].as_array().unwrap().len(), 24);
+    // The placement comparison: a sensor at the carriage reads the structure's inertial forces.
+    let placement = l["sensor_placement"].as_array().unwrap();
+    assert_eq!(placement.len(), 3);
+    assert_eq!(num(&placement[0]["probe_reading_minus_hand_rms_n"]), 0.0, "the tool's sensor reads the hand");
+    assert!(num(&placement[1]["probe_reading_minus_hand_rms_n"]) > 1.0, "{}", placement[1]);
     let (code, r) = motion(d, "lead-light", &["leadthrough", "--admittance-n-s-m", "10", "--force-cutoff-hz", "0"]);
     assert_eq!(code, Some(2));
     assert_eq!(r["sections"]["motion-leadthrough"]["ok"], false);

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Result};
-use ferrocal_datasets::motion::leadthrough::LeadSettings;
+use ferrocal_datasets::motion::leadthrough::{LeadSettings, SensorPlacement};
 use ferrocal_report::motion::{
     identify_report, ilc_report, leadthrough_report, study_report, track_report, IlcOptions,
 };
@@ -116,6 +116,21 @@ pub struct LeadthroughArgs {
     /// Force-sensor noise, N.
     #[arg(long, default_value_t = LeadSettings::default().sensor_sigma_n)]
     pub sensor_sigma_n: f64,
+    /// Where the force sensor of the guided move and the stability map sits (the report
+    /// compares all three either way).
+    #[arg(long, value_enum, default_value_t = Sensor::Tool)]
+    pub sensor: Sensor,
+}
+
+/// The force sensor's place (`--sensor`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Sensor {
+    /// Between the hand and the tool.
+    Tool,
+    /// Between the carriage and the links (it also reads the structure's inertial forces).
+    Carriage,
+    /// At the carriage, the rigid-body inertia added back from the encoder.
+    CarriageCompensated,
 }
 
 /// Runs `ferrocal motion`.
@@ -165,6 +180,11 @@ fn lead_settings(a: &LeadthroughArgs) -> Result<LeadSettings> {
         force_cutoff_hz: a.force_cutoff_hz,
         sensor_sigma_n: a.sensor_sigma_n,
         seed: a.common.seed,
+        sensor: match a.sensor {
+            Sensor::Tool => SensorPlacement::Tool,
+            Sensor::Carriage => SensorPlacement::Carriage,
+            Sensor::CarriageCompensated => SensorPlacement::CarriageCompensated,
+        },
         ..LeadSettings::default()
     };
     s.validate()?;
