@@ -29,7 +29,7 @@ fn bench(c: &mut Criterion) {
     });
     let start = fit_output_error(&rec.encoder_m, &rec.tool_measured_m, 4, 4, 1, dt).unwrap().modes();
     g.bench_function("physical_chain_60s", |b| {
-        b.iter(|| fit_chain(&rec.encoder_m, &rec.tool_measured_m, dt, axis.m2_kg, &start).unwrap())
+        b.iter(|| fit_chain(&rec.encoder_m, &rec.tool_measured_m, dt, axis.chain.m2_kg, &start).unwrap())
     });
     g.bench_function("identification_experiment_60s_30s", |b| {
         b.iter(|| identify_axis(&axis, &IdentifySettings::default()).unwrap())
