@@ -71,6 +71,25 @@ fn each_motion_experiment_runs_alone_and_reports_its_numbers() {
 }
 
 #[test]
+fn the_three_dof_cell_is_identified_and_learns_from_the_tool() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (code, r) = motion(tmp.path(), "cell", &["cell", "--quick", "--seed", "3"]);
+    assert_eq!(code, Some(0));
+    let id = &r["sections"]["motion-cell-identification"];
+    assert_eq!(id["ok"], true);
+    // Six modes (8.0, 14.1, 33.0 Hz and the carts near 101 Hz) within 5 %; validated.
+    let modes = id["data"]["physical_modes"].as_array().unwrap();
+    assert_eq!(modes.len(), 6);
+    assert!(modes.iter().all(|m| num(&m["relative_error"]).abs() < 0.05), "{modes:?}");
+    assert!((num(&id["data"]["true_modes"][0][0]) - 7.96).abs() < 0.05);
+    assert!(num(&id["data"]["validation_fit_percent"]) > 90.0);
+    let ilc = &r["sections"]["motion-cell-ilc"];
+    assert_eq!(ilc["ok"], true);
+    let last = |case: &str| num(&ilc["data"]["last_trial_tool_rms_m"][case]);
+    assert!(last("tool_estimate") * 5.0 < last("actuator") && last("tool_measurement") * 5.0 < last("actuator"));
+}
+
+#[test]
 fn bad_motion_options_are_refused_by_flag_name() {
     let tmp = tempfile::tempdir().unwrap();
     for (args, flag) in [

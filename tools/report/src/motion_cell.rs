@@ -96,6 +96,8 @@ fn identification_section(cell: &CompliantCell, id: &CellIdentifyResult) -> Sect
         plot::xy_plot("coherence", "log10 frequency (Hz)", "coherence", &[Series { name: "coherence", points: &coh, line: true }]),
     );
     let worst = id.physical_modes.iter().map(|m| m.relative_error.abs()).fold(0.0f64, f64::max);
+    sec.data = serde_json::to_value(id).unwrap_or_default();
+    sec.data["largest_mode_error"] = json!(worst);
     sec.check(Check::all(
         "3-DOF cell identification",
         &[
@@ -161,6 +163,12 @@ fn ilc_section(r: &CellIlcResult) -> Section {
     };
     let (act, est, meas) =
         (last(CellIlcCase::Actuator), last(CellIlcCase::ToolEstimate), last(CellIlcCase::ToolMeasurement));
+    sec.data = json!({
+        "settings": s,
+        "samples": r.samples,
+        "runs": r.runs,
+        "last_trial_tool_rms_m": {"actuator": act, "tool_estimate": est, "tool_measurement": meas},
+    });
     sec.check(Check::from_bool(
         "tool-side learning at least 5x better than actuator-side on the cell",
         est * 5.0 < act && meas * 5.0 < act,
