@@ -250,6 +250,51 @@ pub fn identify_cell(
     })
 }
 
+/// The modes at one pose: the truth's and the physical fit's.
+#[derive(Clone, Debug, Serialize)]
+pub struct PoseModes {
+    /// Motor positions, m.
+    pub motors_m: [f64; 3],
+    /// The tool at rest there, m.
+    pub tool_m: [f64; 3],
+    /// The truth's mode frequencies, Hz.
+    pub true_hz: Vec<f64>,
+    /// The fitted modes compared with them.
+    pub fitted: Vec<ModeComparison>,
+    /// Validation fit, percent.
+    pub validation_fit_percent: f64,
+}
+
+/// Identifies the cell at several poses (the structure's modes move with the links' directions,
+/// as the source's resonances did over the workspace), each from its own records.
+pub fn identify_poses(
+    cell: &CompliantCell,
+    poses_m: &[[f64; 3]],
+    s: &CellIdentifySettings,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<PoseModes>> {
+    poses_m
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            progress(&format!("cell: pose {} of {} (motors {p:?} m)", k + 1, poses_m.len()));
+            let r = identify_cell(
+                cell,
+                &CellIdentifySettings { motors_m: *p, seed: s.seed + 10 * k as u64, ..s.clone() },
+                &|_| {},
+            )?;
+            let x = cell.equilibrium(*p)?;
+            Ok(PoseModes {
+                motors_m: *p,
+                tool_m: [x[9], x[10], x[11]],
+                true_hz: r.true_modes.iter().map(|m| m[0]).collect(),
+                fitted: r.physical_modes.clone(),
+                validation_fit_percent: r.validation_fit_percent,
+            })
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -273,5 +318,25 @@ mod tests {
             .filter(|&k| r.coherence[k] > 0.95)
             .all(|k| (r.measured_singular[k][0] / r.model_singular[k][0] - 1.0).abs() < 0.15);
         assert!(close);
+    }
+
+    #[test]
+    fn the_modes_move_over_the_workspace_and_are_found_at_every_pose() {
+        let cell = CompliantCell::l1_like();
+        let s = CellIdentifySettings { estimation_s: 10.0, validation_s: 5.0, ..Default::default() };
+        let poses = [[0.0; 3], [-0.4, 0.3, 0.1], [0.3, -0.3, 0.4]];
+        let r = identify_poses(&cell, &poses, &s, &|_| {}).unwrap();
+        for p in &r {
+            eprintln!(
+                "{:?} {:?} {:?}",
+                p.motors_m,
+                p.true_hz,
+                p.fitted.iter().map(|m| m.relative_error).collect::<Vec<_>>()
+            );
+            assert!(p.fitted.iter().all(|m| m.relative_error.abs() < 0.05), "{p:?}");
+        }
+        let lowest: Vec<f64> = r.iter().map(|p| p.true_hz[0]).collect();
+        let spread = lowest.iter().copied().fold(0.0, f64::max) / lowest.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(spread > 1.02, "the lowest mode hardly moves: {lowest:?}");
     }
 }

@@ -9,7 +9,9 @@ use anyhow::Result;
 use ferrocal_calib::check::Check;
 use ferrocal_datasets::motion::cell::CompliantCell;
 use ferrocal_datasets::motion::cell_ilc::{cell_ilc, CellIlcCase, CellIlcResult};
-use ferrocal_datasets::motion::cell_study::{identify_cell, CellIdentifyResult, CellIdentifySettings};
+use ferrocal_datasets::motion::cell_study::{
+    identify_cell, identify_poses, CellIdentifyResult, CellIdentifySettings, PoseModes,
+};
 use serde_json::json;
 
 use crate::plot::{self, Series};
@@ -119,6 +121,52 @@ fn identification_section(cell: &CompliantCell, id: &CellIdentifyResult) -> Sect
     sec
 }
 
+fn poses_section(rows: &[PoseModes], s: &CellIdentifySettings) -> Section {
+    let mut sec = Section::new("motion-cell-poses", "3-DOF cell: the modes over the workspace (simulated)");
+    sec.text(format!(
+        "The structure's modes move with the links' directions, as the source's resonances did from position to position (its Table 6.4). Each pose identified from its own {:.0} s record and validated on another {:.0} s.",
+        s.estimation_s, s.validation_s
+    ));
+    sec.table(
+        "Modes per pose: truth / fitted (Hz); largest relative error; validation fit",
+        &["carts (m)", "tool (m)", "mode 1", "mode 2", "mode 3", "carts' modes", "largest error", "validation"],
+        rows.iter()
+            .map(|p| {
+                let m = |k: usize| {
+                    p.fitted.get(k).map_or("-".into(), |f| format!("{:.2} / {:.2}", f.true_hz, f.frequency_hz))
+                };
+                let carts = p.true_hz.iter().skip(3).map(|f| format!("{f:.1}")).collect::<Vec<_>>().join(", ");
+                let worst = p.fitted.iter().map(|f| f.relative_error.abs()).fold(0.0f64, f64::max);
+                vec![
+                    format!("{:+.2}, {:+.2}, {:+.2}", p.motors_m[0], p.motors_m[1], p.motors_m[2]),
+                    format!("{:+.3}, {:+.3}, {:+.3}", p.tool_m[0], p.tool_m[1], p.tool_m[2]),
+                    m(0),
+                    m(1),
+                    m(2),
+                    carts,
+                    format!("{:.3} %", 100.0 * worst),
+                    format!("{:.2} %", p.validation_fit_percent),
+                ]
+            })
+            .collect(),
+    );
+    let worst = rows.iter().flat_map(|p| p.fitted.iter().map(|f| f.relative_error.abs())).fold(0.0f64, f64::max);
+    let lowest: Vec<f64> = rows.iter().filter_map(|p| p.true_hz.first().copied()).collect();
+    sec.data = json!({"poses": rows, "largest_mode_error": worst});
+    sec.check(Check::from_bool(
+        "every pose's resonances within 5 %",
+        rows.iter().all(|p| p.fitted.len() == 6) && worst < 0.05,
+        format!(
+            "{} poses, largest relative error {:.3} %; the lowest mode between {:.2} and {:.2} Hz",
+            rows.len(),
+            100.0 * worst,
+            lowest.iter().copied().fold(f64::INFINITY, f64::min),
+            lowest.iter().copied().fold(0.0, f64::max)
+        ),
+    ));
+    sec
+}
+
 fn ilc_section(r: &CellIlcResult) -> Section {
     let mut sec = Section::new(
         "motion-cell-ilc",
@@ -184,7 +232,10 @@ fn ilc_section(r: &CellIlcResult) -> Section {
     sec
 }
 
-/// Runs the cell's identification and learning control.
+/// Cart positions of the pose comparison, m.
+const POSES_M: [[f64; 3]; 4] = [[0.0, 0.0, 0.0], [-0.4, 0.3, 0.1], [0.3, -0.3, 0.4], [0.5, 0.5, -0.2]];
+
+/// Runs the cell's identification (at the home pose and over the workspace) and learning control.
 pub fn cell_sections(seed: u64, quick: bool, progress: &dyn Fn(&str)) -> Result<Vec<Section>> {
     let cell = CompliantCell::l1_like();
     let ids = if quick {
@@ -194,6 +245,13 @@ pub fn cell_sections(seed: u64, quick: bool, progress: &dyn Fn(&str)) -> Result<
     };
     let id = identify_cell(&cell, &ids, progress)?;
     let mut out = vec![identification_section(&cell, &id)];
+    let pose_settings = CellIdentifySettings {
+        estimation_s: ids.estimation_s / 2.0,
+        validation_s: ids.validation_s / 2.0,
+        ..ids.clone()
+    };
+    let rows = identify_poses(&cell, &POSES_M, &pose_settings, progress)?;
+    out.push(poses_section(&rows, &pose_settings));
     let s = ferrocal_datasets::motion::cell_ilc::CellIlcSettings { seed, ..Default::default() };
     out.push(ilc_section(&cell_ilc(&cell, &id, &s, progress)?));
     Ok(out)
