@@ -76,7 +76,8 @@ pub fn welch_frf(u: &[[f64; 3]], y: &[[f64; 3]], dt_s: f64, segment: usize) -> R
         let su = DMatrix::from_fn(3, 3, |r, c| suu[b][r][c]);
         let sy = DMatrix::from_fn(3, 3, |r, c| syu[b][r][c]);
         let sv_u = su.clone().singular_values();
-        if !(sv_u.min() > 1e-9 * sv_u.max()) {
+        let (smin, smax) = (sv_u.min(), sv_u.max());
+        if smin.is_nan() || smin <= 1e-9 * smax {
             continue;
         }
         let Some(inv) = su.try_inverse() else { continue };

@@ -376,6 +376,7 @@ mod tests {
         let rigid = cell.rigid_tool(&a).unwrap();
         let sag = (Vector3::new(x[9], x[10], x[11]) - rigid).norm();
         // Gravity on 8 kg through links of ~1e5 N/m: a sag of a few hundred µm to a few mm.
+        eprintln!("sag {:.3} mm", sag * 1e3);
         assert!(sag > 1e-5 && sag < 5e-3, "sag {sag} m");
         let modes = cell.modes_at(a).unwrap();
         eprintln!("{modes:?}");

@@ -103,6 +103,31 @@ fn quintic(s: f64) -> f64 {
     s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
 }
 
+/// The identified impulse response from the drives' references to the tool over `n` samples
+/// (`h[k][r][c]`: tool axis `r`, `k` samples after a unit impulse on drive `c`'s reference): each
+/// drive's fitted loop, then the fitted structure.
+pub fn reference_to_tool_impulse_response(id: &CellIdentifyResult, n: usize) -> Result<Vec<[[f64; 3]; 3]>> {
+    let (Some(fit), Some(geometry)) = (id.fit.as_ref(), id.geometry.as_ref()) else {
+        return Err(DatasetError::Input("cell ILC: the identification carries no fitted model".into()));
+    };
+    if id.actuator_models.len() != 3 {
+        return Err(DatasetError::Input("cell ILC: the identification carries no drive models".into()));
+    }
+    let dt = id.actuator_models[0].dt_s;
+    let mut h = vec![[[0.0; 3]; 3]; n];
+    for (c, model) in id.actuator_models.iter().enumerate() {
+        let act = model.impulse_response(n);
+        let motors: Vec<[f64; 3]> =
+            act.iter().map(|&a| std::array::from_fn(|j| if j == c { a } else { 0.0 })).collect();
+        for (hk, y) in h.iter_mut().zip(fit.structure.simulate(geometry, &motors, dt)) {
+            for (row, yr) in hk.iter_mut().zip(y) {
+                row[c] = yr;
+            }
+        }
+    }
+    Ok(h)
+}
+
 /// Runs the three learning cases on the cell, from its identification at the same pose.
 pub fn cell_ilc(
     cell: &CompliantCell,
@@ -141,24 +166,8 @@ pub fn cell_ilc(
     let joints: Vec<[f64; 3]> = shape.iter().map(|&x| cell.rigid_joints(&(rigid0 + d * x))).collect::<Result<_>>()?;
     progress(&format!("cell ILC: {n} samples per trial; learning matrices"));
 
-    // The identified response from the drives' references to the tool: each drive's closed loop,
-    // then the structure.
     let act_h: Vec<Vec<f64>> = id.actuator_models.iter().map(|m| m.impulse_response(n)).collect();
-    let mut h = vec![[[0.0; 3]; 3]; n];
-    for c in 0..3 {
-        let motors: Vec<[f64; 3]> = (0..n)
-            .map(|k| {
-                let mut v = [0.0; 3];
-                v[c] = act_h[c][k];
-                v
-            })
-            .collect();
-        for (k, y) in fit.structure.simulate(geometry, &motors, dt).iter().enumerate() {
-            for r in 0..3 {
-                h[k][r][c] = y[r];
-            }
-        }
-    }
+    let h = reference_to_tool_impulse_response(id, n)?;
     let mimo = MimoIlc::norm_optimal(&h, s.weight).map_err(|e| DatasetError::Input(format!("cell ILC: {e}")))?;
     let siso: Vec<Ilc> = act_h
         .iter()
