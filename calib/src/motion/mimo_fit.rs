@@ -123,14 +123,7 @@ impl CellStructure {
     /// The modes with the motors held, lowest first (`(Hz, damping)`).
     pub fn modes(&self, g: &CellGeometry) -> Vec<(f64, f64)> {
         let (a, _, _) = self.continuous(g);
-        let mut m: Vec<(f64, f64)> = a
-            .complex_eigenvalues()
-            .iter()
-            .filter(|s| s.im > 0.0)
-            .map(|s| (s.norm() / std::f64::consts::TAU, -s.re / s.norm()))
-            .collect();
-        m.sort_by(|x, y| x.0.total_cmp(&y.0));
-        m
+        super::continuous_modes(a.complex_eigenvalues().iter().copied())
     }
 
     /// Frequency response from the motor positions to the tool (3 x 3, m/m) at `f_hz`.

@@ -17,3 +17,17 @@ pub mod mimo_fit;
 pub mod mimo_frf;
 pub mod mimo_ilc;
 pub mod physical;
+
+use nalgebra::Complex;
+
+/// The oscillating modes among a continuous state matrix's eigenvalues: `(|s| / 2 pi` in Hz,
+/// damping ratio `-Re s / |s|)` of each pole pair (the member with `Im s > 0`), lowest first.
+pub fn continuous_modes(eigenvalues: impl IntoIterator<Item = Complex<f64>>) -> Vec<(f64, f64)> {
+    let mut m: Vec<(f64, f64)> = eigenvalues
+        .into_iter()
+        .filter(|s| s.im > 0.0)
+        .map(|s| (s.norm() / std::f64::consts::TAU, -s.re / s.norm()))
+        .collect();
+    m.sort_by(|x, y| x.0.total_cmp(&y.0));
+    m
+}

@@ -68,15 +68,7 @@ impl ChainParams {
 
     /// The chain's modes with the carriage held: `(|s| / 2 pi` in Hz, damping ratio), lowest first.
     pub fn modes(&self) -> Vec<(f64, f64)> {
-        let mut m: Vec<(f64, f64)> = self
-            .state_matrix()
-            .complex_eigenvalues()
-            .iter()
-            .filter(|s| s.im > 0.0)
-            .map(|s| (s.norm() / std::f64::consts::TAU, -s.re / s.norm()))
-            .collect();
-        m.sort_by(|x, y| x.0.total_cmp(&y.0));
-        m
+        super::continuous_modes(self.state_matrix().complex_eigenvalues().iter().copied())
     }
 
     /// The frequency response from the carriage to the platform at `f_hz`:

@@ -49,18 +49,8 @@ type State = SVector<f64, NX>;
 pub struct CompliantCell {
     /// The kinematics (every guideway direction a unit vector).
     pub robot: GantryTau3,
-    /// Platform and tool mass, kg.
-    pub platform_kg: f64,
-    /// Cart mass (with its share of the links), kg.
-    pub cart_kg: f64,
-    /// Drive-train stiffness of every cart along its guideway, N/m.
-    pub drive_n_m: f64,
-    /// Drive-train damping, N s/m.
-    pub drive_n_s_m: f64,
-    /// Axial stiffness of each arm's link cluster (with its joints), N/m.
-    pub link_n_m: [f64; 3],
-    /// Axial damping of each arm's link cluster, N s/m.
-    pub link_n_s_m: [f64; 3],
+    /// Masses, drive trains (one for every cart) and link clusters (axial, with their joints).
+    pub structure: CellStructure,
     /// Gravity along `-z` of the base frame, m/s^2.
     pub gravity_m_s2: f64,
     /// Time constant of the closed actuator loops, s.
@@ -94,12 +84,14 @@ impl CompliantCell {
         let dt_s = 0.004;
         Self {
             robot: gantry_tau_l1(),
-            platform_kg: 8.0,
-            cart_kg: 4.0,
-            drive_n_m: 1.5e6,
-            drive_n_s_m: 150.0,
-            link_n_m: [1.5e5, 1.8e5, 1.35e5],
-            link_n_s_m: [130.0, 145.0, 115.0],
+            structure: CellStructure {
+                platform_kg: 8.0,
+                cart_kg: 4.0,
+                drive_n_m: 1.5e6,
+                drive_n_s_m: 150.0,
+                link_n_m: [1.5e5, 1.8e5, 1.35e5],
+                link_n_s_m: [130.0, 145.0, 115.0],
+            },
             gravity_m_s2: 9.81,
             servo_tau_s: -dt_s / 0.9647f64.ln(),
             servo_delay_samples: 5,
@@ -109,18 +101,19 @@ impl CompliantCell {
     }
 
     fn validate(&self) -> Result<()> {
-        let pos = [self.platform_kg, self.cart_kg, self.drive_n_m, self.servo_tau_s, self.dt_s];
-        let nonneg = [self.drive_n_s_m, self.gravity_m_s2];
+        let pos =
+            [self.structure.platform_kg, self.structure.cart_kg, self.structure.drive_n_m, self.servo_tau_s, self.dt_s];
+        let nonneg = [self.structure.drive_n_s_m, self.gravity_m_s2];
         let ok = pos.iter().all(|v| v.is_finite() && *v > 0.0)
             && nonneg.iter().all(|v| v.is_finite() && *v >= 0.0)
-            && self.link_n_m.iter().all(|v| v.is_finite() && *v > 0.0)
-            && self.link_n_s_m.iter().all(|v| v.is_finite() && *v >= 0.0)
+            && self.structure.link_n_m.iter().all(|v| v.is_finite() && *v > 0.0)
+            && self.structure.link_n_s_m.iter().all(|v| v.is_finite() && *v >= 0.0)
             && self.substeps > 0;
         if !ok {
             return Err(DatasetError::Input(format!(
                 "compliant cell: masses, stiffnesses, tau, dt must be finite and positive, dampings and gravity \
                  finite and not negative, substeps at least 1 (platform {} kg, cart {} kg, drive {} N/m, links {:?} N/m)",
-                self.platform_kg, self.cart_kg, self.drive_n_m, self.link_n_m
+                self.structure.platform_kg, self.structure.cart_kg, self.structure.drive_n_m, self.structure.link_n_m
             )));
         }
         self.robot.validate().map_err(|e| DatasetError::Input(format!("compliant cell: {e}")))?;
@@ -160,7 +153,7 @@ impl CompliantCell {
         let mut dx = State::zeros();
         let t = Vector3::new(x[9], x[10], x[11]);
         let tv = Vector3::new(x[12], x[13], x[14]);
-        let mut platform_force = Vector3::new(0.0, 0.0, -self.platform_kg * self.gravity_m_s2);
+        let mut platform_force = Vector3::new(0.0, 0.0, -self.structure.platform_kg * self.gravity_m_s2);
         for i in 0..3 {
             let (a, c, cv) = (x[i], x[3 + i], x[6 + i]);
             let ad = (r[i] - a) / self.servo_tau_s;
@@ -171,14 +164,14 @@ impl CompliantCell {
             let l = d.norm();
             let u = d / l;
             let ld = u.dot(&(v * cv - tv));
-            let f = self.link_n_m[i] * (l - self.robot.arms[i].length_m) + self.link_n_s_m[i] * ld;
-            let drive = self.drive_n_m * (a - c) + self.drive_n_s_m * (ad - cv);
-            dx[6 + i] = (drive - f * u.dot(&v)) / self.cart_kg;
+            let f = self.structure.link_n_m[i] * (l - self.robot.arms[i].length_m) + self.structure.link_n_s_m[i] * ld;
+            let drive = self.structure.drive_n_m * (a - c) + self.structure.drive_n_s_m * (ad - cv);
+            dx[6 + i] = (drive - f * u.dot(&v)) / self.structure.cart_kg;
             platform_force += u * f;
         }
         for k in 0..3 {
             dx[9 + k] = tv[k];
-            dx[12 + k] = platform_force[k] / self.platform_kg;
+            dx[12 + k] = platform_force[k] / self.structure.platform_kg;
         }
         dx
     }
@@ -249,13 +242,7 @@ impl CompliantCell {
                 jac[(r, k)] = d[i];
             }
         }
-        let mut modes: Vec<TrueMode> = jac
-            .complex_eigenvalues()
-            .iter()
-            .filter(|s| s.im > 0.0)
-            .map(|s| TrueMode { frequency_hz: s.norm() / std::f64::consts::TAU, damping: -s.re / s.norm() })
-            .collect();
-        modes.sort_by(|x, y| x.frequency_hz.total_cmp(&y.frequency_hz));
+        let modes = TrueMode::of(jac.complex_eigenvalues().iter().copied());
         if modes.len() != 6 {
             return Err(DatasetError::Input(format!(
                 "compliant cell: {} oscillating modes at motors {a:?} m, expected 6 (overdamped?)",
@@ -272,18 +259,6 @@ impl CompliantCell {
         let t = Vector3::new(x[9], x[10], x[11]);
         let link = [0, 1, 2].map(|i| (self.cart_point(i, x[3 + i]) - t).normalize());
         Ok(CellGeometry { guideway: [0, 1, 2].map(|i| self.robot.arms[i].v), link })
-    }
-
-    /// The true structure in the linear fit's terms (for comparisons).
-    pub fn structure(&self) -> CellStructure {
-        CellStructure {
-            platform_kg: self.platform_kg,
-            cart_kg: self.cart_kg,
-            drive_n_m: self.drive_n_m,
-            drive_n_s_m: self.drive_n_s_m,
-            link_n_m: self.link_n_m,
-            link_n_s_m: self.link_n_s_m,
-        }
     }
 
     /// Runs the cell from rest (static equilibrium at the first reference) over the references,

@@ -158,12 +158,12 @@ pub fn identify_cell(
         DatasetError::Input("cell identification: the frequency response shows no resonance to start from".into())
     })?;
     let unit = |k: f64| CellStructure {
-        platform_kg: cell.platform_kg,
-        cart_kg: cell.cart_kg,
+        platform_kg: cell.structure.platform_kg,
+        cart_kg: cell.structure.cart_kg,
         drive_n_m: 10.0 * k,
-        drive_n_s_m: 2.0 * 0.02 * (10.0 * k * cell.cart_kg).sqrt(),
+        drive_n_s_m: 2.0 * 0.02 * (10.0 * k * cell.structure.cart_kg).sqrt(),
         link_n_m: [k; 3],
-        link_n_s_m: [2.0 * 0.02 * (k * cell.platform_kg).sqrt(); 3],
+        link_n_s_m: [2.0 * 0.02 * (k * cell.structure.platform_kg).sqrt(); 3],
     };
     let f1 = unit(1.0).modes(&geometry).first().map(|m| m.0).unwrap_or(f64::NAN);
     let start = unit((dominant / f1).powi(2));
@@ -202,7 +202,7 @@ pub fn identify_cell(
         actuator_models.push(identify::fit_output_error(&r, &a, 1, 1, nk, cell.dt_s).map_err(c)?);
     }
     let actuators = actuator_models.iter().map(|m| (-m.a[0], m.nk, m.dc_gain())).collect();
-    let tv = cell.structure();
+    let tv = cell.structure;
     let truth_free = [
         tv.link_n_m[0],
         tv.link_n_m[1],

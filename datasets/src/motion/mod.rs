@@ -90,6 +90,16 @@ pub struct TrueMode {
     pub damping: f64,
 }
 
+impl TrueMode {
+    /// The oscillating modes among a continuous state matrix's eigenvalues, lowest first.
+    pub fn of(eigenvalues: impl IntoIterator<Item = nalgebra::Complex<f64>>) -> Vec<Self> {
+        ferrocal_calib::motion::continuous_modes(eigenvalues)
+            .into_iter()
+            .map(|(frequency_hz, damping)| Self { frequency_hz, damping })
+            .collect()
+    }
+}
+
 impl CompliantAxis {
     /// The L1-like axis: the source's actuator loop at 4 ms (pole 0.9647, five samples of dead
     /// time) and a structure with modes near 14 Hz and 103 Hz (the source's physical fit).
@@ -174,13 +184,7 @@ impl CompliantAxis {
         self.validate()?;
         let (a, _) = self.continuous();
         let chain = a.fixed_view::<4, 4>(1, 1).into_owned();
-        let mut modes: Vec<TrueMode> = chain
-            .complex_eigenvalues()
-            .iter()
-            .filter(|s| s.im > 0.0)
-            .map(|s| TrueMode { frequency_hz: s.norm() / std::f64::consts::TAU, damping: -s.re / s.norm() })
-            .collect();
-        modes.sort_by(|x, y| x.frequency_hz.total_cmp(&y.frequency_hz));
+        let modes = TrueMode::of(chain.complex_eigenvalues().iter().copied());
         if modes.len() != 2 {
             return Err(DatasetError::Input(format!(
                 "compliant axis: {} oscillating modes, expected 2 (overdamped?)",
