@@ -60,6 +60,11 @@ type A12 = SMatrix<f64, NS, NS>;
 type B12 = SMatrix<f64, NS, 3>;
 
 impl CellStructure {
+    /// The fitted parameters' values, in [`Self::parameter_names`] order.
+    pub fn fitted_values(&self) -> [f64; NP] {
+        self.free()
+    }
+
     fn free(&self) -> [f64; NP] {
         let [k1, k2, k3] = self.link_n_m;
         let [d1, d2, d3] = self.link_n_s_m;

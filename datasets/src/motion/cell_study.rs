@@ -202,28 +202,8 @@ pub fn identify_cell(
         actuator_models.push(identify::fit_output_error(&r, &a, 1, 1, nk, cell.dt_s).map_err(c)?);
     }
     let actuators = actuator_models.iter().map(|m| (-m.a[0], m.nk, m.dc_gain())).collect();
-    let tv = cell.structure;
-    let truth_free = [
-        tv.link_n_m[0],
-        tv.link_n_m[1],
-        tv.link_n_m[2],
-        tv.link_n_s_m[0],
-        tv.link_n_s_m[1],
-        tv.link_n_s_m[2],
-        tv.drive_n_m,
-        tv.drive_n_s_m,
-    ];
+    let (truth_free, fitted) = (cell.structure.fitted_values(), fit.structure.fitted_values());
     let fs = fit.structure;
-    let fitted = [
-        fs.link_n_m[0],
-        fs.link_n_m[1],
-        fs.link_n_m[2],
-        fs.link_n_s_m[0],
-        fs.link_n_s_m[1],
-        fs.link_n_s_m[2],
-        fs.drive_n_m,
-        fs.drive_n_s_m,
-    ];
     let physical = CellStructure::parameter_names()
         .iter()
         .enumerate()
