@@ -26,6 +26,7 @@
 //! See `docs/conventions.md`.
 #![deny(missing_docs)]
 
+pub mod atomic;
 pub mod checks;
 pub mod dynsim;
 pub mod error;

@@ -231,61 +231,7 @@ pub fn flange_poses_to_string(rows: &[(String, Isometry3<f64>, Split)], comments
     out
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
-/// reader never sees half a file; refuses to write onto one of `inputs`.
-pub fn write_atomic(path: &Path, bytes: &[u8], inputs: &[&Path]) -> Result<()> {
-    write_all_atomic(&[(path, bytes)], inputs)
-}
-
-/// Writes several files as one commit: each is written beside its target under a temporary
-/// name, then all are renamed into place; a failed write touches no target and leaves no
-/// temporary file. Refuses to write onto one of `inputs` and to replace anything but a regular
-/// file.
-pub fn write_all_atomic(files: &[(&Path, &[u8])], inputs: &[&Path]) -> Result<()> {
-    let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => a == b,
-    };
-    for (path, _) in files {
-        if inputs.iter().any(|i| same(path, i)) {
-            return Err(DatasetError::Input(format!("refusing to overwrite the input {}", path.display())));
-        }
-        // The rename would replace a symbolic link or a device node itself: refused.
-        if let Ok(m) = std::fs::symlink_metadata(path) {
-            if m.file_type().is_symlink() || !m.is_file() {
-                return Err(DatasetError::Input(format!(
-                    "{} exists and is not a regular file (a symbolic link, device or folder); refusing to replace it",
-                    path.display()
-                )));
-            }
-        }
-    }
-    let mut staged: Vec<(PathBuf, &Path)> = Vec::new();
-    let cleanup = |staged: &[(PathBuf, &Path)]| {
-        for (t, _) in staged {
-            let _ = std::fs::remove_file(t);
-        }
-    };
-    for (path, bytes) in files {
-        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-        let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-        let r = std::fs::write(&tmp, bytes);
-        staged.push((tmp, path));
-        if let Err(source) = r {
-            cleanup(&staged);
-            return Err(DatasetError::Write { path: path.to_path_buf(), source });
-        }
-    }
-    crate::pause_before_commit();
-    for (k, (tmp, path)) in staged.iter().enumerate() {
-        if let Err(source) = std::fs::rename(tmp, path) {
-            cleanup(&staged[k..]);
-            return Err(DatasetError::Write { path: path.to_path_buf(), source });
-        }
-    }
-    Ok(())
-}
+pub use crate::atomic::{write_all_atomic, write_atomic};
 
 #[cfg(test)]
 mod tests {

@@ -342,18 +342,7 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
 /// Refuses a target that exists and is not a regular file (a symbolic link, a device node, a
 /// folder): the temporary file's rename would replace the link or node itself, silently.
 pub fn check_regular_target(path: &Path) -> Result<()> {
-    match std::fs::symlink_metadata(path) {
-        Ok(m) if m.file_type().is_symlink() => {
-            anyhow::bail!(
-                "{} is a symbolic link; refusing to replace it (write to the file it names, or another path)",
-                path.display()
-            )
-        }
-        Ok(m) if !m.is_file() => {
-            anyhow::bail!("{} exists and is not a regular file; refusing to replace it", path.display())
-        }
-        _ => Ok(()),
-    }
+    Ok(ferrocal_datasets::atomic::check_regular_target(path)?)
 }
 
 /// Refuses outputs that name an input (the same file, through any path) or each other, and
@@ -371,64 +360,18 @@ pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
-/// The folder of `path` and the temporary name beside it that a write is staged under.
-fn staging_path(path: &Path) -> (&Path, std::path::PathBuf) {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    (dir, dir.join(format!(".{name}.tmp{}", std::process::id())))
-}
-
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
 /// reader never sees a half-written file; a target that is not a regular file is refused and a
-/// failed write leaves no temporary file behind.
+/// failed write leaves no temporary file behind (`ferrocal_datasets::atomic`).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    check_regular_target(path)?;
-    let (dir, tmp) = staging_path(path);
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create folder {}", dir.display()))?;
-    let written =
-        std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display())).and_then(|_| {
-            ferrocal_datasets::pause_before_commit();
-            std::fs::rename(&tmp, path).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))
-        });
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written
+    Ok(ferrocal_datasets::atomic::write_atomic(path, bytes, &[])?)
 }
 
 /// Writes several files as one commit: every file is first written beside its target under a
 /// temporary name, then all are renamed into place; if any write fails, none of the targets is
 /// touched (the renames that follow cannot run out of space).
 pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
-    let mut staged: Vec<(std::path::PathBuf, &Path)> = Vec::new();
-    let cleanup = |staged: &[(std::path::PathBuf, &Path)]| {
-        for (t, _) in staged {
-            let _ = std::fs::remove_file(t);
-        }
-    };
-    for (path, bytes) in files {
-        if let Err(e) = check_regular_target(path) {
-            cleanup(&staged);
-            return Err(e);
-        }
-        let (dir, tmp) = staging_path(path);
-        let r = std::fs::create_dir_all(dir)
-            .and_then(|_| std::fs::write(&tmp, bytes))
-            .with_context(|| format!("cannot write {}", tmp.display()));
-        staged.push((tmp, path));
-        if let Err(e) = r {
-            cleanup(&staged);
-            return Err(e);
-        }
-    }
-    ferrocal_datasets::pause_before_commit();
-    for (k, (tmp, path)) in staged.iter().enumerate() {
-        if let Err(e) = std::fs::rename(tmp, path) {
-            cleanup(&staged[k..]);
-            return Err(e).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()));
-        }
-    }
-    Ok(())
+    Ok(ferrocal_datasets::atomic::write_all_atomic(files, &[])?)
 }
 
 /// A run folder written aside and moved into place: the files are written into a hidden sibling
