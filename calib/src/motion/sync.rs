@@ -59,11 +59,16 @@ pub struct SyncSettings {
     /// The record is refused as motionless if its motion fixes the offset (from the frames'
     /// stated standard deviations) only to worse than this, s.
     pub max_offset_std_s: f64,
+    /// A stated timing uncertainty of the predicted track and of the measurement that the
+    /// residual cannot show (the model's discretisation of the encoder, a camera error that grows
+    /// with the speed): added in quadrature to the offset's standard deviation, s.
+    pub model_timing_std_s: f64,
 }
 
 impl Default for SyncSettings {
     /// Offsets from -50 ms to 100 ms on a 1 ms grid, offset and bias (no rate), point frames, at
-    /// least 8 frames, refused beyond 1 ms of standard deviation.
+    /// least 8 frames, refused beyond 1 ms of standard deviation, no stated model timing
+    /// uncertainty.
     fn default() -> Self {
         Self {
             search_min_s: -0.05,
@@ -74,6 +79,7 @@ impl Default for SyncSettings {
             exposure_s: 0.0,
             min_frames: 8,
             max_offset_std_s: 0.001,
+            model_timing_std_s: 0.0,
         }
     }
 }
@@ -83,8 +89,11 @@ impl Default for SyncSettings {
 pub struct ClockSync {
     /// Camera clock minus encoder clock at the record's first sample, s.
     pub offset_s: f64,
-    /// Its standard deviation, s.
+    /// Its standard deviation, s: the fit's and the stated model timing uncertainty in
+    /// quadrature.
     pub offset_std_s: f64,
+    /// The fit's part: from the residual and the slope of the track, s.
+    pub offset_std_fit_s: f64,
     /// The camera clock's rate error, ppm (0 when not estimated).
     pub rate_ppm: f64,
     /// Its standard deviation, ppm (0 when not estimated).
@@ -118,9 +127,10 @@ impl ClockSync {
     }
 }
 
-/// A natural cubic spline through samples at a uniform spacing, with its exact integral.
+/// A natural cubic spline through samples at a uniform spacing (the first at 0), with its exact
+/// integral; outside the samples the end values are held.
 #[derive(Clone, Debug)]
-struct Spline {
+pub struct Spline {
     y: Vec<f64>,
     /// Second derivatives at the knots.
     m: Vec<f64>,
@@ -130,7 +140,8 @@ struct Spline {
 }
 
 impl Spline {
-    fn new(y: &[f64], h: f64) -> Self {
+    /// The spline through `y` sampled `h` apart (`y` not empty, `h` > 0).
+    pub fn new(y: &[f64], h: f64) -> Self {
         let n = y.len();
         let mut m = vec![0.0; n];
         if n > 2 {
@@ -181,7 +192,7 @@ impl Spline {
     }
 
     /// Value and slope at `t`; outside the record the end values held (slope 0).
-    fn eval(&self, t: f64) -> (f64, f64) {
+    pub fn eval(&self, t: f64) -> (f64, f64) {
         if self.y.len() < 2 || t <= 0.0 {
             return (self.y[0], 0.0);
         }
@@ -207,7 +218,7 @@ impl Spline {
     }
 
     /// The track's mean over `[t - e/2, t + e/2]` and its derivative with respect to `t`.
-    fn window(&self, t: f64, e: f64) -> (f64, f64) {
+    pub fn window(&self, t: f64, e: f64) -> (f64, f64) {
         if e <= 0.0 {
             return self.eval(t);
         }
@@ -246,6 +257,9 @@ fn validate(track_m: &[f64], dt_s: f64, frames: &[StampedPosition], s: &SyncSett
     }
     if !(s.exposure_s >= 0.0 && s.exposure_s.is_finite()) {
         return field("exposure_s", &format!("must be finite and non-negative, got {}", s.exposure_s));
+    }
+    if !(s.model_timing_std_s >= 0.0 && s.model_timing_std_s.is_finite()) {
+        return field("model_timing_std_s", &format!("must be finite and non-negative, got {}", s.model_timing_std_s));
     }
     if !(s.max_offset_std_s > 0.0) {
         return field("max_offset_std_s", &format!("must be positive, got {}", s.max_offset_std_s));
@@ -396,7 +410,8 @@ pub fn estimate_clock(track_m: &[f64], dt_s: f64, frames: &[StampedPosition], s:
     let residual_rms_m = (r.iter().zip(&weights).map(|(ri, w)| ri * ri / w).sum::<f64>() / used.len() as f64).sqrt();
     Ok(ClockSync {
         offset_s: p[0],
-        offset_std_s: sd(0),
+        offset_std_s: sd(0).hypot(s.model_timing_std_s),
+        offset_std_fit_s: sd(0),
         rate_ppm: if s.estimate_rate { p[1] } else { 0.0 },
         rate_std_ppm: if s.estimate_rate { sd(1) } else { 0.0 },
         offset_rate_correlation: if s.estimate_rate {
