@@ -261,8 +261,8 @@ fn validate(track_m: &[f64], dt_s: f64, frames: &[StampedPosition], s: &SyncSett
     if !(s.model_timing_std_s >= 0.0 && s.model_timing_std_s.is_finite()) {
         return field("model_timing_std_s", &format!("must be finite and non-negative, got {}", s.model_timing_std_s));
     }
-    if !(s.max_offset_std_s > 0.0) {
-        return field("max_offset_std_s", &format!("must be positive, got {}", s.max_offset_std_s));
+    if !(s.max_offset_std_s > 0.0 && s.max_offset_std_s.is_finite()) {
+        return field("max_offset_std_s", &format!("must be finite and positive, got {}", s.max_offset_std_s));
     }
     Ok(())
 }

@@ -288,7 +288,7 @@ fn tracking_section(s: &TrackingSettings, seq: &TrackedSequence, sync: &Tracking
     let rms = (seq.frames.iter().map(|f| (f.position_m - f.truth_mean_m).powi(2)).sum::<f64>() / n).sqrt();
     let z = (seq.frames.iter().map(|f| ((f.position_m - f.truth_mean_m) / f.std_m).powi(2)).sum::<f64>() / n).sqrt();
     let sigma = (seq.frames.iter().map(|f| f.std_m.powi(2)).sum::<f64>() / n).sqrt();
-    sec.check(Check::from_bool(
+    let accuracy = Check::from_bool(
         "tracked positions within their stated uncertainty",
         seq.missed.is_empty() && !seq.frames.is_empty() && z < 3.0,
         format!(
@@ -298,7 +298,7 @@ fn tracking_section(s: &TrackingSettings, seq: &TrackedSequence, sync: &Tracking
             1e6 * rms,
             1e6 * sigma
         ),
-    ));
+    );
     let r = &sync.chain;
     sec.text(format!(
         "Synchronisation: the camera stamps its frames on its own clock ({:.1} ms ahead of the encoder's in this simulation, {:.0} ppm); the offset is estimated from the data (ferrocal_calib::motion::sync): the tool track the identified physical chain predicts from the encoder, interpolated by a cubic spline and averaged over each exposure, against the {} frames inside the record, a 1 ms grid search over -50..100 ms and Gauss-Newton on the offset and a position bias; the standard deviation from the residual and the track's slope ({:.1} µs), with a stated model timing uncertainty of {:.0} µs in quadrature (what the residual cannot show: the chain driven by the linearly interpolated encoder, and the blurred board's detection error that grows with the speed, each a time shift of 5-12 µs in a 20-seed study). Estimated {:.4} ms +- {:.4} ms (truth {:.4} ms, error {:+.2} µs = {:+.2} sigma; reduced chi-square {:.2}, residual RMS {:.2} µm). {} With the estimate every frame's stamp maps to its capture sample ({} of {}), which the Kalman case of learning control below assumes; without it each frame would be taken {:.1} samples late.",
@@ -327,7 +327,7 @@ fn tracking_section(s: &TrackingSettings, seq: &TrackedSequence, sync: &Tracking
         seq.frames.len(),
         r.true_offset_s / sync.dt_s
     ));
-    sec.check(Check::from_bool(
+    let clock = Check::from_bool(
         "camera clock offset within 3 sigma of the truth",
         r.offset_z().abs() < 3.0 && r.offset_std_s < 1e-3 && sync.frames_mapped == seq.frames.len(),
         format!(
@@ -339,7 +339,8 @@ fn tracking_section(s: &TrackingSettings, seq: &TrackedSequence, sync: &Tracking
             sync.frames_mapped,
             seq.frames.len()
         ),
-    ));
+    );
+    sec.check(Check::all("vision tracking", &[accuracy, clock]));
     sec
 }
 
