@@ -8,7 +8,11 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use ferrocal_calib::motion::identify::fit_output_error;
 use ferrocal_calib::motion::ilc::Ilc;
+use ferrocal_calib::motion::mimo_ilc::MimoIlc;
 use ferrocal_calib::motion::physical::fit_chain;
+use ferrocal_datasets::motion::cell::CompliantCell;
+use ferrocal_datasets::motion::cell_ilc::reference_to_tool_impulse_response;
+use ferrocal_datasets::motion::cell_study::{identify_cell, CellIdentifySettings};
 use ferrocal_datasets::motion::study::{identify_axis, IdentifySettings};
 use ferrocal_datasets::motion::tracking::{Tracker, TrackingSettings};
 use ferrocal_datasets::motion::{quintic_move, random_binary_reference, CompliantAxis, SensorNoise};
@@ -29,7 +33,7 @@ fn bench(c: &mut Criterion) {
     });
     let start = fit_output_error(&rec.encoder_m, &rec.tool_measured_m, 4, 4, 1, dt).unwrap().modes();
     g.bench_function("physical_chain_60s", |b| {
-        b.iter(|| fit_chain(&rec.encoder_m, &rec.tool_measured_m, dt, axis.m2_kg, &start).unwrap())
+        b.iter(|| fit_chain(&rec.encoder_m, &rec.tool_measured_m, dt, axis.chain.m2_kg, &start).unwrap())
     });
     g.bench_function("identification_experiment_60s_30s", |b| {
         b.iter(|| identify_axis(&axis, &IdentifySettings::default()).unwrap())
@@ -53,6 +57,25 @@ fn bench(c: &mut Criterion) {
     let frame = tracker.expose(&subs, 3).unwrap();
     assert_eq!(frame.width() * frame.height(), 1280 * 800);
     g.bench_function("track_1mp_frame", |b| b.iter(|| tracker.measure(&frame).unwrap()));
+
+    // The 3-DOF cell: identification of a 60 s record (simulated, fitted, validated on 30 s) and
+    // one learning trial with its 3 x 3 update (450 samples: lifted 1350 x 1350).
+    let cell = CompliantCell::l1_like();
+    let ids = CellIdentifySettings::default();
+    g.bench_function("cell_identification_60s_30s", |b| b.iter(|| identify_cell(&cell, &ids, &|_| {}).unwrap()));
+    let cid = identify_cell(&cell, &ids, &|_| {}).unwrap();
+    let n = 450;
+    let hm = reference_to_tool_impulse_response(&cid, n).unwrap();
+    g.bench_function("cell_mimo_learning_matrix_450", |b| b.iter(|| MimoIlc::norm_optimal(&hm, 1e-4).unwrap()));
+    let mimo = MimoIlc::norm_optimal(&hm, 1e-4).unwrap();
+    let u: Vec<[f64; 3]> = vec![[0.0; 3]; n];
+    g.bench_function("cell_ilc_iteration_450", |b| {
+        b.iter(|| {
+            let rec = cell.run_from([0.0; 3], &u, 1e-6, 1e-5, 2).unwrap();
+            let e: Vec<[f64; 3]> = rec.tool_measured_m.iter().map(|t| [-t[0], -t[1], -t[2]]).collect();
+            mimo.update(&u, &e).unwrap()
+        })
+    });
     g.finish();
 }
 

@@ -31,7 +31,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let axis = CompliantAxis::l1_like();
     let dt = axis.dt_s;
     let id = identify_axis(&axis, &IdentifySettings::default())?;
-    let chain = id.physical_chain(axis.m2_kg);
+    let chain = id.physical_chain(axis.chain.m2_kg);
     let il = IlcSettings::default();
     let n = ((0.1 + il.move_s + 0.2) / dt).round() as usize;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(99);
@@ -51,7 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let seq = Tracker::new(&s)?.track(&rec.tool_true_m, dt)?;
         let predicted = match model.as_str() {
             "chain" => chain.simulate(&rec.encoder_m, dt, 8),
-            "true-chain" => axis.chain().simulate(&rec.encoder_m, dt, 8),
+            "true-chain" => axis.chain.simulate(&rec.encoder_m, dt, 8),
             "truth" => rec.tool_true_m.clone(),
             "chain-fine" => {
                 // The encoder interpolated by a cubic spline to a quarter sample, the chain run on it.

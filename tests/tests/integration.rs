@@ -6,5 +6,6 @@ mod compensate;
 mod handeye;
 mod kill;
 mod measure;
+mod motion;
 mod positioner;
 mod reliability;

@@ -130,36 +130,51 @@ impl DiscreteModel {
     /// The oscillating pole pairs as continuous-time modes (lowest frequency first) with
     /// first-order standard deviations from the coefficient covariance.
     pub fn modes(&self) -> Vec<Mode> {
-        let base = modes_of(&self.a, self.dt_s);
         let na = self.a.len();
         let cov = self.covariance.view((0, 0), (na, na)).into_owned();
-        base.iter()
-            .enumerate()
-            .map(|(m, &(f, z))| {
-                // Central differences of this mode (matched by order) in each a_i.
-                let mut jf = DVector::zeros(na);
-                let mut jz = DVector::zeros(na);
-                for i in 0..na {
-                    let h = 1e-7 * self.a[i].abs().max(1e-3);
-                    let eval = |s: f64| {
-                        let mut a = self.a.clone();
-                        a[i] += s * h;
-                        modes_of(&a, self.dt_s).get(m).copied()
-                    };
-                    if let (Some(p), Some(q)) = (eval(1.0), eval(-1.0)) {
-                        jf[i] = (p.0 - q.0) / (2.0 * h);
-                        jz[i] = (p.1 - q.1) / (2.0 * h);
-                    }
-                }
-                Mode {
-                    frequency_hz: f,
-                    frequency_std_hz: (jf.transpose() * &cov * &jf)[0].max(0.0).sqrt(),
-                    damping: z,
-                    damping_std: (jz.transpose() * &cov * &jz)[0].max(0.0).sqrt(),
-                }
-            })
-            .collect()
+        let steps: Vec<f64> = self.a.iter().map(|a| 1e-7 * a.abs().max(1e-3)).collect();
+        modes_with_std(&modes_of(&self.a, self.dt_s), &cov, &steps, |i, d| {
+            let mut a = self.a.clone();
+            a[i] += d;
+            modes_of(&a, self.dt_s)
+        })
     }
+}
+
+/// Modes with first-order standard deviations by central differences: `base` the modes
+/// `(Hz, damping)` at the estimate, `cov` the covariance of its parameters, `steps[i]` the
+/// difference step of parameter `i`, and `modes_at(i, d)` the modes (lowest first, matched to
+/// `base` by order) with parameter `i` moved by `d`. A mode lost under a step contributes no
+/// derivative in that parameter.
+pub(crate) fn modes_with_std(
+    base: &[(f64, f64)],
+    cov: &DMatrix<f64>,
+    steps: &[f64],
+    modes_at: impl Fn(usize, f64) -> Vec<(f64, f64)>,
+) -> Vec<Mode> {
+    let n = steps.len();
+    // The modes with each parameter moved up and down: [up_0, down_0, up_1, down_1, ...].
+    let shifted: Vec<Vec<(f64, f64)>> =
+        steps.iter().enumerate().flat_map(|(i, &h)| [modes_at(i, h), modes_at(i, -h)]).collect();
+    base.iter()
+        .enumerate()
+        .map(|(m, &(f, z))| {
+            let mut jf = DVector::zeros(n);
+            let mut jz = DVector::zeros(n);
+            for (i, pair) in shifted.chunks(2).enumerate() {
+                if let (Some(p), Some(q)) = (pair[0].get(m), pair[1].get(m)) {
+                    jf[i] = (p.0 - q.0) / (2.0 * steps[i]);
+                    jz[i] = (p.1 - q.1) / (2.0 * steps[i]);
+                }
+            }
+            Mode {
+                frequency_hz: f,
+                frequency_std_hz: (jf.transpose() * cov * &jf)[0].max(0.0).sqrt(),
+                damping: z,
+                damping_std: (jz.transpose() * cov * &jz)[0].max(0.0).sqrt(),
+            }
+        })
+        .collect()
 }
 
 fn poles_of(a: &[f64]) -> Vec<Complex<f64>> {

@@ -14,5 +14,8 @@
 pub mod identify;
 pub mod ilc;
 pub mod kalman;
+pub mod mimo_fit;
+pub mod mimo_frf;
+pub mod mimo_ilc;
 pub mod physical;
 pub mod sync;

@@ -9,7 +9,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
 
-use super::identify::Mode;
+use super::identify::{modes_with_std, Mode};
 use crate::error::{CalibError, Result};
 
 /// Masses, stiffnesses and dampers of the chain.
@@ -261,32 +261,10 @@ pub fn fit_chain(
     let sd: Vec<f64> = (0..5).map(|i| v[i] * cov[(i, i)].max(0.0).sqrt()).collect();
     let std = ChainParams { m2_kg: 0.0, ..p.with_free(&sd) };
     // Modes with first-order standard deviations (central differences in the logarithms).
-    let base = p.modes();
-    let modes = base
-        .iter()
-        .enumerate()
-        .map(|(m, &(f, z))| {
-            let mut jf = DVector::zeros(5);
-            let mut jz = DVector::zeros(5);
-            for c in 0..5 {
-                let h: f64 = 1e-6;
-                let shifted = |sgn: f64| {
-                    let mut w = v;
-                    w[c] *= (sgn * h).exp();
-                    p.with_free(&w).modes().get(m).copied()
-                };
-                if let (Some(a), Some(b)) = (shifted(1.0), shifted(-1.0)) {
-                    jf[c] = (a.0 - b.0) / (2.0 * h);
-                    jz[c] = (a.1 - b.1) / (2.0 * h);
-                }
-            }
-            Mode {
-                frequency_hz: f,
-                frequency_std_hz: (jf.transpose() * &cov * &jf)[0].max(0.0).sqrt(),
-                damping: z,
-                damping_std: (jz.transpose() * &cov * &jz)[0].max(0.0).sqrt(),
-            }
-        })
-        .collect();
+    let modes = modes_with_std(&p.modes(), &cov, &[1e-6; 5], |c, d| {
+        let mut w = v;
+        w[c] *= d.exp();
+        p.with_free(&w).modes()
+    });
     Ok(PhysicalFit { params: p, std, modes, residual_std_m: s2.sqrt() })
 }

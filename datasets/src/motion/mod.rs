@@ -23,10 +23,14 @@
 //! `ferrocal_calib::motion::physical` integrates the chain by its own Runge-Kutta code driven by
 //! the recorded encoder, a different discretisation of the same structure.
 
+pub mod cell;
+pub mod cell_ilc;
+pub mod cell_study;
 pub mod leadthrough;
 pub mod study;
 pub mod tracking;
 
+use ferrocal_calib::motion::physical::ChainParams;
 use nalgebra::{SMatrix, SVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -34,21 +38,12 @@ use rand_distr::{Distribution, Normal};
 
 use crate::error::{DatasetError, Result};
 
-/// The true compliant axis.
+/// The true compliant axis: the structure (the chain of the physical model) and the actuator
+/// loop that drives its base.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CompliantAxis {
-    /// Link mass, kg.
-    pub m1_kg: f64,
-    /// Platform and tool mass, kg.
-    pub m2_kg: f64,
-    /// Carriage-to-links stiffness, N/m.
-    pub k1_n_m: f64,
-    /// Links-to-platform stiffness, N/m.
-    pub k2_n_m: f64,
-    /// Carriage-to-links damping, N s/m.
-    pub d1_n_s_m: f64,
-    /// Links-to-platform damping, N s/m.
-    pub d2_n_s_m: f64,
+    /// Masses, stiffnesses and dampers of the links-and-platform chain.
+    pub chain: ChainParams,
     /// Time constant of the closed actuator loop, s.
     pub servo_tau_s: f64,
     /// Dead time of the actuator loop, samples.
@@ -101,34 +96,25 @@ impl CompliantAxis {
     pub fn l1_like() -> Self {
         let dt_s = 0.004;
         Self {
-            m1_kg: 2.0,
-            m2_kg: 5.0,
-            k1_n_m: 7.963e5,
-            k2_n_m: 4.070e4,
-            d1_n_s_m: 50.0,
-            d2_n_s_m: 27.0,
+            chain: ChainParams {
+                m1_kg: 2.0,
+                m2_kg: 5.0,
+                k1_n_m: 7.963e5,
+                k2_n_m: 4.070e4,
+                d1_n_s_m: 50.0,
+                d2_n_s_m: 27.0,
+            },
             servo_tau_s: -dt_s / 0.9647f64.ln(),
             servo_delay_samples: 5,
             dt_s,
         }
     }
 
-    /// The true chain in the form the physical fit estimates.
-    pub fn chain(&self) -> ferrocal_calib::motion::physical::ChainParams {
-        ferrocal_calib::motion::physical::ChainParams {
-            m1_kg: self.m1_kg,
-            m2_kg: self.m2_kg,
-            k1_n_m: self.k1_n_m,
-            k2_n_m: self.k2_n_m,
-            d1_n_s_m: self.d1_n_s_m,
-            d2_n_s_m: self.d2_n_s_m,
-        }
-    }
-
     fn validate(&self) -> Result<()> {
-        let v = [self.m1_kg, self.m2_kg, self.k1_n_m, self.k2_n_m, self.servo_tau_s, self.dt_s];
+        let c = &self.chain;
+        let v = [c.m1_kg, c.m2_kg, c.k1_n_m, c.k2_n_m, self.servo_tau_s, self.dt_s];
         if v.iter().any(|x| !x.is_finite() || *x <= 0.0)
-            || !(self.d1_n_s_m >= 0.0 && self.d2_n_s_m >= 0.0 && self.d1_n_s_m.is_finite() && self.d2_n_s_m.is_finite())
+            || !(c.d1_n_s_m >= 0.0 && c.d2_n_s_m >= 0.0 && c.d1_n_s_m.is_finite() && c.d2_n_s_m.is_finite())
         {
             return Err(DatasetError::Input(format!(
                 "compliant axis: masses, stiffnesses, damping, tau and dt must be finite and positive: {self:?}"
@@ -139,8 +125,9 @@ impl CompliantAxis {
 
     /// Continuous state matrix over `[a, x1, v1, x2, v2]` and input vector of `r`.
     fn continuous(&self) -> (SMatrix<f64, 5, 5>, SVector<f64, 5>) {
+        let c = &self.chain;
         let (m1, m2, k1, k2, d1, d2, tau) =
-            (self.m1_kg, self.m2_kg, self.k1_n_m, self.k2_n_m, self.d1_n_s_m, self.d2_n_s_m, self.servo_tau_s);
+            (c.m1_kg, c.m2_kg, c.k1_n_m, c.k2_n_m, c.d1_n_s_m, c.d2_n_s_m, self.servo_tau_s);
         let mut a = SMatrix::<f64, 5, 5>::zeros();
         let mut b = SVector::<f64, 5>::zeros();
         // a' = (r - a) / tau
@@ -172,7 +159,7 @@ impl CompliantAxis {
         let mut aug = SMatrix::<f64, 7, 7>::zeros();
         aug.fixed_view_mut::<5, 5>(0, 0).copy_from(&(ac * self.dt_s));
         aug.fixed_view_mut::<5, 1>(0, 5).copy_from(&(bc * self.dt_s));
-        aug[(4, 6)] = self.dt_s / self.m2_kg;
+        aug[(4, 6)] = self.dt_s / self.chain.m2_kg;
         let e = aug.exp();
         (
             e.fixed_view::<5, 5>(0, 0).into_owned(),

@@ -202,7 +202,7 @@ pub fn identify_axis(axis: &CompliantAxis, s: &IdentifySettings) -> Result<Ident
     let chain = identify::fit_output_error(&est.encoder_m, &est.tool_measured_m, 4, 4, nk_ch, dt).map_err(c)?;
     let start = if chain.modes().len() >= 2 { chain.modes() } else { tool.modes() };
     let phys: PhysicalFit =
-        physical::fit_chain(&est.encoder_m, &est.tool_measured_m, dt, axis.m2_kg, &start).map_err(c)?;
+        physical::fit_chain(&est.encoder_m, &est.tool_measured_m, dt, axis.chain.m2_kg, &start).map_err(c)?;
     let p = phys.params;
     let sd = phys.std;
     let tool_r = report(&tool, (&est.reference_m, &est.tool_measured_m), (&val.reference_m, &val.tool_measured_m));
@@ -311,7 +311,7 @@ pub fn ilc_experiment(axis: &CompliantAxis, id: &IdentifyResult, s: &IlcSettings
     let n = ((0.1 + move_s + 0.6) / dt).round() as usize;
     let yd = quintic_move(n, dt, 0.1, move_s, distance_m);
     let (g_act, g_tool) = (id.actuator.model(), id.tool_tracker.model());
-    let ph = id.physical_chain(axis.m2_kg);
+    let ph = id.physical_chain(axis.chain.m2_kg);
     let c = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("learning control: {e}"));
     let t_contact = 0.1 + move_s;
     let force: Vec<f64> =

@@ -24,6 +24,7 @@ pub mod diagnose;
 pub mod dynamics;
 pub mod handeye;
 pub mod motion;
+pub mod motion_cell;
 pub mod plan;
 pub mod plot;
 pub mod recording;

@@ -6,8 +6,9 @@
 
 use anyhow::Result;
 use ferrocal_calib::check::Check;
+use ferrocal_calib::motion::ilc::rms as ilc_rms;
 use ferrocal_calib::motion::sync::SyncSettings;
-use ferrocal_datasets::motion::leadthrough::{lead_through, stability_map, LeadSettings};
+use ferrocal_datasets::motion::leadthrough::{lead_through, stability_map, LeadSettings, SensorPlacement};
 use ferrocal_datasets::motion::study::{
     identify_axis, ilc_experiment, IdentifyResult, IdentifySettings, IlcRun, IlcSettings,
 };
@@ -79,7 +80,8 @@ fn identification_section(axis: &CompliantAxis, id: &IdentifyResult) -> Section 
         ],
     );
     let names = ["m1 (kg)", "k1 (N/m)", "k2 (N/m)", "d1 (N s/m)", "d2 (N s/m)"];
-    let truth = [axis.m1_kg, axis.k1_n_m, axis.k2_n_m, axis.d1_n_s_m, axis.d2_n_s_m];
+    let c = &axis.chain;
+    let truth = [c.m1_kg, c.k1_n_m, c.k2_n_m, c.d1_n_s_m, c.d2_n_s_m];
     sec.table(
         "Physical chain (the record determines the modes; m1 and k1 only through their ratio when m1 is poorly excited)",
         &["parameter", "fitted", "std", "truth"],
@@ -91,8 +93,8 @@ fn identification_section(axis: &CompliantAxis, id: &IdentifyResult) -> Section 
             .collect(),
     );
     // Bode magnitude: the truth's chain, the black box and the physical fit.
-    let chain_true = axis.chain();
-    let chain_fit = id.physical_chain(axis.m2_kg);
+    let chain_true = axis.chain;
+    let chain_fit = id.physical_chain(axis.chain.m2_kg);
     let black = id.chain_tracker.model();
     let nyquist = 0.5 / axis.dt_s;
     let freqs: Vec<f64> =
@@ -160,6 +162,7 @@ fn identification_section(axis: &CompliantAxis, id: &IdentifyResult) -> Section 
         .iter()
         .map(|m| m.validation_fit_percent)
         .fold(f64::INFINITY, f64::min);
+    sec.data = serde_json::to_value(id).unwrap_or_default();
     sec.check(Check::all(
         "motion identification",
         &[
@@ -238,6 +241,17 @@ fn ilc_section(runs: &[IlcRun], s: &IlcSettings, id_suffix: &str) -> Section {
     let last =
         |c: IlcCase| runs.iter().find(|r| r.case == c).and_then(|r| r.tool_rms_m.last().copied()).unwrap_or(f64::NAN);
     let (act, est, kal) = (last(IlcCase::Actuator), last(IlcCase::ToolEstimate), last(IlcCase::ToolKalman));
+    sec.data = json!({
+        "settings": s,
+        "runs": runs,
+        "last_trial_tool_rms_m": runs
+            .iter()
+            .map(|r| {
+                let case = serde_json::to_value(r.case).ok().and_then(|v| v.as_str().map(String::from));
+                (case.unwrap_or_default(), json!(r.tool_rms_m.last()))
+            })
+            .collect::<serde_json::Map<_, _>>(),
+    });
     if s.contact_force_n > 0.0 {
         sec.check(Check::from_bool(
             "the camera-corrected estimate learns what the encoder cannot see",
@@ -284,10 +298,10 @@ fn tracking_section(s: &TrackingSettings, seq: &TrackedSequence, sync: &Tracking
             ],
         ),
     );
-    let n = seq.frames.len().max(1) as f64;
-    let rms = (seq.frames.iter().map(|f| (f.position_m - f.truth_mean_m).powi(2)).sum::<f64>() / n).sqrt();
-    let z = (seq.frames.iter().map(|f| ((f.position_m - f.truth_mean_m) / f.std_m).powi(2)).sum::<f64>() / n).sqrt();
-    let sigma = (seq.frames.iter().map(|f| f.std_m.powi(2)).sum::<f64>() / n).sqrt();
+    let rms = ilc_rms(&seq.frames.iter().map(|f| f.position_m - f.truth_mean_m).collect::<Vec<_>>());
+    let z = ilc_rms(&seq.frames.iter().map(|f| (f.position_m - f.truth_mean_m) / f.std_m).collect::<Vec<_>>());
+    let sigma = ilc_rms(&seq.frames.iter().map(|f| f.std_m).collect::<Vec<_>>());
+    sec.data = json!({"settings": s, "frames": seq.frames.len(), "missed": seq.missed, "rms_error_m": rms, "rms_sigma_m": sigma, "rms_error_over_sigma": z, "latency_samples": seq.latency_samples, "clock_sync": sync.chain, "clock_sync_encoder_only": sync.encoder_only.as_ref().ok(), "frames_mapped_to_capture_sample": sync.frames_mapped});
     let accuracy = Check::from_bool(
         "tracked positions within their stated uncertainty",
         seq.missed.is_empty() && !seq.frames.is_empty() && z < 3.0,
@@ -358,17 +372,22 @@ struct TrackingSync {
 
 /// The lead-through section: admittance control on the tool force sensor (Dressler ch. 8's
 /// concept), one guided move and the stability map.
-fn leadthrough_section(axis: &CompliantAxis) -> Result<Section> {
-    let base = LeadSettings::default();
-    let run = lead_through(axis, &base)?;
+fn leadthrough_section(axis: &CompliantAxis, base: &LeadSettings) -> Result<Section> {
+    let run = lead_through(axis, base)?;
     let mut sec = Section::new("motion-leadthrough", "Lead-through with tool force feedback (simulated)");
     sec.text(format!(
-        "An operator (a spring of {:.0} N/m and damper of {:.0} N s/m whose other end follows the intended path) guides the tool {:.0} mm in {:.1} s; a force sensor between hand and tool ({:.1} N noise) feeds an admittance law r' = F / D_a through a first-order low-pass into the actuator's reference. The loop is not collocated (the sensor is beyond the compliant structure).",
+        "An operator (a spring of {:.0} N/m and damper of {:.0} N s/m whose other end follows the intended path) guides the tool {:.0} mm in {:.1} s; a force sensor {} ({:.1} N noise) feeds an admittance law r' = F / D_a through a first-order low-pass into the actuator's reference.{}",
         base.hand_stiffness_n_m,
         base.hand_damping_n_s_m,
         1e3 * base.distance_m,
         base.move_s,
-        base.sensor_sigma_n
+        placement_name(base.sensor),
+        base.sensor_sigma_n,
+        if base.sensor == SensorPlacement::Tool {
+            " The loop is not collocated (the sensor is beyond the compliant structure)."
+        } else {
+            ""
+        }
     ));
     let dt = axis.dt_s;
     let t = |v: &[f64], scale: f64| -> Vec<(f64, f64)> {
@@ -401,7 +420,7 @@ fn leadthrough_section(axis: &CompliantAxis) -> Result<Section> {
     );
     let admittances = [10.0, 25.0, 50.0, 100.0, 200.0, 400.0];
     let cutoffs = [0.0, 2.0, 5.0, 10.0];
-    let map = stability_map(axis, &base, &admittances, &cutoffs)?;
+    let map = stability_map(axis, base, &admittances, &cutoffs)?;
     let mut header = vec!["D_a (N s/m)".to_string()];
     header.extend(cutoffs.iter().map(|c| if *c > 0.0 { format!("{c:.0} Hz low-pass") } else { "no filter".into() }));
     let header_ref: Vec<&str> = header.iter().map(String::as_str).collect();
@@ -425,7 +444,20 @@ fn leadthrough_section(axis: &CompliantAxis) -> Result<Section> {
             })
             .collect(),
     );
-    sec.text("What limits a light admittance here is the loop through the operator's stiffness, the admittance's integration and the actuator's lag and dead time, not the structural mode: a force low-pass adds lag and moves the limit up, so it is for the sensor's noise only.");
+    if base.sensor == SensorPlacement::Tool {
+        sec.text("What limits a light admittance here is the loop through the operator's stiffness, the admittance's integration and the actuator's lag and dead time, not the structural mode: a force low-pass adds lag and moves the limit up, so it is for the sensor's noise only.");
+    }
+    let placement = placement_comparison(axis, base, &mut sec)?;
+    sec.data = json!({
+        "settings": base,
+        "force_rms_n": run.force_rms_n,
+        "force_max_n": run.force_max_n,
+        "final_error_m": run.final_error_m,
+        "final_oscillation_m": run.final_oscillation_m,
+        "stable": run.stable,
+        "stability_map": map,
+        "sensor_placement": placement,
+    });
     sec.check(Check::from_bool(
         "guided to the goal without ringing",
         run.stable && run.final_error_m.abs() < 1e-3,
@@ -440,16 +472,9 @@ fn leadthrough_section(axis: &CompliantAxis) -> Result<Section> {
     Ok(sec)
 }
 
-/// Tracks the tool along the learning-control move (the first trial, no learning) and returns
-/// the sequence with its settings and the camera clock estimated against the chain identified
-/// in `id`.
-fn tracking_experiment(
-    axis: &CompliantAxis,
-    id: &IdentifyResult,
-    quick: bool,
-    seed: u64,
-) -> Result<(TrackingSettings, TrackedSequence, TrackingSync)> {
-    let s = if quick {
+/// The tracker's settings: the 1 MP camera, or with `quick` a 640 x 400 one closer to the board.
+fn tracking_settings(quick: bool, seed: u64) -> TrackingSettings {
+    if quick {
         TrackingSettings {
             width_px: 640,
             height_px: 400,
@@ -460,13 +485,104 @@ fn tracking_experiment(
         }
     } else {
         TrackingSettings { seed, ..TrackingSettings::default() }
-    };
+    }
+}
+
+fn placement_name(p: SensorPlacement) -> &'static str {
+    match p {
+        SensorPlacement::Tool => "at the tool (hand to tool)",
+        SensorPlacement::Carriage => "at the carriage (actuator to links)",
+        SensorPlacement::CarriageCompensated => "at the carriage, rigid-body inertia added back from the encoder",
+    }
+}
+
+/// Dressler ch. 8's placement question: the stability map's runs (unfiltered and 5 Hz) with the
+/// force sensor at the tool and at the carriage, a table, a figure of the readings against the
+/// hand's force at 200 N s/m, and the numbers for the JSON.
+fn placement_comparison(axis: &CompliantAxis, base: &LeadSettings, sec: &mut Section) -> Result<serde_json::Value> {
+    let grid = [25.0, 50.0, 100.0, 200.0, 400.0];
+    let cutoffs = [0.0, 5.0];
+    let (probe_a, probe_c) = (200.0, 5.0);
+    let mut rows = Vec::new();
+    let mut data = Vec::new();
+    let mut probes = Vec::new();
+    for p in [SensorPlacement::Tool, SensorPlacement::Carriage, SensorPlacement::CarriageCompensated] {
+        let b = LeadSettings { sensor: p, ..base.clone() };
+        let map = stability_map(axis, &b, &grid, &cutoffs)?;
+        let probe = lead_through(axis, &LeadSettings { admittance_n_s_m: probe_a, force_cutoff_hz: probe_c, ..b })?;
+        let cell = |a: f64, c: f64| {
+            map.iter().find(|m| m.admittance_n_s_m == a && m.force_cutoff_hz == c).map_or("-".into(), |m| {
+                if m.stable {
+                    format!("{:.1} N", m.force_rms_n)
+                } else {
+                    "unstable".into()
+                }
+            })
+        };
+        let mut row = vec![placement_name(p).to_string()];
+        row.extend(grid.iter().map(|a| format!("{} / {}", cell(*a, 0.0), cell(*a, 5.0))));
+        row.push(format!("{:.2} N", probe.sensor_error_rms_n));
+        rows.push(row);
+        data.push(json!({
+            "sensor": p,
+            "stability_map": map,
+            "probe_admittance_n_s_m": probe_a,
+            "probe_force_cutoff_hz": probe_c,
+            "probe_stable": probe.stable,
+            "probe_force_rms_n": probe.force_rms_n,
+            "probe_reading_minus_hand_rms_n": probe.sensor_error_rms_n,
+        }));
+        probes.push((p, probe));
+    }
+    let mut header = vec!["force sensor".to_string()];
+    header.extend(grid.iter().map(|a| format!("D_a {a:.0}: no filter / 5 Hz")));
+    header.push(format!("reading minus hand force, RMS during the move (D_a {probe_a:.0}, {probe_c:.0} Hz)"));
+    let header_ref: Vec<&str> = header.iter().map(String::as_str).collect();
+    sec.table(
+        "Force-sensor placement (Dressler ch. 8): the operator's RMS force, or 'unstable', per admittance (N s/m)",
+        &header_ref,
+        rows,
+    );
+    sec.text("A sensor at the carriage reads what the structure puts on the actuator: the hand's force minus the inertial forces of the links and the platform (F_h - m1 x1'' - m2 x2''), so the modes' motion is fed back into the admittance. Unfiltered it needs a heavier admittance than the sensor at the tool, and a low-pass, which only adds lag for the tool's sensor, helps it by removing the modes from the reading. Adding the rigid-body inertia (m1 + m2) a'' back from the encoder's second difference leaves the compliance's inertial forces and the encoder's quantisation.");
+    let dt = axis.dt_s;
+    let series_of = |v: &[f64]| -> Vec<(f64, f64)> { v.iter().enumerate().map(|(k, f)| (k as f64 * dt, *f)).collect() };
+    let carriage = probes.iter().find(|(p, _)| *p == SensorPlacement::Carriage).map(|(_, r)| r);
+    let compensated = probes.iter().find(|(p, _)| *p == SensorPlacement::CarriageCompensated).map(|(_, r)| r);
+    if let (Some(c), Some(k)) = (carriage, compensated) {
+        let (hand, read_c, read_k) = (series_of(&c.force_n), series_of(&c.sensor_n), series_of(&k.sensor_n));
+        sec.figure(
+            &format!("The hand's force and the carriage sensor's readings (before noise) at D_a = {probe_a:.0} N s/m, {probe_c:.0} Hz low-pass"),
+            plot::xy_plot(
+                "force-sensor placement",
+                "time (s)",
+                "force (N)",
+                &[
+                    Series { name: "hand force", points: &hand, line: true },
+                    Series { name: "carriage sensor", points: &read_c, line: true },
+                    Series { name: "carriage sensor, inertia added back", points: &read_k, line: true },
+                ],
+            ),
+        );
+    }
+    Ok(serde_json::Value::Array(data))
+}
+
+/// Tracks the tool along the learning-control move (the first trial, no learning) and returns
+/// the sequence with its settings and the camera clock estimated against the chain identified
+/// in `id`.
+fn tracking_experiment(
+    axis: &CompliantAxis,
+    id: &IdentifyResult,
+    quick: bool,
+    seed: u64,
+) -> Result<(TrackingSettings, TrackedSequence, TrackingSync)> {
+    let s = tracking_settings(quick, seed);
     let il = IlcSettings::default();
     let n = ((0.1 + il.move_s + 0.2) / axis.dt_s).round() as usize;
     let rec = axis.run(&quintic_move(n, axis.dt_s, 0.1, il.move_s, il.distance_m), SensorNoise::default(), seed)?;
     let seq = Tracker::new(&s)?.track(&rec.tool_true_m, axis.dt_s)?;
     let dt = axis.dt_s;
-    let predicted = id.physical_chain(axis.m2_kg).simulate(&rec.encoder_m, dt, 8);
+    let predicted = id.physical_chain(axis.chain.m2_kg).simulate(&rec.encoder_m, dt, 8);
     let sync = SyncSettings { model_timing_std_s: MODEL_TIMING_STD_S, ..SyncSettings::default() };
     let (clock, chain) = synchronise(&seq, &s, &predicted, dt, &sync)?;
     let encoder_only = synchronise(&seq, &s, &rec.encoder_m, dt, &sync).map(|r| r.1).map_err(|e| e.to_string());
@@ -475,46 +591,148 @@ fn tracking_experiment(
     Ok((s, seq, TrackingSync { chain, encoder_only, frames_mapped, dt_s: dt }))
 }
 
-/// Runs the experiments: identification, vision tracking, learning control without and with a
-/// contact force (the Kalman case with the tracked camera's latency).
-pub fn study_sections(seed: u64, quick: bool, contact_force_n: f64, progress: &dyn Fn(&str)) -> Result<Vec<Section>> {
-    let axis = CompliantAxis::l1_like();
-    let settings = if quick {
+/// The identification experiment's settings: 60 s to fit and 30 s to validate, or with `quick`
+/// 20 s and 10 s.
+fn identify_settings(seed: u64, quick: bool) -> IdentifySettings {
+    if quick {
         IdentifySettings { estimation_s: 20.0, validation_s: 10.0, seed, ..IdentifySettings::default() }
     } else {
         IdentifySettings { seed, ..IdentifySettings::default() }
-    };
+    }
+}
+
+/// Options of the learning-control experiment (`ferrocal motion ilc` and `motion study`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct IlcOptions {
+    /// Contact force of the second variant, N (0: only the variant without).
+    pub contact_force_n: f64,
+    /// Trials after the first.
+    pub iterations: usize,
+}
+
+impl Default for IlcOptions {
+    /// A 20 N contact force, ten trials after the first.
+    fn default() -> Self {
+        Self { contact_force_n: 20.0, iterations: IlcSettings::default().iterations }
+    }
+}
+
+/// The learning-control sections (without and, when `o.contact_force_n > 0`, with a contact
+/// force), the camera's frame period and latency those of the tracker `ts`.
+fn ilc_sections(
+    axis: &CompliantAxis,
+    id: &IdentifyResult,
+    camera_every: usize,
+    camera_delay_samples: usize,
+    seed: u64,
+    o: &IlcOptions,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<Section>> {
+    progress("learning control");
+    let s0 =
+        IlcSettings { seed, camera_every, camera_delay_samples, iterations: o.iterations, ..IlcSettings::default() };
+    let mut out = vec![ilc_section(&ilc_experiment(axis, id, &s0)?, &s0, "")];
+    if o.contact_force_n > 0.0 {
+        progress("learning control under a contact force");
+        let s1 = IlcSettings { contact_force_n: o.contact_force_n, ..s0.clone() };
+        out.push(ilc_section(&ilc_experiment(axis, id, &s1)?, &s1, "-contact"));
+    }
+    Ok(out)
+}
+
+/// Runs the experiments: identification, vision tracking, learning control without and with a
+/// contact force (the Kalman case with the tracked camera's latency), lead-through.
+pub fn study_sections(seed: u64, quick: bool, contact_force_n: f64, progress: &dyn Fn(&str)) -> Result<Vec<Section>> {
+    let axis = CompliantAxis::l1_like();
     progress("identification");
-    let id = identify_axis(&axis, &settings)?;
+    let id = identify_axis(&axis, &identify_settings(seed, quick))?;
     let mut out = vec![identification_section(&axis, &id)];
     progress("vision tracking");
     let (ts, seq, sync) = tracking_experiment(&axis, &id, quick, seed)?;
     out.push(tracking_section(&ts, &seq, &sync));
-    progress("learning control");
-    let s0 = IlcSettings {
-        seed,
-        camera_every: ts.frame_every,
-        camera_delay_samples: seq.latency_samples,
-        ..IlcSettings::default()
-    };
-    out.push(ilc_section(&ilc_experiment(&axis, &id, &s0)?, &s0, ""));
-    if contact_force_n > 0.0 {
-        progress("learning control under a contact force");
-        let s1 = IlcSettings { contact_force_n, ..s0.clone() };
-        out.push(ilc_section(&ilc_experiment(&axis, &id, &s1)?, &s1, "-contact"));
-    }
+    let o = IlcOptions { contact_force_n, ..IlcOptions::default() };
+    out.extend(ilc_sections(&axis, &id, ts.frame_every, seq.latency_samples, seed, &o, progress)?);
     progress("lead-through");
-    out.push(leadthrough_section(&axis)?);
+    out.push(leadthrough_section(&axis, &LeadSettings::default())?);
     Ok(out)
 }
 
-/// The study's report (`ferrocal motion study`).
+fn report_of(title: &str, settings: serde_json::Value, sections: Vec<Section>) -> Report {
+    let mut report = Report::new(title, Provenance::new(settings));
+    report.sections = sections;
+    report
+}
+
+/// The study's report (`ferrocal motion study`): every experiment of the chapters 6-8.
 pub fn study_report(seed: u64, quick: bool, contact_force_n: f64, progress: &dyn Fn(&str)) -> Result<Report> {
     let sections = study_sections(seed, quick, contact_force_n, progress)?;
-    let prov = Provenance::new(json!({"seed": seed, "quick": quick, "contact_force_n": contact_force_n}));
-    let mut report = Report::new("Compliance dynamics and learning control on tool-side estimates (simulated)", prov);
-    report.sections = sections;
-    Ok(report)
+    Ok(report_of(
+        "Compliance dynamics and learning control on tool-side estimates (simulated)",
+        json!({"seed": seed, "quick": quick, "contact_force_n": contact_force_n}),
+        sections,
+    ))
+}
+
+/// Chapter 6 (`ferrocal motion identify`): the identification with its Bode plot, pole map and
+/// validation fits.
+pub fn identify_report(seed: u64, quick: bool, progress: &dyn Fn(&str)) -> Result<Report> {
+    let axis = CompliantAxis::l1_like();
+    progress("identification");
+    let id = identify_axis(&axis, &identify_settings(seed, quick))?;
+    Ok(report_of(
+        "Compliant axis: identification and validation (simulated, Dressler ch. 6)",
+        json!({"experiment": "identify", "seed": seed, "quick": quick}),
+        vec![identification_section(&axis, &id)],
+    ))
+}
+
+/// Chapter 7 (`ferrocal motion ilc`): learning control over trials, without and with a contact
+/// force. The learning matrices come from the identification (run first, as in the study, and
+/// summarised by its check); the camera's frame period and latency are the tracker's (a still
+/// frame is tracked to read them, no move is rendered).
+pub fn ilc_report(seed: u64, quick: bool, o: &IlcOptions, progress: &dyn Fn(&str)) -> Result<Report> {
+    let axis = CompliantAxis::l1_like();
+    progress("identification (for the learning matrices)");
+    let id = identify_axis(&axis, &identify_settings(seed, quick))?;
+    let mut idsec = identification_section(&axis, &id);
+    idsec.blocks.retain(|b| !matches!(b, crate::report::Block::Figure { .. }));
+    let ts = tracking_settings(quick, seed);
+    let latency = Tracker::new(&ts)?.track(&[0.0], axis.dt_s)?.latency_samples;
+    let mut sections = vec![idsec];
+    sections.extend(ilc_sections(&axis, &id, ts.frame_every, latency, seed, o, progress)?);
+    Ok(report_of(
+        "Learning control on actuator-side and tool-side errors (simulated, Dressler ch. 7)",
+        json!({"experiment": "ilc", "seed": seed, "quick": quick, "contact_force_n": o.contact_force_n, "iterations": o.iterations}),
+        sections,
+    ))
+}
+
+/// The rendered camera tracking (`ferrocal motion track`): the tool along the learning-control
+/// move, tracked in motion-blurred frames.
+pub fn track_report(seed: u64, quick: bool, progress: &dyn Fn(&str)) -> Result<Report> {
+    let axis = CompliantAxis::l1_like();
+    // The chain that predicts the tool track for the clock's synchronisation.
+    progress("identification (the chain for the camera clock)");
+    let id = identify_axis(&axis, &identify_settings(seed, quick))?;
+    progress("vision tracking");
+    let (ts, seq, sync) = tracking_experiment(&axis, &id, quick, seed)?;
+    Ok(report_of(
+        "Vision tracking of the moving tool (simulated, rendered frames)",
+        json!({"experiment": "track", "seed": seed, "quick": quick}),
+        vec![tracking_section(&ts, &seq, &sync)],
+    ))
+}
+
+/// Chapter 8 (`ferrocal motion leadthrough`): a guided move with the given settings and the
+/// stability map over admittances and force filters.
+pub fn leadthrough_report(s: &LeadSettings, progress: &dyn Fn(&str)) -> Result<Report> {
+    let axis = CompliantAxis::l1_like();
+    progress("lead-through");
+    Ok(report_of(
+        "Lead-through with tool force feedback (simulated, Dressler ch. 8)",
+        json!({"experiment": "leadthrough", "settings": s}),
+        vec![leadthrough_section(&axis, s)?],
+    ))
 }
 
 /// The demo's section: the short identification and both learning-control experiments.
@@ -529,7 +747,7 @@ pub fn demo_section(seed: u64) -> Result<Section> {
         checks.extend(s.status);
     }
     sec.check(Check::all("motion identification and learning control", &checks));
-    sec.text("Full study: `ferrocal motion study --out DIR [--contact-force-n 20]`; docs/motion.md.");
+    sec.text("Full study: `ferrocal motion study --out DIR [--contact-force-n 20]`; one experiment: `ferrocal motion identify|ilc|track|leadthrough --out DIR`; docs/motion.md.");
     Ok(sec)
 }
 
@@ -543,6 +761,9 @@ mod tests {
         assert_eq!(s.id, "motion");
         assert!(s.status.as_ref().is_some_and(Check::passed), "{:?}", s.status);
         let figures = s.blocks.iter().filter(|b| matches!(b, crate::report::Block::Figure { .. })).count();
-        assert_eq!(figures, 7, "Bode, pole map, tracking errors, two learning curves, lead-through move and force");
+        assert_eq!(
+            figures, 8,
+            "Bode, pole map, tracking errors, two learning curves, lead-through move, force and sensor placement"
+        );
     }
 }

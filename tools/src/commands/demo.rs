@@ -70,6 +70,7 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     s.push(demo::force_diagnose(args.seed)?);
     s.push(ferrocal_report::stiffness::demo_section(args.seed, args.quick)?);
     s.push(ferrocal_report::motion::demo_section(args.seed)?);
+    s.push(ferrocal_report::motion_cell::demo_section(args.seed)?);
     s.iter_mut().for_each(demo::reported_unless_checked);
     let summary = report.summary_section();
     report.sections.insert(0, summary);

@@ -1,11 +1,18 @@
-//! `ferrocal motion`: compliance dynamics and learning control on the simulated compliant axis
-//! (Dressler ch. 6-7; docs/motion.md).
+//! `ferrocal motion`: compliance dynamics, learning control and lead-through on the simulated
+//! compliant axis (Dressler ch. 6-8; docs/motion.md). `study` runs every experiment; `identify`,
+//! `ilc`, `track` and `leadthrough` one each, with the same code and the same sections; `cell`
+//! the compliant 3-DOF Gantry-Tau cell.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Result;
-use ferrocal_report::motion::study_report;
+use anyhow::{bail, Result};
+use ferrocal_datasets::motion::leadthrough::{LeadSettings, SensorPlacement};
+use ferrocal_report::motion::{
+    identify_report, ilc_report, leadthrough_report, study_report, track_report, IlcOptions,
+};
+use ferrocal_report::motion_cell::cell_report;
+use ferrocal_report::report::Report;
 
 /// `ferrocal motion`.
 #[derive(Debug, clap::Args)]
@@ -15,49 +22,194 @@ pub struct MotionArgs {
     pub command: MotionCommand,
 }
 
-/// The subcommands of `ferrocal motion`.
+/// The subcommands of `ferrocal motion`. Each writes index.html and report.json into `--out` and
+/// exits 0 when every check passes, 2 when the report was written but a check failed.
 #[derive(Debug, clap::Subcommand)]
 pub enum MotionCommand {
-    /// Identify the simulated compliant axis (black-box and physical models, validation on
-    /// another record) and run learning control on actuator-side, tool-estimated, measured and
-    /// Kalman-estimated tool errors; writes index.html and report.json. Exits 0 when every
-    /// check passes, 2 when the report was written but a check failed.
+    /// Every experiment: identification (black-box and physical models, validation on another
+    /// record), vision tracking, learning control on actuator-side, tool-estimated, measured and
+    /// Kalman-estimated tool errors, with and without a contact force, and lead-through.
     Study(StudyArgs),
+    /// Chapter 6: identification of the axis (Bode plot, pole map, validation fits).
+    Identify(IdentifyArgs),
+    /// Chapter 7: learning control over trials, the four measurement cases, without and with a
+    /// contact force the encoder cannot see.
+    Ilc(IlcArgs),
+    /// The camera tracking of the moving tool in rendered, motion-blurred frames.
+    Track(TrackArgs),
+    /// Chapter 8: lead-through with tool force feedback, a guided move and the stability map.
+    Leadthrough(LeadthroughArgs),
+    /// The compliant 3-DOF Gantry-Tau cell: all three drives excited at once, the physical model
+    /// fitted and validated on another record, and learning control on actuator-side,
+    /// tool-estimated and measured errors.
+    Cell(CellArgs),
 }
 
-/// `ferrocal motion study`.
+/// Options every experiment has.
 #[derive(Debug, clap::Args)]
-pub struct StudyArgs {
+pub struct CommonArgs {
     /// Folder for index.html and report.json.
     #[arg(long)]
     pub out: PathBuf,
     /// Seed of the excitation and the sensor noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+/// `ferrocal motion study`.
+#[derive(Debug, clap::Args)]
+pub struct StudyArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
     /// Also run learning control with a contact force of this size (N) that the encoder cannot
     /// see (0: skip).
     #[arg(long, default_value_t = 20.0)]
     pub contact_force_n: f64,
+    /// Shorter records (20 s to fit, 10 s to validate, instead of 60 s and 30 s) and a smaller
+    /// camera.
+    #[arg(long)]
+    pub quick: bool,
+}
+
+/// `ferrocal motion identify`.
+#[derive(Debug, clap::Args)]
+pub struct IdentifyArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
     /// Shorter records (20 s to fit, 10 s to validate, instead of 60 s and 30 s).
     #[arg(long)]
     pub quick: bool,
 }
 
-/// Runs `ferrocal motion`.
-pub fn run(a: &MotionArgs) -> Result<ExitCode> {
-    match &a.command {
-        MotionCommand::Study(s) => run_study(s),
-    }
+/// `ferrocal motion ilc`.
+#[derive(Debug, clap::Args)]
+pub struct IlcArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Also run learning control with a contact force of this size (N) that the encoder cannot
+    /// see (0: skip).
+    #[arg(long, default_value_t = 20.0)]
+    pub contact_force_n: f64,
+    /// Trials after the first (1 to 50).
+    #[arg(long, default_value_t = 10)]
+    pub iterations: usize,
+    /// Identify the learning matrices' models from shorter records (20 s and 10 s).
+    #[arg(long)]
+    pub quick: bool,
 }
 
-fn run_study(a: &StudyArgs) -> Result<ExitCode> {
-    if !(a.contact_force_n >= 0.0 && a.contact_force_n <= 1000.0) {
-        anyhow::bail!("--contact-force-n {} N: give a force from 0 to 1000 N", a.contact_force_n);
-    }
+/// `ferrocal motion cell`.
+#[derive(Debug, clap::Args)]
+pub struct CellArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Shorter identification records (20 s to fit, 10 s to validate, instead of 60 s and 30 s).
+    #[arg(long)]
+    pub quick: bool,
+}
+
+/// `ferrocal motion track`.
+#[derive(Debug, clap::Args)]
+pub struct TrackArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// A 640 x 400 camera 0.6 m from the board instead of the 1280 x 800 one at 0.9 m.
+    #[arg(long)]
+    pub quick: bool,
+}
+
+/// `ferrocal motion leadthrough`.
+#[derive(Debug, clap::Args)]
+pub struct LeadthroughArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Admittance damping of the guided move, N s/m (1 N moves the axis at 1 / D_a m/s).
+    #[arg(long, default_value_t = LeadSettings::default().admittance_n_s_m)]
+    pub admittance_n_s_m: f64,
+    /// Cut-off of the force low-pass, Hz (0: no filter).
+    #[arg(long, default_value_t = LeadSettings::default().force_cutoff_hz)]
+    pub force_cutoff_hz: f64,
+    /// Force-sensor noise, N.
+    #[arg(long, default_value_t = LeadSettings::default().sensor_sigma_n)]
+    pub sensor_sigma_n: f64,
+    /// Where the force sensor of the guided move and the stability map sits (the report
+    /// compares all three either way).
+    #[arg(long, value_enum, default_value_t = Sensor::Tool)]
+    pub sensor: Sensor,
+}
+
+/// The force sensor's place (`--sensor`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Sensor {
+    /// Between the hand and the tool.
+    Tool,
+    /// Between the carriage and the links (it also reads the structure's inertial forces).
+    Carriage,
+    /// At the carriage, the rigid-body inertia added back from the encoder.
+    CarriageCompensated,
+}
+
+/// Runs `ferrocal motion`.
+pub fn run(a: &MotionArgs) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
-    let report =
-        study_report(a.seed, a.quick, a.contact_force_n, &|s| eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64()))?;
-    let html = report.write(&a.out)?;
+    let progress = |s: &str| eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
+    let (report, common) = match &a.command {
+        MotionCommand::Study(s) => {
+            contact_force(s.contact_force_n)?;
+            (study_report(s.common.seed, s.quick, s.contact_force_n, &progress)?, &s.common)
+        }
+        MotionCommand::Identify(s) => (identify_report(s.common.seed, s.quick, &progress)?, &s.common),
+        MotionCommand::Ilc(s) => {
+            contact_force(s.contact_force_n)?;
+            if !(1..=50).contains(&s.iterations) {
+                bail!("--iterations {}: give 1 to 50 trials after the first", s.iterations);
+            }
+            let o = IlcOptions { contact_force_n: s.contact_force_n, iterations: s.iterations };
+            (ilc_report(s.common.seed, s.quick, &o, &progress)?, &s.common)
+        }
+        MotionCommand::Track(s) => (track_report(s.common.seed, s.quick, &progress)?, &s.common),
+        MotionCommand::Leadthrough(s) => (leadthrough_report(&lead_settings(s)?, &progress)?, &s.common),
+        MotionCommand::Cell(s) => (cell_report(s.common.seed, s.quick, &progress)?, &s.common),
+    };
+    write(&report, common, t0)
+}
+
+fn contact_force(f_n: f64) -> Result<()> {
+    if !(0.0..=1000.0).contains(&f_n) {
+        bail!("--contact-force-n {f_n} N: give a force from 0 to 1000 N");
+    }
+    Ok(())
+}
+
+/// The lead-through settings from the flags, each checked by name.
+fn lead_settings(a: &LeadthroughArgs) -> Result<LeadSettings> {
+    if !(a.admittance_n_s_m.is_finite() && (1.0..=1e5).contains(&a.admittance_n_s_m)) {
+        bail!("--admittance-n-s-m {}: give an admittance damping from 1 to 100000 N s/m", a.admittance_n_s_m);
+    }
+    if !(0.0..=100.0).contains(&a.force_cutoff_hz) {
+        bail!("--force-cutoff-hz {}: give a cut-off from 0 (no filter) to 100 Hz", a.force_cutoff_hz);
+    }
+    if !(0.0..=100.0).contains(&a.sensor_sigma_n) {
+        bail!("--sensor-sigma-n {}: give a force-sensor noise from 0 to 100 N", a.sensor_sigma_n);
+    }
+    let s = LeadSettings {
+        admittance_n_s_m: a.admittance_n_s_m,
+        force_cutoff_hz: a.force_cutoff_hz,
+        sensor_sigma_n: a.sensor_sigma_n,
+        seed: a.common.seed,
+        sensor: match a.sensor {
+            Sensor::Tool => SensorPlacement::Tool,
+            Sensor::Carriage => SensorPlacement::Carriage,
+            Sensor::CarriageCompensated => SensorPlacement::CarriageCompensated,
+        },
+        ..LeadSettings::default()
+    };
+    s.validate()?;
+    Ok(s)
+}
+
+fn write(report: &Report, common: &CommonArgs, t0: std::time::Instant) -> Result<ExitCode> {
+    let html = report.write(&common.out)?;
     println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
     Ok(if report.failed() { ExitCode::from(2) } else { ExitCode::SUCCESS })
 }
