@@ -43,7 +43,7 @@ pub const TARE_FRAMES: usize = 8;
 pub struct CellFrame {
     /// The sample at the middle of the exposure.
     pub sample: usize,
-    /// The tool's displacement from the tare frame, base frame, m.
+    /// The tool's displacement from the tare, base frame, m.
     pub displacement_m: [f64; 3],
     /// Its covariance, base frame, m^2.
     pub covariance_m2: [[f64; 3]; 3],
@@ -87,7 +87,7 @@ impl CellCamera {
     }
 
     /// Films the tool path `tool_m` (base frame, sampled at `dt_s`, at rest at its first
-    /// sample): the tare frame at `tool_m[0]`, then one frame every `frame_every` samples with the
+    /// sample): the tare at `tool_m[0]`, then one frame every `frame_every` samples with the
     /// exposure centred on its sample. `seed` varies the sensor noise between records.
     pub fn track(&self, tool_m: &[[f64; 3]], dt_s: f64, seed: u64) -> Result<CellTrackedSequence> {
         let s = &self.settings;
@@ -192,16 +192,17 @@ mod tests {
         let mut z2 = 0.0;
         let mut e2 = [0.0; 3];
         for f in &seq.frames {
-            for j in 0..3 {
+            for (j, acc) in e2.iter_mut().enumerate() {
                 let e = f.displacement_m[j] - f.truth_mean_m[j];
-                e2[j] += e * e / seq.frames.len() as f64;
+                *acc += e * e / seq.frames.len() as f64;
                 z2 += e * e / f.covariance_m2[j][j] / (3 * seq.frames.len()) as f64;
             }
         }
         let rms = e2.map(f64::sqrt);
         eprintln!("per-axis RMS {rms:?} m, normalised {}", z2.sqrt());
-        // Measured: see the assertion's message.
-        assert!(rms[0] < 20e-6 && rms[2] < 20e-6 && rms[1] < 100e-6, "per-axis RMS {rms:?} m");
+        // Measured: x and z (across the view) 1.7 µm, y (the depth) 21 µm; error / stated sigma
+        // 1.9 (the depth carries a bias beyond its stated sigma, about -0.2 % of its displacement).
+        assert!(rms[0] < 5e-6 && rms[2] < 5e-6 && rms[1] < 50e-6, "per-axis RMS {rms:?} m");
         assert!(z2.sqrt() > 0.3 && z2.sqrt() < 3.0, "normalised error RMS {}", z2.sqrt());
         let ps = per_sample(&seq.frames, path.len()).unwrap();
         assert_eq!(ps.len(), 100);
