@@ -10,10 +10,14 @@
 //! - tool measurement: the tracker's tool position, learnt from the same response;
 //! - tool camera (when a camera is set): the tool's displacement from rendered, motion-blurred
 //!   camera frames ([`super::cell_tracking`]) at the camera's frame rate, learnt from the same
-//!   response. Only the frames' samples are measured; each frame stands at its exposure's middle
-//!   sample (learning is offline between trials, so the latency drops out) and the error between
-//!   frames is interpolated linearly (zero phase; holding the last frame's error would lag it by
-//!   half a frame period on average and teach a phase error into the references).
+//!   response on the frames' samples only (`MimoIlc::norm_optimal_sampled`: the other samples
+//!   carry no error, so they get zero weight rather than a held or interpolated guess; holding
+//!   the last frame's error would lag it by half a frame period on average and teach a phase
+//!   error into the references). Each frame stands at its exposure's middle sample (learning is
+//!   offline between trials, so the latency drops out); a missed frame's sample gets the linear
+//!   interpolation of its neighbours. The update is averaged over one frame period (the
+//!   frame-rate ripple the frames cannot see) and, after two trials, averaged over the trials
+//!   (the camera's depth noise).
 //!
 //! Every trial starts at rest where the previous one did; the desired path starts at the tool's
 //! rest position (a static offset at rest is a calibration matter, not a learning one). The

@@ -150,7 +150,8 @@ impl CellCamera {
 /// The per-sample tool displacement from a record's frames, for offline learning: each frame
 /// stands at its exposure's middle sample (the latency does not matter between trials), and the
 /// samples between frames are interpolated linearly (zero phase, unlike holding the last frame,
-/// which lags by half a frame period on average); before the first and after the last frame the
+/// which lags by half a frame period on average; the cell's learning reads only the frames'
+/// samples, so this fills in missed frames); before the first and after the last frame the
 /// nearest frame is held. `None` when there is no frame.
 pub fn per_sample(frames: &[CellFrame], n: usize) -> Option<Vec<[f64; 3]>> {
     let first = frames.first()?;

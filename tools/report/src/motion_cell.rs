@@ -175,7 +175,7 @@ fn ilc_section(r: &CellIlcResult) -> Section {
     ));
     if let Some(c) = &s.camera {
         sec.text(format!(
-            "Tool camera: a {} x {} px camera (f = {:.0} px) {:.2} m in front of the platform's {} x {} chessboard, a frame every {} samples, {:.1} ms exposure rendered as {} sub-frames along the 3-D path (motion blur), poses against a tare frame at rest; each frame stands at its exposure's middle sample and the error between frames is interpolated linearly.",
+            "Tool camera: a {} x {} px camera (f = {:.0} px) {:.2} m in front of the platform's {} x {} chessboard, a frame every {} samples, {:.1} ms exposure rendered as {} sub-frames along the 3-D path (motion blur), poses against a tare (8 still frames) at rest; learnt on the frames' samples only, each at its exposure's middle sample, the update averaged over a frame period and, after two trials, over the trials.",
             c.width_px,
             c.height_px,
             c.focal_px,
