@@ -21,6 +21,24 @@ impl MimoIlc {
     /// response `k` samples after a unit impulse on input `c`) over trials of `h.len()` samples,
     /// with input weight `w` (> 0).
     pub fn norm_optimal(h: &[[[f64; 3]; 3]], w: f64) -> Result<Self> {
+        Self::build(h, w, None)
+    }
+
+    /// The norm-optimal learning matrix when only the samples `measured` of a trial carry an
+    /// error (a sensor slower than the trial's sampling, e.g. a camera every few samples): it
+    /// minimises the error at those samples plus `w` times the input change,
+    /// `L = (G^T S^T S G + w I)^-1 G^T S^T S` with `S` selecting the measured samples, so
+    /// [`Self::update`] ignores the errors at the other samples.
+    pub fn norm_optimal_sampled(h: &[[[f64; 3]; 3]], w: f64, measured: &[usize]) -> Result<Self> {
+        if let Some(k) = measured.iter().find(|&&k| k >= h.len()) {
+            return Err(CalibError::Data(format!("MIMO ILC: measured sample {k} beyond the trial of {}", h.len())));
+        }
+        let mut mask = vec![false; h.len()];
+        measured.iter().for_each(|&k| mask[k] = true);
+        Self::build(h, w, Some(&mask))
+    }
+
+    fn build(h: &[[[f64; 3]; 3]], w: f64, mask: Option<&[bool]>) -> Result<Self> {
         let n = h.len();
         if n == 0 || !(w > 0.0 && w.is_finite()) || h.iter().flatten().flatten().any(|v| !v.is_finite()) {
             return Err(CalibError::Data(format!(
@@ -30,7 +48,7 @@ impl MimoIlc {
         let g = Mat::from_fn(3 * n, 3 * n, |i, j| {
             let (ki, r) = (i / 3, i % 3);
             let (kj, c) = (j / 3, j % 3);
-            if ki >= kj {
+            if ki >= kj && mask.is_none_or(|m| m[ki]) {
                 h[ki - kj][r][c]
             } else {
                 0.0
@@ -131,5 +149,36 @@ mod tests {
         let last = rms(&simulate(&u));
         assert!(last < 0.01 * first, "{first} -> {last}");
         assert!(ilc.update(&u[1..], &u[1..]).is_err());
+    }
+
+    #[test]
+    fn the_sampled_form_ignores_unmeasured_samples_and_equals_the_full_form_when_all_are_measured() {
+        let n = 40;
+        let h: Vec<[[f64; 3]; 3]> = (0..n)
+            .map(|k| {
+                [0, 1, 2].map(|r| {
+                    [0, 1, 2].map(|c| {
+                        let mut u = vec![[0.0; 3]; n];
+                        u[0][c] = 1.0;
+                        simulate(&u)[k][r]
+                    })
+                })
+            })
+            .collect();
+        let u = vec![[0.0; 3]; n];
+        let e: Vec<[f64; 3]> = (0..n).map(|k| [0.01 * k as f64, 0.5, -0.2]).collect();
+        let all: Vec<usize> = (0..n).collect();
+        let full = MimoIlc::norm_optimal(&h, 1e-3).unwrap().update(&u, &e).unwrap();
+        let same = MimoIlc::norm_optimal_sampled(&h, 1e-3, &all).unwrap().update(&u, &e).unwrap();
+        let diff =
+            full.iter().zip(&same).flat_map(|(a, b)| (0..3).map(move |j| (a[j] - b[j]).abs())).fold(0.0, f64::max);
+        assert!(diff < 1e-9, "full and all-sampled differ by {diff}");
+        // Every 5th sample measured: changing the errors elsewhere changes nothing.
+        let every5: Vec<usize> = (0..n).step_by(5).collect();
+        let l = MimoIlc::norm_optimal_sampled(&h, 1e-3, &every5).unwrap();
+        let mut e2 = e.clone();
+        e2.iter_mut().enumerate().filter(|(k, _)| k % 5 != 0).for_each(|(_, v)| *v = [9.0, -9.0, 9.0]);
+        assert_eq!(l.update(&u, &e).unwrap(), l.update(&u, &e2).unwrap());
+        assert!(MimoIlc::norm_optimal_sampled(&h, 1e-3, &[n]).is_err());
     }
 }

@@ -7,7 +7,17 @@
 //! - tool estimate: the tool estimated from the encoders (their rigid kinematics plus the
 //!   identified physical model's deflection), learnt from the cell's identified response (drive
 //!   loops times structure, 3 x 3);
-//! - tool measurement: the tracker's tool position, learnt from the same response.
+//! - tool measurement: the tracker's tool position, learnt from the same response;
+//! - tool camera (when a camera is set): the tool's displacement from rendered, motion-blurred
+//!   camera frames ([`super::cell_tracking`]) at the camera's frame rate, learnt from the same
+//!   response on the frames' samples only (`MimoIlc::norm_optimal_sampled`: the other samples
+//!   carry no error, so they get zero weight rather than a held or interpolated guess; holding
+//!   the last frame's error would lag it by half a frame period on average and teach a phase
+//!   error into the references). Each frame stands at its exposure's middle sample (learning is
+//!   offline between trials, so the latency drops out); a missed frame's sample gets the linear
+//!   interpolation of its neighbours. The update is averaged over one frame period (the
+//!   frame-rate ripple the frames cannot see) and, after two trials, averaged over the trials
+//!   (the camera's depth noise).
 //!
 //! Every trial starts at rest where the previous one did; the desired path starts at the tool's
 //! rest position (a static offset at rest is a calibration matter, not a learning one). The
@@ -20,6 +30,8 @@ use serde::Serialize;
 
 use super::cell::CompliantCell;
 use super::cell_study::CellIdentifyResult;
+use super::cell_tracking::{per_sample, CellCamera};
+use super::tracking::TrackingSettings;
 use crate::error::{DatasetError, Result};
 
 /// Settings of the cell's learning experiment.
@@ -37,11 +49,13 @@ pub struct CellIlcSettings {
     pub tracker_sigma_m: f64,
     /// Seed of the sensor noise.
     pub seed: u64,
+    /// The camera of the tool-camera case (`None`: that case is not run).
+    pub camera: Option<TrackingSettings>,
 }
 
 impl Default for CellIlcSettings {
     /// Ten trials of a move of (30, 20, -15) mm out in 0.5 s, a pause, and back, weight 1e-4, a
-    /// tracker at 10 µm.
+    /// tracker at 10 µm, the default tracking camera.
     fn default() -> Self {
         Self {
             iterations: 10,
@@ -50,6 +64,7 @@ impl Default for CellIlcSettings {
             weight: 1e-4,
             tracker_sigma_m: 10e-6,
             seed: 1,
+            camera: Some(TrackingSettings::default()),
         }
     }
 }
@@ -63,6 +78,8 @@ pub enum CellIlcCase {
     ToolEstimate,
     /// The tracker's tool measurement.
     ToolMeasurement,
+    /// The tool's displacement from rendered camera frames.
+    ToolCamera,
 }
 
 impl CellIlcCase {
@@ -72,6 +89,7 @@ impl CellIlcCase {
             Self::Actuator => "actuator side",
             Self::ToolEstimate => "tool estimate (model)",
             Self::ToolMeasurement => "tool measurement (tracker)",
+            Self::ToolCamera => "tool camera (rendered frames)",
         }
     }
 }
@@ -92,7 +110,7 @@ pub struct CellIlcRun {
 pub struct CellIlcResult {
     /// Settings used.
     pub settings: CellIlcSettings,
-    /// The three cases.
+    /// The cases (the camera's last, when it has a camera).
     pub runs: Vec<CellIlcRun>,
     /// Trial length, samples.
     pub samples: usize,
@@ -128,7 +146,42 @@ pub fn reference_to_tool_impulse_response(id: &CellIdentifyResult, n: usize) -> 
     Ok(h)
 }
 
-/// Runs the three learning cases on the cell, from its identification at the same pose.
+/// The camera case's Q-filter: a centred moving average over one frame period (`m` samples;
+/// the window clamped at the trial's ends). Learning from the frames' samples alone leaves a
+/// ripple at the frame rate and its harmonics, which the frames cannot see (zero at every frame);
+/// this average has zeros exactly there and passes the structure's band (0.85 at 16 Hz for 5
+/// samples at 4 ms), so the learning's fixed point in that band is kept.
+fn frame_comb(du: &[[f64; 3]], m: usize) -> Vec<[f64; 3]> {
+    let n = du.len();
+    if m <= 1 || n == 0 {
+        return du.to_vec();
+    }
+    (0..n)
+        .map(|k| {
+            let mut acc = [0.0; 3];
+            for i in 0..m {
+                // Centred: offsets -(m-1)/2 ..= m/2 (for even m the extra sample is ahead).
+                let j = (k + i).saturating_sub((m - 1) / 2).min(n - 1);
+                (0..3).for_each(|c| acc[c] += du[j][c]);
+            }
+            acc.map(|v| v / m as f64)
+        })
+        .collect()
+}
+
+/// The camera case's learning gain after trial `it`: full for the first two updates (the
+/// deterministic error, far above the camera's noise), then `1 / it`, which averages the later
+/// trials' corrections (trial averaging: the camera's depth noise, tens of micrometres per frame,
+/// would otherwise be learnt into every trial's references afresh).
+fn camera_gain(it: usize) -> f64 {
+    if it < 2 {
+        1.0
+    } else {
+        1.0 / it as f64
+    }
+}
+
+/// Runs the learning cases on the cell, from its identification at the same pose.
 pub fn cell_ilc(
     cell: &CompliantCell,
     id: &CellIdentifyResult,
@@ -194,8 +247,22 @@ pub fn cell_ilc(
         tool.iter().zip(&desired).map(|(t, d)| [0, 1, 2].map(|j| d[j] - t[j])).collect()
     };
     let rms3 = |e: &[[f64; 3]]| rms(&e.iter().map(|v| Vector3::from(*v).norm()).collect::<Vec<_>>());
+    let camera = s.camera.as_ref().map(CellCamera::new).transpose()?;
+    // The camera's learning matrix weighs the error at the frames' samples only.
+    let mimo_cam = camera
+        .as_ref()
+        .map(|c| {
+            let frames: Vec<usize> = (0..n).step_by(c.settings().frame_every).collect();
+            MimoIlc::norm_optimal_sampled(&h, s.weight, &frames)
+                .map_err(|e| DatasetError::Input(format!("cell ILC: {e}")))
+        })
+        .transpose()?;
+    let mut cases = vec![CellIlcCase::Actuator, CellIlcCase::ToolEstimate, CellIlcCase::ToolMeasurement];
+    if camera.is_some() {
+        cases.push(CellIlcCase::ToolCamera);
+    }
     let mut runs = Vec::new();
-    for case in [CellIlcCase::Actuator, CellIlcCase::ToolEstimate, CellIlcCase::ToolMeasurement] {
+    for case in cases {
         let mut u = joints.clone();
         let mut run = CellIlcRun { case, tool_rms_m: Vec::new(), learnt_rms_m: Vec::new() };
         for it in 0..=s.iterations {
@@ -207,6 +274,14 @@ pub fn cell_ilc(
                 }
                 CellIlcCase::ToolEstimate => tool_err(&estimate(&rec.encoder_m)?),
                 CellIlcCase::ToolMeasurement => tool_err(&rec.tool_measured_m),
+                CellIlcCase::ToolCamera => {
+                    let cam = camera.as_ref().ok_or_else(|| DatasetError::Input("cell ILC: no camera".into()))?;
+                    let seq = cam.track(&rec.tool_true_m, dt, s.seed + 100 * it as u64)?;
+                    let shown = per_sample(&seq.frames, n)
+                        .ok_or_else(|| DatasetError::Input(format!("cell ILC: no camera frame in trial {it}")))?;
+                    // The tare is the rest pose, so the desired displacement is the path's.
+                    shown.iter().zip(&shape).map(|(m, &x)| [0, 1, 2].map(|j| d[j] * x - m[j])).collect()
+                }
             };
             run.learnt_rms_m.push(rms3(&e));
             if it == s.iterations {
@@ -222,6 +297,17 @@ pub fn cell_ilc(
                         next.iter_mut().zip(nj).for_each(|(v, x)| v[j] = x);
                     }
                     next
+                }
+                CellIlcCase::ToolCamera => {
+                    let (l, c) = mimo_cam
+                        .as_ref()
+                        .zip(camera.as_ref())
+                        .ok_or_else(|| DatasetError::Input("cell ILC: no camera".into()))?;
+                    let next = l.update(&u, &e).map_err(|e| DatasetError::Input(format!("cell ILC: {e}")))?;
+                    let du: Vec<[f64; 3]> = next.iter().zip(&u).map(|(a, b)| [0, 1, 2].map(|j| a[j] - b[j])).collect();
+                    let q = frame_comb(&du, c.settings().frame_every);
+                    let gain = camera_gain(it);
+                    u.iter().zip(&q).map(|(a, b)| [0, 1, 2].map(|j| a[j] + gain * b[j])).collect()
                 }
                 _ => mimo.update(&u, &e).map_err(|e| DatasetError::Input(format!("cell ILC: {e}")))?,
             };
@@ -240,6 +326,7 @@ pub fn cell_ilc(
 #[cfg(test)]
 mod tests {
     use super::super::cell_study::{identify_cell, CellIdentifySettings};
+    use super::super::cell_tracking::reduced_camera;
     use super::*;
 
     #[test]
@@ -247,7 +334,8 @@ mod tests {
         let cell = CompliantCell::l1_like();
         let ids = CellIdentifySettings { estimation_s: 20.0, validation_s: 5.0, ..Default::default() };
         let id = identify_cell(&cell, &ids, &|_| {}).unwrap();
-        let s = CellIlcSettings { iterations: 6, ..Default::default() };
+        // The camera case renders every trial's frames at the reduced resolution (dev profile).
+        let s = CellIlcSettings { iterations: 6, camera: Some(reduced_camera()), ..Default::default() };
         let r = cell_ilc(&cell, &id, &s, &|m| eprintln!("{m}")).unwrap();
         let last = |c: CellIlcCase| *r.runs.iter().find(|x| x.case == c).unwrap().tool_rms_m.last().unwrap();
         let (act, meas) = (last(CellIlcCase::Actuator), last(CellIlcCase::ToolMeasurement));
@@ -256,5 +344,7 @@ mod tests {
             meas * 5.0 < act && est * 5.0 < act,
             "actuator {act} m, tool estimate {est} m, tool measurement {meas} m"
         );
+        let cam = last(CellIlcCase::ToolCamera);
+        assert!(cam * 5.0 < act, "actuator {act} m, tool camera {cam} m");
     }
 }

@@ -26,6 +26,7 @@
 pub mod cell;
 pub mod cell_ilc;
 pub mod cell_study;
+pub mod cell_tracking;
 pub mod leadthrough;
 pub mod study;
 pub mod tracking;

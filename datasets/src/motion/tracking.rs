@@ -229,6 +229,24 @@ impl Tracker {
         self.renderer.config().sensor.expose(&mean, seed)
     }
 
+    /// As [`Self::expose`] for a plate translated in 3-D: `offsets_m` are the sub-frames'
+    /// displacements of the plate from its pose at axis position 0, in the camera frame, m.
+    pub fn expose_3d(&self, offsets_m: &[Vector3<f64>], seed: u64) -> Result<image::GrayImage> {
+        let mut sum: Option<LinearImage> = None;
+        for d in offsets_m {
+            let pose = Isometry3::from_parts(Translation3::from(*d), UnitQuaternion::identity()) * self.t_cam_plate0;
+            let img = self.renderer.render_expected(&pose)?;
+            match &mut sum {
+                None => sum = Some(img),
+                Some(s) => s.electrons.iter_mut().zip(&img.electrons).for_each(|(a, b)| *a += b),
+            }
+        }
+        let mut mean = sum.ok_or_else(|| DatasetError::Input("vision tracking: no sub-frame".into()))?;
+        let k = 1.0 / offsets_m.len() as f32;
+        mean.electrons.iter_mut().for_each(|v| *v *= k);
+        self.renderer.config().sensor.expose(&mean, seed)
+    }
+
     /// The plate's pose in one image: position (m) in the camera and its covariance (m^2), the
     /// reprojection RMS.
     pub fn measure(&self, img: &image::GrayImage) -> Result<(Vector3<f64>, nalgebra::Matrix3<f64>, f64)> {

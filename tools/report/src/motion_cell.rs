@@ -229,6 +229,26 @@ fn ilc_section(r: &CellIlcResult) -> Section {
             act / meas
         ),
     ));
+    if let Some(c) = &s.camera {
+        sec.text(format!(
+            "Tool camera: a {} x {} px camera (f = {:.0} px) {:.2} m in front of the platform's {} x {} chessboard, a frame every {} samples, {:.1} ms exposure rendered as {} sub-frames along the 3-D path (motion blur), poses against a tare (8 still frames) at rest; learnt on the frames' samples only, each at its exposure's middle sample, the update averaged over a frame period and, after two trials, over the trials.",
+            c.width_px,
+            c.height_px,
+            c.focal_px,
+            c.distance_m,
+            c.board_inner.0,
+            c.board_inner.1,
+            c.frame_every,
+            1e3 * c.exposure_s,
+            c.sub_frames
+        ));
+        let cam = last(CellIlcCase::ToolCamera);
+        sec.check(Check::from_bool(
+            "camera-in-the-loop learning at least 5x better than actuator-side on the cell",
+            cam * 5.0 < act,
+            format!("actuator side {:.1} µm, tool camera {:.1} µm ({:.0}x)", 1e6 * act, 1e6 * cam, act / cam),
+        ));
+    }
     sec
 }
 
@@ -252,7 +272,13 @@ pub fn cell_sections(seed: u64, quick: bool, progress: &dyn Fn(&str)) -> Result<
     };
     let rows = identify_poses(&cell, &POSES_M, &pose_settings, progress)?;
     out.push(poses_section(&rows, &pose_settings));
-    let s = ferrocal_datasets::motion::cell_ilc::CellIlcSettings { seed, ..Default::default() };
+    // The camera case renders every trial: the reduced camera when quick.
+    let camera = if quick {
+        ferrocal_datasets::motion::cell_tracking::reduced_camera()
+    } else {
+        ferrocal_datasets::motion::tracking::TrackingSettings::default()
+    };
+    let s = ferrocal_datasets::motion::cell_ilc::CellIlcSettings { seed, camera: Some(camera), ..Default::default() };
     out.push(ilc_section(&cell_ilc(&cell, &id, &s, progress)?));
     Ok(out)
 }
