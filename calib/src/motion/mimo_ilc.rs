@@ -109,20 +109,22 @@ mod tests {
         y
     }
 
+    /// The plant's `n`-sample impulse response, `h[k][r][c]`.
+    fn impulse_response(n: usize) -> Vec<[[f64; 3]; 3]> {
+        let per_input: Vec<Vec<[f64; 3]>> = (0..3)
+            .map(|c| {
+                let mut u = vec![[0.0; 3]; n];
+                u[0][c] = 1.0;
+                simulate(&u)
+            })
+            .collect();
+        (0..n).map(|k| [0, 1, 2].map(|r| [0, 1, 2].map(|c| per_input[c][k][r]))).collect()
+    }
+
     #[test]
     fn learning_on_the_exact_model_drives_a_coupled_error_down() {
         let n = 120;
-        let h: Vec<[[f64; 3]; 3]> = (0..n)
-            .map(|k| {
-                [0, 1, 2].map(|r| {
-                    [0, 1, 2].map(|c| {
-                        let mut u = vec![[0.0; 3]; n];
-                        u[0][c] = 1.0;
-                        simulate(&u)[k][r]
-                    })
-                })
-            })
-            .collect();
+        let h = impulse_response(n);
         let ilc = MimoIlc::norm_optimal(&h, 1e-4).unwrap();
         let target: Vec<[f64; 3]> = (0..n)
             .map(|k| {
@@ -154,17 +156,7 @@ mod tests {
     #[test]
     fn the_sampled_form_ignores_unmeasured_samples_and_equals_the_full_form_when_all_are_measured() {
         let n = 40;
-        let h: Vec<[[f64; 3]; 3]> = (0..n)
-            .map(|k| {
-                [0, 1, 2].map(|r| {
-                    [0, 1, 2].map(|c| {
-                        let mut u = vec![[0.0; 3]; n];
-                        u[0][c] = 1.0;
-                        simulate(&u)[k][r]
-                    })
-                })
-            })
-            .collect();
+        let h = impulse_response(n);
         let u = vec![[0.0; 3]; n];
         let e: Vec<[f64; 3]> = (0..n).map(|k| [0.01 * k as f64, 0.5, -0.2]).collect();
         let all: Vec<usize> = (0..n).collect();

@@ -215,7 +215,12 @@ fn ilc_section(r: &CellIlcResult) -> Section {
         "settings": s,
         "samples": r.samples,
         "runs": r.runs,
-        "last_trial_tool_rms_m": {"actuator": act, "tool_estimate": est, "tool_measurement": meas},
+        "last_trial_tool_rms_m": {
+            "actuator": act,
+            "tool_estimate": est,
+            "tool_measurement": meas,
+            "tool_camera": s.camera.as_ref().map(|_| last(CellIlcCase::ToolCamera)),
+        },
     });
     sec.check(Check::from_bool(
         "tool-side learning at least 5x better than actuator-side on the cell",
