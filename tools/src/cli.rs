@@ -63,8 +63,8 @@ pub enum Command {
     Dynamics(crate::commands::dynamics::DynamicsArgs),
     /// Elastostatic (compliance) identification with practical identifiability and compensation.
     Stiffness(crate::commands::stiffness::StiffnessArgs),
-    /// Compliance dynamics, tool estimation and learning control on a simulated compliant axis
-    /// (identification with validation, Bode plot, pole map, ILC over trials).
+    /// Compliance dynamics, tool estimation and learning control on a simulated compliant axis and
+    /// 3-DOF Gantry-Tau cell (identification with validation, Bode plot, pole map, ILC over trials).
     Motion(crate::commands::motion::MotionArgs),
 }
 

@@ -78,7 +78,7 @@ pub struct CellRecord {
 
 impl CompliantCell {
     /// The L1 cell: the source's actuator loop at 4 ms, an 8 kg platform with tool, 4 kg carts on
-    /// drive trains of 1.5 MN/m, link clusters of 0.9-1.2 x 10^5 N/m; its structure's lowest modes
+    /// drive trains of 1.5 MN/m, link clusters of 1.35-1.8 x 10^5 N/m; its structure's lowest modes
     /// lie in the source's 7-16 Hz range (Table 6.4), the carts' near 100 Hz.
     pub fn l1_like() -> Self {
         let dt_s = 0.004;

@@ -41,7 +41,7 @@ pub enum MotionCommand {
     Leadthrough(LeadthroughArgs),
     /// The compliant 3-DOF Gantry-Tau cell: all three drives excited at once, the physical model
     /// fitted and validated on another record, and learning control on actuator-side,
-    /// tool-estimated and measured errors.
+    /// tool-estimated and measured errors and on rendered, motion-blurred camera frames.
     Cell(CellArgs),
 }
 
