@@ -27,6 +27,9 @@ struct Polynomial {
     prune_first: bool,
     /// Compare every candidate jointly with the others before accepting it (look-alikes).
     compare: bool,
+    /// The coefficient bound is a typical range (beyond it: unusual, claimed on strong
+    /// support) rather than a veto.
+    soft: bool,
 }
 
 fn lstsq(x: &[f64], y: &[f64], terms: &[u32], rows: &[usize]) -> DVector<f64> {
@@ -48,6 +51,7 @@ impl Polynomial {
             max_coefficient,
             prune_first: false,
             compare: false,
+            soft: false,
         };
         p.e0 = p.heldout(&p.terms.clone());
         p
@@ -134,11 +138,17 @@ impl Family for Polynomial {
 
     fn plausible(&self, fit: &AllFit<u32, ()>) -> std::result::Result<(), String> {
         let c = fit.parameters.values().next().copied().unwrap_or(0.0);
-        if c.abs() <= self.max_coefficient {
+        if c.abs() <= self.max_coefficient || self.soft {
             Ok(())
         } else {
             Err(format!("coefficient {c} beyond {}", self.max_coefficient))
         }
+    }
+
+    fn unusual(&self, fit: &AllFit<u32, ()>) -> Option<String> {
+        let c = fit.parameters.values().next().copied().unwrap_or(0.0);
+        (self.soft && c.abs() > self.max_coefficient)
+            .then(|| format!("coefficient {c} beyond the usual {}", self.max_coefficient))
     }
 
     fn accept(&mut self, fit: AllFit<u32, ()>, e1: &Vec<f64>, decision: &Decision) -> Result<Finding<u32>> {
@@ -281,11 +291,15 @@ fn a_retired_effect_leaves_the_findings_and_is_not_proposed_again() {
 }
 
 #[test]
-fn a_look_alike_that_explains_a_candidate_stops_its_claim() {
-    // The truth holds 0.3 x^4, beyond the plausible 0.265 (fitted: 0.275): x^4 is declined. x^2 alone fits the
-    // even bulge well enough to be significant (coefficient about 0.24, plausible), so without
-    // the joint comparison the wrong term is claimed; fitted together with x^4, x^2 adds
-    // nothing while x^4 still adds, so x^2 is rejected as explained by it.
+fn a_vetoed_candidate_explains_nothing_away_and_an_unusual_one_is_claimed_with_words() {
+    // The truth holds 0.3 x^4. x^2 alone fits the even bulge well enough to be significant
+    // (coefficient about 0.24).
+    // - With a veto at 0.265 (fitted: 0.275), x^4 is rejected, and a rejected candidate never
+    //   explains another away: x^2, the best reading that is allowed, is claimed whether or not
+    //   the two are compared jointly (before issue [physics-real] the vetoed x^4 explained x^2
+    //   away and nothing was claimed while the data held a large effect).
+    // - With 0.265 as a typical range instead, x^4 is unusual, strongly supported, and claimed
+    //   with its words; x^2 is not claimed beside it.
     for compare in [false, true] {
         let (x, y) = data(300, Some((4, 0.3)), 0.05, 8);
         let mut family = Polynomial::new(x, y, 0.265);
@@ -294,17 +308,18 @@ fn a_look_alike_that_explains_a_candidate_stops_its_claim() {
         let found: Vec<u32> = d.findings.iter().map(|f| f.accepted).collect();
         let row = |label: &str| d.steps[0].rows.iter().find(|r| r.label == label).unwrap().verdict.clone();
         assert!(matches!(row("x^4"), Verdict::Implausible(_)), "{:#?}", d.steps[0]);
-        if compare {
-            assert!(found.is_empty(), "{found:?}: {:#?}", d.steps);
-            match row("x^2") {
-                Verdict::Explained { by, p_added, p_rival_added } => {
-                    assert_eq!(by, "x^4");
-                    assert!(p_added >= 0.01 && p_rival_added < 0.01, "{p_added} {p_rival_added}");
-                }
-                v => panic!("x^2: {v:?}"),
-            }
-        } else {
-            assert_eq!(found, vec![2], "{:#?}", d.steps);
-        }
+        assert!(matches!(row("x^2"), Verdict::Accepted { .. }), "{:#?}", d.steps[0]);
+        assert_eq!(found, vec![2], "{:#?}", d.steps);
+    }
+    for compare in [false, true] {
+        let (x, y) = data(300, Some((4, 0.3)), 0.05, 8);
+        let mut family = Polynomial::new(x, y, 0.265);
+        family.compare = compare;
+        family.soft = true;
+        let d = select(&mut family, &policy(Selection::Ranked { max_checked: 4 })).unwrap();
+        let found: Vec<u32> = d.findings.iter().map(|f| f.accepted).collect();
+        assert_eq!(found, vec![4], "{:#?}", d.steps);
+        let caution = d.findings[0].decision.caution.clone().unwrap_or_default();
+        assert!(caution.contains("beyond the usual"), "{caution}");
     }
 }

@@ -88,6 +88,10 @@ fn main() {
     let mut kinds: Vec<String> = KINDS.iter().map(|k| k.to_string()).collect();
     let mut robot_filter: Option<Vec<String>> = None;
     let mut ratios: Vec<f64> = RATIOS.to_vec();
+    // Direction-dependent errors of both signs (the link lagging or leading), and a second
+    // effect (a compliance of joint 2 or 3) beside the first one.
+    let mut both_signs = false;
+    let mut pair = false;
     let args: Vec<String> = std::env::args().collect();
     let mut i = 1;
     while i < args.len() {
@@ -107,6 +111,20 @@ fn main() {
             "--kinds" => kinds = v.split(',').map(str::to_string).collect(),
             "--robots" => robot_filter = Some(v.split(',').map(str::to_string).collect()),
             "--ratios" => ratios = v.split(',').map(|x| x.parse().expect("--ratios R,R,..")).collect(),
+            "--signs" => {
+                both_signs = match v.as_str() {
+                    "both" => true,
+                    "positive" => false,
+                    o => panic!("--signs both|positive, got {o}"),
+                }
+            }
+            "--pair" => {
+                pair = match v.as_str() {
+                    "compliance" => true,
+                    "none" => false,
+                    o => panic!("--pair compliance|none, got {o}"),
+                }
+            }
             a => panic!("unknown argument {a}"),
         }
         i += 2;
@@ -215,12 +233,22 @@ fn main() {
                     skipped += 1;
                     continue;
                 }
+                // A leading link: the direction-dependent error of the other sign.
+                let x = if both_signs && kind == "backlash" && rng.random_bool(0.5) { -x } else { x };
                 if kind == "thermal_expansion" {
                     sc.temp_c = (20.0, 20.0 + x);
                 } else {
                     sc.effect = effect(&kind, joint, driver, x, period, phase);
                 }
             }
+            // The second effect: a compliance on joint 2 or 3, not the first effect's joint.
+            let second = if pair {
+                let j2 = if joint == 2 || (joint != 3 && rng.random_bool(0.5)) { 3 } else { 2 };
+                sc.extra_effects = vec![Effect::JointCompliance { joint: j2, compliance_si: 8e-6 }];
+                Some(j2)
+            } else {
+                None
+            };
             sc.with_sigma = sigma_col;
             let (model, rows, _) = simulate_with_truth(&sc);
             let t0 = Instant::now();
@@ -242,9 +270,16 @@ fn main() {
                 (_, j) => vec![j],
             };
             let is_true = |f: &ferrocal_calib::diagnose::Finding| f.effect == kind && f.joints == want_joints;
+            let is_second = |f: &ferrocal_calib::diagnose::Finding| {
+                second.is_some_and(|j2| f.effect == "joint_compliance" && f.joints == vec![j2])
+            };
             let detected = rep.findings.iter().any(is_true);
-            let first_correct = rep.findings.first().is_some_and(is_true);
-            let wrong = rep.findings.iter().any(|f| !is_true(f));
+            // With a second effect: both found (in any order).
+            let first_correct = match second {
+                None => rep.findings.first().is_some_and(is_true),
+                Some(_) => (kind == "none" || detected) && rep.findings.iter().any(is_second),
+            };
+            let wrong = rep.findings.iter().any(|f| !is_true(f) && !is_second(f));
             let confused = rep
                 .findings
                 .iter()

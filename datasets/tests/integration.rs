@@ -7,6 +7,7 @@ mod calibration_study;
 mod camera_print_scale;
 mod corrected_commands;
 mod demo_checks;
+mod diagnose_real_like;
 mod diagnose_sim;
 mod diagnose_support;
 mod dynamics_design;

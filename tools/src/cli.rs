@@ -48,8 +48,15 @@ pub enum Command {
     /// Kinematic calibration from a measurement table (laser tracker, cameras, CMM).
     Calibrate(crate::commands::calibrate::CalibrateArgs),
     /// Find the physics a model leaves out: screen the residuals, test candidate effects
-    /// (joint and link compliance, backlash, scale, periodic, thermal; for cameras lens and target
-    /// shape) on held-out data, report what passes.
+    /// (joint and link compliance, one joint at a time and on every loaded joint together,
+    /// direction-dependent errors of either sign, scale, periodic, thermal; for cameras lens and
+    /// target shape) on held-out data, report what passes.
+    ///
+    /// Sizes are evidence, not vetoes: an effect beyond the typical range of industrial arms
+    /// (e.g. a 25 mrad sag) is claimed on strong held-out support and reported as UNUSUAL; only
+    /// sizes where the effect's model means nothing are refused. A rejected candidate never
+    /// explains another away, and the report's first line says why nothing was claimed when the
+    /// residuals show strong structure (docs/diagnose.md).
     Diagnose(crate::commands::diagnose::DiagnoseArgs),
     /// Hand-eye calibration (camera on the flange or fixed), refined in pixels, with OpenCV beside.
     Handeye(ferrocal_report::handeye::HandeyeArgs),

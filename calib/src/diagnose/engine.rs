@@ -71,7 +71,8 @@ pub enum Selection {
     SmallestP,
     /// Candidates are ranked by improvement; the significant ones are examined in that order
     /// (candidates the held-out data cannot tell from the best one, fewest parameters first),
-    /// at most `max_checked` of them, until one passes every check.
+    /// until one passes every check; at most `max_checked` of them reach the confirmation
+    /// (candidates the cheap checks reject do not count, so the search goes on after them).
     Ranked {
         /// Candidates examined per step.
         max_checked: usize,
@@ -212,8 +213,16 @@ pub trait Family {
         candidate: &Self::Candidate,
         screen: &Self::Screen,
     ) -> Result<Option<AllFit<Self::Effect, Self::Fit>>>;
-    /// Physical plausibility of sign and size.
+    /// Physical possibility of sign and size: `Err` vetoes the candidate whatever the data say
+    /// (keep these for what no machine can do: a linear model stretched past its meaning).
     fn plausible(&self, fit: &AllFit<Self::Effect, Self::Fit>) -> std::result::Result<(), String>;
+    /// Whether a possible effect is unusual for its kind (larger than the family's machines
+    /// typically show, or of an unusual sign), in words; `None` when it is typical. An unusual
+    /// effect is claimed only on strong held-out evidence ([`STRONG_P_FACTOR`],
+    /// [`STRONG_IMPROVEMENT_FACTOR`]) and then reported with these words: evidence, not a veto.
+    fn unusual(&self, _fit: &AllFit<Self::Effect, Self::Fit>) -> Option<String> {
+        None
+    }
     /// Stability over the folds; the relative standard deviation of the main parameter.
     fn stability(
         &self,
@@ -255,6 +264,32 @@ pub trait Family {
 
 /// The verdict of a candidate the family cannot fit on all the data.
 const NOT_APPLICABLE: &str = "not applicable when fitted on all the data";
+
+/// An unusual effect ([`Family::unusual`]) is claimed only when its corrected p-value is below
+/// `alpha` times this: a soft prior that asks more evidence of an effect outside the typical
+/// range, instead of a bound that vetoes it.
+pub const STRONG_P_FACTOR: f64 = 0.01;
+
+/// An unusual effect must also remove at least this many times [`Policy::min_improvement`] of
+/// the held-out error.
+pub const STRONG_IMPROVEMENT_FACTOR: f64 = 5.0;
+
+/// Whether a candidate with corrected p-value `p` and held-out improvement `improvement` has
+/// the strong support an unusual effect needs.
+pub fn strongly_supported(policy: &Policy, p: f64, improvement: f64) -> bool {
+    p < policy.alpha * STRONG_P_FACTOR && improvement >= policy.min_improvement * STRONG_IMPROVEMENT_FACTOR
+}
+
+/// The verdict words of an unusual effect whose support is not strong enough.
+fn unusual_rejection(policy: &Policy, why: &str, p: f64, improvement: f64) -> String {
+    format!(
+        "{why}; an effect this unusual is claimed only on strong held-out support (corrected p below {}, improvement at least {:.0} %), and it has p = {}, {:.1} %",
+        sig(policy.alpha * STRONG_P_FACTOR, 2),
+        policy.min_improvement * STRONG_IMPROVEMENT_FACTOR * 100.0,
+        sig(p, 2),
+        improvement * 100.0
+    )
+}
 
 /// One candidate while its step runs.
 struct Entry<F: Family> {
@@ -414,9 +449,17 @@ fn smallest_p<F: Family>(
     let Some(b) = best else { return Ok(None) };
     let screen = entries[b].screen.as_ref().expect("a scored candidate has its screening data");
     let fit = family.fit_all(&entries[b].candidate, screen)?;
-    let plausible = fit.as_ref().map(|f| family.plausible(f));
     let row = &entries[b].row;
     let (p, improvement) = (row.p_corrected, row.improvement);
+    let caution = fit.as_ref().and_then(|f| family.unusual(f));
+    let plausible = fit.as_ref().map(|f| {
+        family.plausible(f).and_then(|()| match &caution {
+            Some(why) if !strongly_supported(policy, p, improvement) => {
+                Err(unusual_rejection(policy, why, p, improvement))
+            }
+            _ => Ok(()),
+        })
+    });
     let accepted = p < policy.alpha && improvement >= policy.min_improvement && matches!(plausible, Some(Ok(())));
     for (i, e) in entries.iter_mut().enumerate() {
         if e.row.verdict != Verdict::Pending {
@@ -453,6 +496,7 @@ fn smallest_p<F: Family>(
                 relative_std: 0.0,
                 overlap_sine: fit.overlap_sine,
                 alternatives: Vec::new(),
+                caution,
             };
             Ok(Some((b, fit, decision)))
         }
@@ -493,9 +537,11 @@ fn alternatives<F: Family>(policy: &Policy, entries: &[Entry<F>], idx: usize) ->
     significant(policy, entries)
         .into_iter()
         .filter(|&i| {
+            // Not another form of the same effect on the same joints, nor a group that holds
+            // it (nested: the group was examined only because no smaller reading was claimed).
             i != idx
                 && !(entries[i].row.effect == entries[idx].row.effect
-                    && entries[i].row.joints == entries[idx].row.joints)
+                    && entries[idx].row.joints.iter().all(|j| entries[i].row.joints.contains(j)))
         })
         .filter(|&i| twins(entries, idx, i))
         .map(|i| entries[i].row.label.clone())
@@ -545,41 +591,49 @@ fn ranked<F: Family>(
             o
         }
     };
-    let mut checked = 0;
+    // One joint at a time first: a candidate that groups others of its kind (the same effect
+    // on a strict superset of their joints, e.g. compliance on every loaded joint together) is
+    // examined only after all the others, so that it is claimed only when no smaller reading
+    // passes (an effect spread thin over several joints), never in place of one that does.
+    let groups: Vec<usize> = order
+        .iter()
+        .copied()
+        .filter(|&i| {
+            entries.iter().any(|o| {
+                o.row.effect == entries[i].row.effect
+                    && o.row.joints.len() < entries[i].row.joints.len()
+                    && o.row.joints.iter().all(|j| entries[i].row.joints.contains(j))
+            })
+        })
+        .collect();
+    let order: Vec<usize> =
+        order.iter().copied().filter(|i| !groups.contains(i)).chain(groups.iter().copied()).collect();
+    // Candidates rejected this step: none of them may explain another one away.
+    let mut rejected: Vec<usize> = Vec::new();
+    let mut confirmed = 0;
     let mut chosen = None;
     for idx in order {
-        if checked >= max_checked || chosen.is_some() {
+        if confirmed >= max_checked || chosen.is_some() {
             entries[idx].row.verdict = Verdict::NotExamined;
             continue;
         }
-        checked += 1;
-        let Some(screen) = entries[idx].screen.as_ref() else { continue };
-        let Some(fit) = family.fit_all(&entries[idx].candidate, screen)? else {
-            entries[idx].row.verdict = Verdict::Unscored(NOT_APPLICABLE.into());
-            continue;
-        };
-        let row = &mut entries[idx].row;
-        row.parameters = fit.parameters.clone();
-        row.overlap_sine = fit.overlap_sine;
-        if let Some(sa) = fit.overlap_sine {
-            if sa < policy.min_sin_angle {
-                row.verdict = Verdict::Overlap(sa);
+        let (fit, caution) = match examine(family, policy, entries, idx)? {
+            Examined::Rejected(verdict) => {
+                entries[idx].row.verdict = verdict;
+                rejected.push(idx);
                 continue;
             }
-        }
-        if let Err(why) = family.plausible(&fit) {
-            entries[idx].row.verdict = Verdict::Implausible(why);
-            continue;
-        }
-        let screen = entries[idx].screen.as_ref().expect("checked above");
-        let relative_std = match family.stability(&fit, screen) {
+            Examined::Admissible { fit, caution } => (fit, caution),
+        };
+        let relative_std = match family.stability(&fit, entries[idx].screen.as_ref().expect("examined")) {
             Ok(r) => r,
             Err(why) => {
                 entries[idx].row.verdict = Verdict::Unstable(why);
+                rejected.push(idx);
                 continue;
             }
         };
-        if let Some(verdict) = separate(family, policy, entries, idx)? {
+        if let Some(verdict) = separate(family, policy, entries, idx, &rejected)? {
             if let Verdict::NotSeparable { with, p_added, p_rival_added } = &verdict {
                 notes.push(format!(
                     "{} and {with} cannot be told apart on this recording: fitted together, neither improves the held-out fit of the other (p = {} and p = {}); neither is claimed",
@@ -589,6 +643,7 @@ fn ranked<F: Family>(
                 ));
             }
             entries[idx].row.verdict = verdict;
+            rejected.push(idx);
             continue;
         }
         let row = &entries[idx].row;
@@ -602,13 +657,16 @@ fn ranked<F: Family>(
             relative_std,
             overlap_sine: fit.overlap_sine,
             alternatives: Vec::new(),
+            caution: caution.clone(),
         };
         let candidate = entries[idx].candidate.clone();
         let screen = entries[idx].screen.as_ref().expect("checked above");
+        confirmed += 1;
         match family.confirm(&candidate, accepted, screen)? {
             None => {}
             Some(Err(why)) => {
                 entries[idx].row.verdict = Verdict::RefitFailed(why);
+                rejected.push(idx);
                 continue;
             }
             Some(Ok(c)) => {
@@ -617,7 +675,16 @@ fn ranked<F: Family>(
                 let p_corrected = bonferroni(t.p_value, multiplier(&entries[idx].describe));
                 if p_corrected >= policy.alpha || improvement < policy.min_improvement {
                     entries[idx].row.verdict = Verdict::NotConfirmed { improvement, p_corrected };
+                    rejected.push(idx);
                     continue;
+                }
+                if let Some(why) = &caution {
+                    if !strongly_supported(policy, p_corrected, improvement) {
+                        entries[idx].row.verdict =
+                            Verdict::Implausible(unusual_rejection(policy, why, p_corrected, improvement));
+                        rejected.push(idx);
+                        continue;
+                    }
                 }
                 decision.p_corrected = p_corrected;
                 decision.p_uncorrected = t.p_value;
@@ -629,6 +696,55 @@ fn ranked<F: Family>(
         chosen = Some((idx, fit, decision));
     }
     Ok(chosen)
+}
+
+/// The outcome of the cheap checks of a significant candidate.
+enum Examined<E, F> {
+    /// Rejected, with the verdict.
+    Rejected(Verdict),
+    /// It may be claimed: its all-data fit, and the words when it is unusual (then strongly
+    /// supported on the screening).
+    Admissible {
+        /// The all-data fit.
+        fit: AllFit<E, F>,
+        /// [`Family::unusual`]'s words.
+        caution: Option<String>,
+    },
+}
+
+/// The cheap checks of candidate `idx` (all-data fit, overlap with the base model, physical
+/// possibility, and for an unusual effect strong support); records its parameters in its row.
+fn examine<F: Family>(
+    family: &mut F,
+    policy: &Policy,
+    entries: &mut [Entry<F>],
+    idx: usize,
+) -> Result<Examined<F::Effect, F::Fit>> {
+    let Some(screen) = entries[idx].screen.as_ref() else {
+        return Ok(Examined::Rejected(Verdict::Unscored(NOT_APPLICABLE.into())));
+    };
+    let Some(fit) = family.fit_all(&entries[idx].candidate, screen)? else {
+        return Ok(Examined::Rejected(Verdict::Unscored(NOT_APPLICABLE.into())));
+    };
+    let row = &mut entries[idx].row;
+    row.parameters = fit.parameters.clone();
+    row.overlap_sine = fit.overlap_sine;
+    if let Some(sa) = fit.overlap_sine {
+        if sa < policy.min_sin_angle {
+            return Ok(Examined::Rejected(Verdict::Overlap(sa)));
+        }
+    }
+    if let Err(why) = family.plausible(&fit) {
+        return Ok(Examined::Rejected(Verdict::Implausible(why)));
+    }
+    let caution = family.unusual(&fit);
+    if let Some(why) = &caution {
+        let (p, improvement) = (entries[idx].row.p_corrected, entries[idx].row.improvement);
+        if !strongly_supported(policy, p, improvement) {
+            return Ok(Examined::Rejected(Verdict::Implausible(unusual_rejection(policy, why, p, improvement))));
+        }
+    }
+    Ok(Examined::Admissible { fit, caution })
 }
 
 /// The level at which a candidate counts as adding to a look-alike in the joint comparison
@@ -644,10 +760,28 @@ pub const SEPARATION_LEVEL: f64 = 0.05;
 /// adds a significant one to it (`p < alpha` over the look-alikes, Bonferroni). When neither
 /// adds anything, the two are not separable and the candidate is not claimed. A look-alike with
 /// more parameters than the candidate never stands in its way (parsimony: the simpler reading
-/// is examined first and stands).
+/// is examined first and stands). Look-alikes already rejected this step (`rejected`), or that
+/// fail their own cheap checks (all-data fit, overlap, possibility, support of an unusual
+/// size), are no rivals: a rejected reading never explains another one away.
 /// `None`: it stands against every look-alike.
-fn separate<F: Family>(family: &mut F, policy: &Policy, entries: &[Entry<F>], idx: usize) -> Result<Option<Verdict>> {
-    let scored: Vec<usize> = significant(policy, entries).into_iter().filter(|&i| i != idx).collect();
+fn separate<F: Family>(
+    family: &mut F,
+    policy: &Policy,
+    entries: &mut [Entry<F>],
+    idx: usize,
+    rejected: &[usize],
+) -> Result<Option<Verdict>> {
+    // A rejected candidate never explains another one away: only those not rejected this step
+    // that pass their own cheap checks (fit, overlap, possibility, support) can be rivals.
+    let mut scored: Vec<usize> = Vec::new();
+    for i in significant(policy, entries) {
+        if i == idx || rejected.contains(&i) {
+            continue;
+        }
+        if matches!(examine(family, policy, entries, i)?, Examined::Admissible { .. }) {
+            scored.push(i);
+        }
+    }
     if scored.is_empty() {
         return Ok(None);
     }

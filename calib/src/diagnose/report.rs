@@ -154,6 +154,10 @@ pub struct Decision {
     pub overlap_sine: Option<f64>,
     /// Other candidates the held-out data cannot tell from it.
     pub alternatives: Vec<String>,
+    /// Why the effect is unusual for its kind (outside the typical range of the family's
+    /// machines, or of the sign that is unusual), when it was claimed on strong held-out
+    /// evidence all the same; the family puts it into the statement.
+    pub caution: Option<String>,
 }
 
 /// Residuals against the telling input before and after an accepted effect (for plots).

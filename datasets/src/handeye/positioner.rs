@@ -303,7 +303,11 @@ pub fn diagnose_effects(
     placed.base = cal.calibrated.device_frame * chain.base;
     placed.tool = chain.tool * cal.calibrated.tool;
     let rows: Vec<PoseMeasurement> = train.iter().map(|r| (*r).clone()).collect();
-    let dopts = DiagnoseOptions { sigma_position_m: opts.sigma_position_m, ..DiagnoseOptions::default() };
+    let dopts = DiagnoseOptions {
+        sigma_position_m: opts.sigma_position_m,
+        sigma_from_data: false,
+        ..DiagnoseOptions::default()
+    };
     let report = diagnose(&RobotModel::Serial(placed), &rows, &dopts).map_err(fail)?;
     let list = report.findings.iter().map(|f| effect_text(&f.spec)).collect::<Vec<_>>().join(",");
     Ok((list, report))

@@ -219,6 +219,11 @@ pub struct TrueRobot {
     pub effects: Vec<Effect>,
     /// Mass of the moving platform of a parallel robot (serial arms use their link inertials).
     pub platform_mass_kg: f64,
+    /// Joint compliances deflect under the torques of the deflected pose (the torque
+    /// equilibrium `q = q_cmd - C tau(q)` solved by fixed-point iteration) rather than of the
+    /// commanded one: the physics of an arm that sags tens of milliradians, which the
+    /// diagnosis's first-order model does not share.
+    pub compliance_equilibrium: bool,
 }
 
 impl TrueRobot {
@@ -299,7 +304,7 @@ impl TrueRobot {
         truth
             .set_parameter_values(&values)
             .map_err(|e| DatasetError::Config(format!("true parameters rejected by the model: {e}")))?;
-        Ok(Self { nominal, truth, effects, platform_mass_kg })
+        Ok(Self { nominal, truth, effects, platform_mass_kg, compliance_equilibrium: false })
     }
 
     /// Holding torques (forces) `dV/dq` at `q` under gravity and `payload_kg`, by central
@@ -321,6 +326,42 @@ impl TrueRobot {
             out.push((v(&qp)? - v(&qm)?) / (2.0 * h));
         }
         Ok(out)
+    }
+
+    /// The holding torques at the torque equilibrium of the joint compliances: `q = q_cmd - C
+    /// tau(q)` iterated from the commanded pose until the pose changes by less than 1e-9 rad (the torques' finite differences are good to
+    /// about 1e-10 rad of deflection; at
+    /// most 50 iterations; a compliance so large that the iteration diverges is an error).
+    pub fn equilibrium_torques(
+        &self,
+        model: &RobotModel,
+        q_cmd: &[f64],
+        payload_kg: f64,
+    ) -> Result<Vec<f64>, DatasetError> {
+        let compliances: Vec<(usize, f64)> = self
+            .effects
+            .iter()
+            .filter_map(|e| match e {
+                Effect::JointCompliance { joint, compliance_si } => Some((joint - 1, *compliance_si)),
+                _ => None,
+            })
+            .collect();
+        let mut q = q_cmd.to_vec();
+        for _ in 0..50 {
+            let tau = self.holding_torques(model, &q, payload_kg)?;
+            let mut next = q_cmd.to_vec();
+            for &(j, c) in &compliances {
+                next[j] -= c * tau[j];
+            }
+            let step = next.iter().zip(&q).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            q = next;
+            if step < 1e-9 {
+                return self.holding_torques(model, &q, payload_kg);
+            }
+        }
+        Err(DatasetError::Config(
+            "the joint compliances are too large for a torque equilibrium (the iteration does not settle)".into(),
+        ))
     }
 
     /// The model with condition-dependent parameters for commanded joints `q_cmd`.
@@ -381,7 +422,11 @@ impl TrueRobot {
                 }
                 Effect::JointCompliance { joint, compliance_si } => {
                     if torques.is_none() {
-                        torques = Some(self.holding_torques(model, q_cmd, c.payload_kg)?);
+                        torques = Some(if self.compliance_equilibrium {
+                            self.equilibrium_torques(model, q_cmd, c.payload_kg)?
+                        } else {
+                            self.holding_torques(model, q_cmd, c.payload_kg)?
+                        });
                     }
                     let tau = torques.as_ref().expect("just set")[joint - 1];
                     q[joint - 1] -= compliance_si * tau;

@@ -68,6 +68,11 @@ pub struct Scenario {
     pub joint_ranges: Vec<[f64; 2]>,
     /// How the approach directions arise.
     pub order: Order,
+    /// Further effects of the true robot, beside `effect`.
+    pub extra_effects: Vec<Effect>,
+    /// Joint compliances at the torque equilibrium of the deflected pose (see
+    /// `TrueRobot::compliance_equilibrium`).
+    pub compliance_equilibrium: bool,
 }
 
 impl Scenario {
@@ -84,6 +89,8 @@ impl Scenario {
             with_sigma: true,
             joint_ranges: joint_ranges(),
             order: Order::Random,
+            extra_effects: Vec::new(),
+            compliance_equilibrium: false,
         }
     }
 }
@@ -125,8 +132,9 @@ pub fn simulate_with_truth(s: &Scenario) -> (RobotModel, Vec<PoseMeasurement>, V
     let nominal = RobotModel::load(&s.robot).expect("robot model loads");
     let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
     let errors = GeometricErrors { length_sigma_mm: 0.3, angle_sigma_mrad: 0.3, ..Default::default() };
-    let effects: Vec<Effect> = s.effect.iter().cloned().collect();
-    let truth = TrueRobot::new(nominal.clone(), &errors, effects, 0.0, &mut rng).expect("true robot");
+    let effects: Vec<Effect> = s.effect.iter().chain(&s.extra_effects).cloned().collect();
+    let mut truth = TrueRobot::new(nominal.clone(), &errors, effects, 0.0, &mut rng).expect("true robot");
+    truth.compliance_equilibrium = s.compliance_equilibrium;
     let plain = TrueRobot { effects: Vec::new(), ..truth.clone() };
     let plan_cfg = PlanConfig::Random {
         n: s.n_poses,

@@ -110,6 +110,8 @@ pub fn sections(rep: &DiagnoseReport, attribution: Option<&str>) -> Vec<Section>
     s.status(rep.declined.is_none(), if rep.declined.is_some() { "declined" } else { "analysed" });
     if let Some(d) = &rep.declined {
         s.text(format!("Nothing is claimed: {d}."));
+    } else if !rep.summary.is_empty() {
+        s.text(rep.summary.clone());
     }
     s.table(
         "Fits (RMS position error, mm)",

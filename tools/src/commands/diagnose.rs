@@ -52,9 +52,10 @@ pub struct DiagnoseArgs {
     /// split column (0: cross-validated figures).
     #[arg(long, default_value_t = 0.25)]
     pub validation_fraction: f64,
-    /// Position standard deviation of rows without a sigma column, mm.
-    #[arg(long, default_value_t = 0.02)]
-    pub sigma_mm: f64,
+    /// Position standard deviation of rows without a sigma column, mm (default: when no row
+    /// has one, the noise is taken from the geometric fit's residuals).
+    #[arg(long)]
+    pub sigma_mm: Option<f64>,
     /// Data attribution printed in the HTML report (source and licence of the recording).
     #[arg(long)]
     pub attribution: Option<String>,
@@ -74,14 +75,15 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
     let (Some(robot), Some(meas)) = (&args.robot, &args.measurements) else {
         bail!("diagnose needs --robot <model> and --measurements <csv> (or --images and --pattern for a camera, --forces for a force-sensing end-effector)");
     };
-    if !(args.sigma_mm.is_finite() && args.sigma_mm > 0.0) {
+    if args.sigma_mm.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
         bail!("--sigma-mm must be positive");
     }
     let opts = DiagnoseOptions {
         folds: args.folds,
         alpha: args.alpha,
         validation_fraction: args.validation_fraction,
-        sigma_position_m: args.sigma_mm * 1e-3,
+        sigma_position_m: args.sigma_mm.map_or(DiagnoseOptions::default().sigma_position_m, |s| s * 1e-3),
+        sigma_from_data: args.sigma_mm.is_none(),
         ..DiagnoseOptions::default()
     };
     let outputs: Vec<&Path> =
@@ -140,6 +142,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
             String::new()
         }
     );
+    eprintln!("  {}", rep.summary);
     for f in &rep.findings {
         eprintln!("  {}: {}", f.effect, f.statement);
     }

@@ -71,118 +71,185 @@ pub(super) fn parameter_map(spec: &EffectSpec, theta: &[f64], kinds: &[JointKind
     m
 }
 
-/// (d): sign and size.
-pub(super) fn plausible(
-    spec: &EffectSpec,
-    theta: &[f64],
-    ctx: &Ctx,
-    lin: &Lin,
-    opts: &DiagnoseOptions,
-) -> Result<(), String> {
+/// How a fitted effect's sign and size compare with what machines do.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Assessment {
+    /// `Err`: no machine does this (a linear model stretched past its meaning): vetoed.
+    pub(super) possible: Result<(), String>,
+    /// Outside the typical range of industrial arms, or of an unusual sign, in words: claimed
+    /// only on strong held-out evidence, and then reported as such.
+    pub(super) unusual: Option<String>,
+}
+
+impl Default for Assessment {
+    fn default() -> Self {
+        Self { possible: Ok(()), unusual: None }
+    }
+}
+
+/// (d): sign and size, as evidence. [`Bounds`](super::Bounds) holds the typical ranges (beyond
+/// them an effect is unusual, not impossible: lightweight and torque-controlled arms sag tens
+/// of milliradians, links can lead their motors, carbon fibre shrinks when warmed) and the
+/// limits past which the linear model of the effect no longer means anything.
+pub(super) fn assess(spec: &EffectSpec, theta: &[f64], ctx: &Ctx, lin: &Lin, opts: &DiagnoseOptions) -> Assessment {
     let b = &opts.bounds;
     let t = theta.first().copied().unwrap_or(0.0);
     let prismatic = spec.joint().is_some_and(|j| ctx.kinds.get(j - 1) == Some(&JointKind::Prismatic));
     let (unit, scale) = if prismatic { ("mm", 1e3) } else { ("mrad", 1e3) };
+    let mut out = Assessment::default();
+    let mut unusual: Vec<String> = Vec::new();
+    // A size against its typical and its impossible limit.
+    let mut size = |what: String, value: f64, typical: f64, limit: f64, u: &str, k: f64, hint: &str| {
+        if value > limit {
+            out.possible = Err(format!(
+                "{what} of {} {u} is beyond {} {u}, where a linear model of this effect no longer describes a machine (check the model or the units)",
+                sig(value * k, 2),
+                sig(limit * k, 2)
+            ));
+        } else if value > typical {
+            unusual.push(format!(
+                "{what} of {} {u} is unusually large (typical industrial arms stay below {} {u}){hint}",
+                sig(value * k, 2),
+                sig(typical * k, 2)
+            ));
+        }
+    };
     match spec {
         EffectSpec::JointCompliance { joint } => {
-            if t <= 0.0 {
-                return Err(format!("negative compliance ({}): joint {joint} would rise against its load", sig(t, 2)));
-            }
             let tmax = lin.tau.iter().map(|v| v[joint - 1].abs()).fold(0.0, f64::max);
-            let defl = t * tmax;
-            let bound = if prismatic { b.max_deflection_m } else { b.max_deflection_rad };
-            if defl > bound {
-                return Err(format!(
-                    "a deflection of {} {unit} at the largest load exceeds the bound of {} {unit}",
-                    sig(defl * scale, 2),
-                    sig(bound * scale, 2)
+            let (typ, lim) = if prismatic {
+                (b.max_deflection_m, b.limit_deflection_m)
+            } else {
+                (b.max_deflection_rad, b.limit_deflection_rad)
+            };
+            size(
+                format!("joint {joint}'s deflection at the largest load"),
+                t.abs() * tmax,
+                typ,
+                lim,
+                unit,
+                scale,
+                ": a compliant joint; check the gearbox, the brake or the joint's torque control",
+            );
+            if t < 0.0 {
+                unusual.push(format!(
+                    "the compliance is negative ({}): joint {joint} moves against its load, as an over-compensated gravity model in the joint's torque control or a load model with the wrong masses would make it",
+                    sig(t, 2)
                 ));
             }
         }
-        EffectSpec::Backlash { .. } => {
-            if t <= 0.0 {
-                return Err(format!(
-                    "negative backlash ({} {unit}): the joint would overshoot, not stop short",
-                    sig(t * scale, 2)
+        EffectSpec::LinkCompliance { link } => {
+            let mmax = lin.bend.iter().filter_map(|b| b.get(link - 1)).map(|(v, _)| v.norm()).fold(0.0, f64::max);
+            size(
+                format!("link {link}'s bend at the largest load"),
+                t.abs() * mmax,
+                b.max_deflection_rad,
+                b.limit_deflection_rad,
+                "mrad",
+                1e3,
+                ": a flexible link; check its mounting and the load it carries",
+            );
+            if t < 0.0 {
+                unusual.push(format!(
+                    "the compliance is negative ({}): link {link} bends against its load, which a wrong mass in the model can mimic",
+                    sig(t, 2)
                 ));
             }
-            let bound = if prismatic { b.max_backlash_m } else { b.max_backlash_rad };
-            if t > bound {
-                return Err(format!(
-                    "backlash {} {unit} exceeds the bound of {} {unit}",
-                    sig(t * scale, 2),
-                    sig(bound * scale, 2)
-                ));
-            }
         }
-        EffectSpec::JointScaleError { .. } => {
-            if t.abs() > b.max_scale_error {
-                return Err(format!("scale error {} exceeds the bound of {}", sig(t, 2), sig(b.max_scale_error, 2)));
-            }
+        EffectSpec::Backlash { joint } => {
+            // Either sign is a direction-dependent error: a lagging link (backlash) or a
+            // leading one (a load that coasts onto the leading flank; a `dir` defined the other
+            // way round). Only the size is judged.
+            let (typ, lim) = if prismatic {
+                (b.max_backlash_m, b.limit_backlash_m)
+            } else {
+                (b.max_backlash_rad, b.limit_backlash_rad)
+            };
+            size(
+                format!("joint {joint}'s direction-dependent error"),
+                t.abs(),
+                typ,
+                lim,
+                unit,
+                scale,
+                ": a worn or loose drive train",
+            );
         }
-        EffectSpec::CoupledTransmission { .. } => {
-            // A coupling is a transmission ratio error like a scale error: the same bound.
-            if t.abs() > b.max_scale_error {
-                return Err(format!("coupling {} exceeds the bound of {}", sig(t, 2), sig(b.max_scale_error, 2)));
-            }
-        }
-        EffectSpec::AxisMisalignment { .. } => {
+        EffectSpec::JointScaleError { joint } => size(
+            format!("joint {joint}'s scale error"),
+            t.abs() * 1e6,
+            b.max_scale_error * 1e6,
+            b.limit_scale_error * 1e6,
+            "ppm",
+            1.0,
+            ": check the gear ratio or the encoder resolution in the controller",
+        ),
+        EffectSpec::CoupledTransmission { joint, driver } => size(
+            format!("joint {joint}'s coupling to joint {driver}"),
+            t.abs() * 1e6,
+            b.max_scale_error * 1e6,
+            b.limit_scale_error * 1e6,
+            "ppm",
+            1.0,
+            ": check the coupling ratio in the controller",
+        ),
+        EffectSpec::AxisMisalignment { joint } => size(
+            format!("joint {joint}'s axis tilt"),
+            t.hypot(theta.get(1).copied().unwrap_or(0.0)),
+            b.max_axis_wobble_rad,
+            b.limit_axis_wobble_rad,
+            "mrad",
+            1e3,
+            ": check the joint's bearing",
+        ),
+        EffectSpec::PeriodicJointError { joint, .. } => {
             let a = t.hypot(theta.get(1).copied().unwrap_or(0.0));
-            if a > b.max_axis_wobble_rad {
-                return Err(format!(
-                    "a tilt of {} mrad exceeds the bound of {} mrad",
-                    sig(a * 1e3, 2),
-                    sig(b.max_axis_wobble_rad * 1e3, 2)
-                ));
-            }
-        }
-        EffectSpec::PeriodicJointError { .. } => {
-            let a = theta.first().copied().unwrap_or(0.0).hypot(theta.get(1).copied().unwrap_or(0.0));
-            let bound = if prismatic { b.max_periodic_m } else { b.max_periodic_rad };
-            if a > bound {
-                return Err(format!(
-                    "amplitude {} {unit} exceeds the bound of {} {unit}",
-                    sig(a * scale, 2),
-                    sig(bound * scale, 2)
-                ));
-            }
+            let (typ, lim) = if prismatic {
+                (b.max_periodic_m, b.limit_periodic_m)
+            } else {
+                (b.max_periodic_rad, b.limit_periodic_rad)
+            };
+            size(
+                format!("joint {joint}'s periodic error amplitude"),
+                a,
+                typ,
+                lim,
+                unit,
+                scale,
+                ": check the gear or the encoder's mounting",
+            );
         }
         EffectSpec::ThermalExpansion { .. } => {
             let [lo, hi] = b.thermal_alpha_per_k;
-            if !(lo..=hi).contains(&t) {
-                return Err(format!(
-                    "expansion coefficient {} per K is outside the range of metals ({} to {} per K)",
+            if t.abs() > b.limit_thermal_alpha_per_k {
+                out.possible = Err(format!(
+                    "expansion coefficient {} per K is beyond {} per K, which no structural material shows (check the temperature column's unit)",
+                    sig(t, 2),
+                    sig(b.limit_thermal_alpha_per_k, 2)
+                ));
+            } else if !(lo..=hi).contains(&t) {
+                unusual.push(format!(
+                    "expansion coefficient {} per K is outside the range of metals ({} to {} per K): carbon fibre, a mixed structure, or a thermometer far from the structure",
                     sig(t, 2),
                     sig(lo, 2),
                     sig(hi, 2)
                 ));
             }
         }
-        EffectSpec::TimeDrift => {
-            if t.abs() > b.max_drift_per_hour {
-                return Err(format!(
-                    "a length drift of {} ppm per hour exceeds the bound of {} ppm per hour",
-                    sig(t * 1e6, 2),
-                    sig(b.max_drift_per_hour * 1e6, 2)
-                ));
-            }
-        }
-        EffectSpec::LinkCompliance { link } => {
-            if t <= 0.0 {
-                return Err(format!("negative compliance ({}): link {link} would bend against its load", sig(t, 2)));
-            }
-            let mmax = lin.bend.iter().filter_map(|b| b.get(link - 1)).map(|(v, _)| v.norm()).fold(0.0, f64::max);
-            let defl = t * mmax;
-            if defl > b.max_deflection_rad {
-                return Err(format!(
-                    "a bend of {} mrad at the largest load exceeds the bound of {} mrad",
-                    sig(defl * 1e3, 2),
-                    sig(b.max_deflection_rad * 1e3, 2)
-                ));
-            }
-        }
+        EffectSpec::TimeDrift => size(
+            "a length drift per hour".into(),
+            t.abs() * 1e6,
+            b.max_drift_per_hour * 1e6,
+            b.limit_drift_per_hour * 1e6,
+            "ppm",
+            1.0,
+            ": a machine warming up; record its temperature",
+        ),
     }
-    Ok(())
+    if out.possible.is_ok() && !unusual.is_empty() {
+        out.unusual = Some(unusual.join("; "));
+    }
+    out
 }
 
 /// (b): the same sign and a similar size in every fold; returns the jackknife relative standard

@@ -6,7 +6,7 @@
 use ferrocal_robot::{JointKind, RobotModel};
 use nalgebra::{DVector, Vector3};
 
-use super::checks::{parameter_map, plausible, stability};
+use super::checks::{assess, parameter_map, stability};
 use super::linear::{heldout_with, joint_fit, sin_angle, Basis, Fold, Lin, PeriodScan};
 use super::screen::screen;
 use super::words::{evidence, statement, telling_input};
@@ -20,11 +20,19 @@ use crate::kinematic::{calibrate, KinematicCalibration, KinematicOptions};
 use crate::lsq::LmOptions;
 use crate::measurement::PoseMeasurement;
 
-/// A candidate effect: a fixed one, or a periodic joint error whose period is searched.
+/// A candidate effect: a fixed one, a periodic joint error whose period is searched, or a group
+/// of fixed effects of one kind tested together (compliance on every loaded joint: an effect
+/// spread over several joints, each too small to pass alone).
 #[derive(Clone, Debug, PartialEq)]
 pub(super) enum Cand {
     Fixed(EffectSpec),
     Periodic { joint: usize },
+    Group(Vec<EffectSpec>),
+}
+
+/// The effects of an accepted candidate, flattened in order.
+pub(super) fn flatten(sets: &[Vec<EffectSpec>]) -> Vec<EffectSpec> {
+    sets.iter().flatten().cloned().collect()
 }
 
 impl Cand {
@@ -32,12 +40,14 @@ impl Cand {
         match self {
             Cand::Fixed(s) => s.name(),
             Cand::Periodic { .. } => "periodic_joint_error",
+            Cand::Group(v) => v.first().map_or("group", |s| s.name()),
         }
     }
     pub(super) fn joints(&self) -> Vec<usize> {
         match self {
             Cand::Fixed(s) => s.joints_reported(),
             Cand::Periodic { joint } => vec![*joint],
+            Cand::Group(v) => v.iter().flat_map(|s| s.joints_reported()).collect(),
         }
     }
     /// Free parameters (a periodic error's period counts: it is searched).
@@ -45,10 +55,24 @@ impl Cand {
         match self {
             Cand::Fixed(s) => s.scales().len(),
             Cand::Periodic { .. } => 3,
+            Cand::Group(v) => v.iter().map(|s| s.scales().len()).sum(),
+        }
+    }
+    /// The effects of a candidate whose period (if searched) is `f`.
+    pub(super) fn specs(&self, f: Option<f64>) -> Option<Vec<EffectSpec>> {
+        match self {
+            Cand::Fixed(s) => Some(vec![s.clone()]),
+            Cand::Periodic { joint } => f.map(|f| vec![Ctx::periodic_spec(*joint, f)]),
+            Cand::Group(v) => Some(v.clone()),
         }
     }
     pub(super) fn label(&self) -> String {
         match self {
+            Cand::Group(v) => format!(
+                "{} on joints {} together",
+                self.name(),
+                v.iter().filter_map(|s| s.joint()).map(|j| j.to_string()).collect::<Vec<_>>().join(", ")
+            ),
             Cand::Fixed(EffectSpec::TimeDrift) => "thermal_expansion (lengths drift with time)".into(),
             Cand::Fixed(EffectSpec::ThermalExpansion { .. }) => "thermal_expansion (lengths follow temp_c)".into(),
             Cand::Fixed(EffectSpec::PeriodicJointError { joint, period_si }) => format!(
@@ -92,6 +116,7 @@ impl Cand {
             Cand::Periodic { joint } => {
                 matches!(s, EffectSpec::PeriodicJointError { joint: j, .. } if j == joint)
             }
+            Cand::Group(v) => v.iter().any(|m| Cand::Fixed(m.clone()).covered_by(s)),
         }
     }
 }
@@ -165,6 +190,20 @@ impl Ctx<'_> {
         lin.effect_columns(spec, self.kinds.len(), &self.rows)
     }
 
+    /// The columns of several effects side by side.
+    pub(super) fn columns_of(&self, lin: &Lin, specs: &[EffectSpec]) -> Option<nalgebra::DMatrix<f64>> {
+        let blocks: Vec<nalgebra::DMatrix<f64>> =
+            specs.iter().map(|s| self.effect_columns(lin, s)).collect::<Option<_>>()?;
+        let ncols = blocks.iter().map(|b| b.ncols()).sum();
+        let mut cols = nalgebra::DMatrix::zeros(3 * self.rows.len(), ncols);
+        let mut at = 0;
+        for b in &blocks {
+            cols.columns_mut(at, b.ncols()).copy_from(b);
+            at += b.ncols();
+        }
+        Some(cols)
+    }
+
     pub(super) fn periodic_spec(joint: usize, f: f64) -> EffectSpec {
         EffectSpec::PeriodicJointError { joint, period_si: 1.0 / f }
     }
@@ -178,11 +217,12 @@ impl Ctx<'_> {
         let mut freq_folds = Vec::new();
         let fixed_cols = match cand {
             Cand::Fixed(s) => Some(self.effect_columns(lin, s)?),
+            Cand::Group(v) => Some(self.columns_of(lin, v)?),
             Cand::Periodic { .. } => None,
         };
         for fold in folds {
             let cols = match cand {
-                Cand::Fixed(_) => fixed_cols.clone()?,
+                Cand::Fixed(_) | Cand::Group(_) => fixed_cols.clone()?,
                 Cand::Periodic { joint } => {
                     let scan = PeriodScan::new(lin, &fold.basis, joint - 1, &self.q(joint - 1));
                     let (f, _) = scan.best(&self.grids[joint - 1]);
@@ -246,6 +286,7 @@ pub(super) struct KinematicFamily<'a> {
     /// The current calibration (geometry plus the accepted effects).
     pub(super) cal: KinematicCalibration,
     step: Option<StepData>,
+    /// The accepted effects, flattened.
     accepted: Vec<EffectSpec>,
     first: bool,
     /// Cross-validated RMS (mm) and screening of the geometric model.
@@ -291,17 +332,24 @@ impl<'a> KinematicFamily<'a> {
 
     /// Backward check: an earlier effect that the later ones have made unnecessary (its index,
     /// the p-value of leaving it out and the change of the held-out error).
-    fn backward(&self, accepted: &[EffectSpec], st: &StepData) -> Result<Option<(usize, f64, f64)>> {
+    fn backward(&self, accepted: &[Vec<EffectSpec>], st: &StepData) -> Result<Option<(usize, f64, f64)>> {
         let (ctx, cal) = (&self.ctx, &self.cal);
         if accepted.len() < 2 {
             return Ok(None);
         }
-        for e in 0..accepted.len() - 1 {
-            let cols: Vec<usize> =
-                (0..cal.free.len()).filter(|&k| cal.layout.effects[e].contains(&cal.free[k])).collect();
+        let mut first = 0;
+        for (e, set) in accepted.iter().enumerate().take(accepted.len() - 1) {
+            // The flattened effects of accepted set `e`.
+            let members = first..first + set.len();
+            first += set.len();
+            let cols: Vec<usize> = (0..cal.free.len())
+                .filter(|&k| members.clone().any(|m| cal.layout.effects[m].contains(&cal.free[k])))
+                .collect();
             // Leaving it out: its parameters at zero, the rest refitted without them.
             let mut cm0 = cal.calibrated.clone();
-            cm0.effects[e].1.iter_mut().for_each(|v| *v = 0.0);
+            for m in members {
+                cm0.effects[m].1.iter_mut().for_each(|v| *v = 0.0);
+            }
             let (err0, _) = cm0.errors(&ctx.rows)?;
             let mut r0 = DVector::zeros(3 * ctx.rows.len());
             for (i, v) in err0.iter().enumerate() {
@@ -332,7 +380,8 @@ impl<'a> KinematicFamily<'a> {
 
 impl Family for KinematicFamily<'_> {
     type Candidate = Cand;
-    type Effect = EffectSpec;
+    /// The effects of one accepted candidate (one, or a group's members).
+    type Effect = Vec<EffectSpec>;
     type Screen = LinScore;
     /// The effect's parameters of the linearised all-rows fit.
     type Fit = Vec<f64>;
@@ -341,7 +390,7 @@ impl Family for KinematicFamily<'_> {
         Unit::Millimetre
     }
 
-    fn begin_step(&mut self, accepted: &[EffectSpec]) -> Result<StepStart> {
+    fn begin_step(&mut self, accepted: &[Vec<EffectSpec>]) -> Result<StepStart> {
         let ctx = &self.ctx;
         let lin = Lin::build(&self.cal, &ctx.rows, &ctx.sigma)?;
         let folds: Vec<Fold> = ctx.folds_idx.iter().map(|t| Fold::new(&lin, t)).collect::<Result<_>>()?;
@@ -357,7 +406,7 @@ impl Family for KinematicFamily<'_> {
         if let Some((index, p_value, change)) = self.backward(accepted, &st)? {
             let mut effects = accepted.to_vec();
             effects.remove(index);
-            self.cal = calibrate(self.ctx.model, &self.ctx.rows, &self.ctx.kin_opts(effects))?;
+            self.cal = calibrate(self.ctx.model, &self.ctx.rows, &self.ctx.kin_opts(flatten(&effects)))?;
             self.final_train_mm = self.cal.train_after.rms_mm;
             if !self.validation.is_empty() {
                 self.final_heldout_mm = self.validation_rms_mm(&self.cal)?;
@@ -376,12 +425,26 @@ impl Family for KinematicFamily<'_> {
         self.screening_final = screening;
         let mse = st.e0.iter().map(|e| e.norm_squared()).sum::<f64>() / st.e0.len() as f64;
         self.step = Some(st);
-        self.accepted = accepted.to_vec();
+        self.accepted = flatten(accepted);
         Ok(StepStart::Baseline(Baseline { heldout: cv_before_mm, mse }))
     }
 
-    fn candidates(&self, accepted: &[EffectSpec], retired: &[EffectSpec]) -> Vec<Cand> {
-        self.cands.iter().filter(|c| !accepted.iter().chain(retired).any(|s| c.covered_by(s))).cloned().collect()
+    fn candidates(&self, accepted: &[Vec<EffectSpec>], retired: &[Vec<EffectSpec>]) -> Vec<Cand> {
+        let done: Vec<EffectSpec> = flatten(accepted).into_iter().chain(flatten(retired)).collect();
+        let mut open: Vec<Cand> =
+            self.cands.iter().filter(|c| !done.iter().any(|s| c.covered_by(s))).cloned().collect();
+        // Compliance on every loaded joint not yet modelled, together (when at least two).
+        let members: Vec<EffectSpec> = open
+            .iter()
+            .filter_map(|c| match c {
+                Cand::Fixed(s @ EffectSpec::JointCompliance { .. }) => Some(s.clone()),
+                _ => None,
+            })
+            .collect();
+        if members.len() >= 2 {
+            open.push(Cand::Group(members));
+        }
+        open
     }
 
     fn describe(&self, c: &Cand) -> Describe {
@@ -396,34 +459,34 @@ impl Family for KinematicFamily<'_> {
         })
     }
 
-    fn fit_all(&mut self, c: &Cand, _ls: &LinScore) -> Result<Option<AllFit<EffectSpec, Vec<f64>>>> {
+    fn fit_all(&mut self, c: &Cand, _ls: &LinScore) -> Result<Option<AllFit<Vec<EffectSpec>, Vec<f64>>>> {
         let (ctx, st) = (&self.ctx, self.step());
-        let spec = match c {
-            Cand::Fixed(s) => s.clone(),
+        let specs = match c {
             Cand::Periodic { joint } => {
                 let scan = PeriodScan::new(&st.lin, &st.basis_all, joint - 1, &ctx.q(joint - 1));
-                Ctx::periodic_spec(*joint, scan.best(&ctx.grids[joint - 1]).0)
+                vec![Ctx::periodic_spec(*joint, scan.best(&ctx.grids[joint - 1]).0)]
             }
+            c => c.specs(None).unwrap_or_default(),
         };
-        let Some(cols) = ctx.effect_columns(&st.lin, &spec) else { return Ok(None) };
+        let Some(cols) = ctx.columns_of(&st.lin, &specs) else { return Ok(None) };
         let fit = joint_fit(&st.basis_all, &cols);
         let sa = sin_angle(&st.basis_all, &cols);
         let theta: Vec<f64> = fit.theta.iter().copied().collect();
-        let parameters = parameter_map(&spec, &theta, &ctx.kinds);
-        Ok(Some(AllFit { effect: spec, parameters, overlap_sine: Some(sa), data: theta }))
+        let parameters = parameters_of(&specs, &theta, &ctx.kinds);
+        Ok(Some(AllFit { effect: specs, parameters, overlap_sine: Some(sa), data: theta }))
     }
 
     fn look_alikes(&mut self, c: &Cand, others: &[&Cand]) -> Result<Vec<usize>> {
         let (ctx, st) = (&self.ctx, self.step());
         let cols_all = |cand: &Cand| -> Option<nalgebra::DMatrix<f64>> {
-            let spec = match cand {
-                Cand::Fixed(s) => s.clone(),
+            let specs = match cand {
                 Cand::Periodic { joint } => {
                     let scan = PeriodScan::new(&st.lin, &st.basis_all, joint - 1, &ctx.q(joint - 1));
-                    Ctx::periodic_spec(*joint, scan.best(&ctx.grids[joint - 1]).0)
+                    vec![Ctx::periodic_spec(*joint, scan.best(&ctx.grids[joint - 1]).0)]
                 }
+                c => c.specs(None)?,
             };
-            ctx.effect_columns(&st.lin, &spec)
+            ctx.columns_of(&st.lin, &specs)
         };
         let Some(own) = cols_all(c) else { return Ok(Vec::new()) };
         let mut out = Vec::new();
@@ -431,6 +494,15 @@ impl Family for KinematicFamily<'_> {
             // Another form of the same effect on the same joint is not a rival (the periodic
             // error's fixed and searched periods).
             if o.name() == c.name() && o.joints() == c.joints() {
+                continue;
+            }
+            // A group and one of its members are nested, not rivals: the group is examined
+            // only when no member passed alone (the engine's order).
+            let nested = |g: &Cand, m: &Cand| match (g, m) {
+                (Cand::Group(v), Cand::Fixed(s)) => v.contains(s),
+                _ => false,
+            };
+            if nested(c, o) || nested(o, c) {
                 continue;
             }
             let Some(cols) = cols_all(o) else { continue };
@@ -445,25 +517,12 @@ impl Family for KinematicFamily<'_> {
         let (ctx, st) = (&self.ctx, self.step());
         let mut d = vec![0.0; ctx.rows.len()];
         for (k, fold) in st.folds.iter().enumerate() {
-            let mut blocks = Vec::with_capacity(cands.len());
+            let mut specs = Vec::with_capacity(cands.len());
             for (c, ls) in cands {
-                let spec = match c {
-                    Cand::Fixed(s) => s.clone(),
-                    Cand::Periodic { joint } => match ls.freq_folds.get(k) {
-                        Some(f) => Ctx::periodic_spec(*joint, *f),
-                        None => return Ok(None),
-                    },
-                };
-                let Some(cols) = ctx.effect_columns(&st.lin, &spec) else { return Ok(None) };
-                blocks.push(cols);
+                let Some(v) = c.specs(ls.freq_folds.get(k).copied()) else { return Ok(None) };
+                specs.extend(v);
             }
-            let ncols = blocks.iter().map(|b| b.ncols()).sum();
-            let mut cols = nalgebra::DMatrix::zeros(3 * ctx.rows.len(), ncols);
-            let mut at = 0;
-            for b in &blocks {
-                cols.columns_mut(at, b.ncols()).copy_from(b);
-                at += b.ncols();
-            }
+            let Some(cols) = ctx.columns_of(&st.lin, &specs) else { return Ok(None) };
             let (e1, _) = heldout_with(fold, &cols);
             for (kk, &i) in fold.test.iter().enumerate() {
                 d[i] = fold.e0.fixed_rows::<3>(3 * kk).norm_squared() - e1.fixed_rows::<3>(3 * kk).norm_squared();
@@ -472,22 +531,55 @@ impl Family for KinematicFamily<'_> {
         Ok(Some(d))
     }
 
-    fn plausible(&self, fit: &AllFit<EffectSpec, Vec<f64>>) -> std::result::Result<(), String> {
-        plausible(&fit.effect, &fit.data, &self.ctx, &self.step().lin, self.ctx.opts)
+    fn plausible(&self, fit: &AllFit<Vec<EffectSpec>, Vec<f64>>) -> std::result::Result<(), String> {
+        for (spec, theta) in members(&fit.effect, &fit.data) {
+            assess(spec, theta, &self.ctx, &self.step().lin, self.ctx.opts).possible?;
+        }
+        Ok(())
     }
 
-    fn stability(&self, fit: &AllFit<EffectSpec, Vec<f64>>, ls: &LinScore) -> std::result::Result<f64, String> {
-        stability(&fit.effect, &fit.data, ls, &self.ctx)
+    fn unusual(&self, fit: &AllFit<Vec<EffectSpec>, Vec<f64>>) -> Option<String> {
+        let words: Vec<String> = members(&fit.effect, &fit.data)
+            .filter_map(|(spec, theta)| assess(spec, theta, &self.ctx, &self.step().lin, self.ctx.opts).unusual)
+            .collect();
+        (!words.is_empty()).then(|| words.join("; "))
+    }
+
+    fn stability(&self, fit: &AllFit<Vec<EffectSpec>, Vec<f64>>, ls: &LinScore) -> std::result::Result<f64, String> {
+        if fit.effect.len() == 1 {
+            return stability(&fit.effect[0], &fit.data, ls, &self.ctx);
+        }
+        // A group stands when the folds agree on its largest member (by deflection it causes
+        // over the poses); the others may be small and scatter.
+        let mut best: Option<(f64, std::result::Result<f64, String>)> = None;
+        let mut at = 0;
+        for spec in &fit.effect {
+            let n = spec.scales().len();
+            let sub = LinScore {
+                d: Vec::new(),
+                e1: Vec::new(),
+                theta_folds: ls.theta_folds.iter().map(|t| t.rows(at, n).clone_owned()).collect(),
+                freq_folds: Vec::new(),
+            };
+            let theta = &fit.data[at..at + n];
+            let size = member_size(spec, theta, &self.step().lin);
+            let r = stability(spec, theta, &sub, &self.ctx);
+            if best.as_ref().is_none_or(|(s, _)| size > *s) {
+                best = Some((size, r));
+            }
+            at += n;
+        }
+        best.map_or(Ok(0.0), |(_, r)| r)
     }
 
     fn confirm(
         &mut self,
         cand: &Cand,
-        accepted: &[EffectSpec],
+        accepted: &[Vec<EffectSpec>],
         ls: &LinScore,
     ) -> Result<Option<std::result::Result<Confirmation, String>>> {
         if self.step().base_nl.is_none() {
-            let base = self.ctx.nonlinear_cv(&|_| accepted.to_vec())?;
+            let base = self.ctx.nonlinear_cv(&|_| flatten(accepted))?;
             if let Some(st) = self.step.as_mut() {
                 st.base_nl = Some(base);
             }
@@ -495,11 +587,8 @@ impl Family for KinematicFamily<'_> {
         let ctx = &self.ctx;
         let base_nl = self.step().base_nl.as_deref().unwrap_or_default();
         let with_spec = |fold: usize| -> Vec<EffectSpec> {
-            let mut v = accepted.to_vec();
-            v.push(match cand {
-                Cand::Periodic { joint } => Ctx::periodic_spec(*joint, ls.freq_folds[fold]),
-                Cand::Fixed(s) => s.clone(),
-            });
+            let mut v = flatten(accepted);
+            v.extend(cand.specs(ls.freq_folds.get(fold).copied()).unwrap_or_default());
             v
         };
         let cand_nl = match ctx.nonlinear_cv(&with_spec) {
@@ -516,13 +605,13 @@ impl Family for KinematicFamily<'_> {
 
     fn accept(
         &mut self,
-        fit: AllFit<EffectSpec, Vec<f64>>,
+        fit: AllFit<Vec<EffectSpec>, Vec<f64>>,
         ls: &LinScore,
         decision: &Decision,
-    ) -> Result<Finding<EffectSpec>> {
-        let spec = fit.effect;
+    ) -> Result<Finding<Vec<EffectSpec>>> {
+        let specs = fit.effect;
         let mut effects = self.accepted.clone();
-        effects.push(spec.clone());
+        effects.extend(specs.iter().cloned());
         let ctx = &self.ctx;
         let new_cal = calibrate(ctx.model, &ctx.rows, &ctx.kin_opts(effects))?;
         let (cv_b, cv_a) = (decision.heldout_before, decision.heldout_after);
@@ -531,26 +620,38 @@ impl Family for KinematicFamily<'_> {
         } else {
             (self.validation_rms_mm(&self.cal)?, self.validation_rms_mm(&new_cal)?)
         };
-        let range = new_cal.layout.effects.last().cloned().unwrap_or(0..0);
-        let theta: Vec<f64> = range.clone().map(|i| new_cal.params[i].value).collect();
-        let std_cov = new_cal.params.get(range.start).and_then(|p| p.std);
+        let n_fx = new_cal.layout.effects.len();
+        let ranges: Vec<std::ops::Range<usize>> = new_cal.layout.effects[n_fx.saturating_sub(specs.len())..].to_vec();
+        let theta: Vec<f64> = ranges.iter().flat_map(|r| r.clone().map(|i| new_cal.params[i].value)).collect();
+        let std_cov = ranges.first().and_then(|r| new_cal.params.get(r.start)).and_then(|p| p.std);
         let explained =
             if before > 0.0 { ((before * before - after * after) / (before * before)).max(0.0) } else { 0.0 };
-        let telling = telling_input(&spec, &ctx.names);
+        let spec = &specs[0];
+        let telling = telling_input(spec, &ctx.names);
         let st = self.step();
         let (p_corr, m) = (decision.p_corrected, decision.candidates_tried);
-        let mut statement = statement(&spec, &theta, decision.relative_std, before, after, p_corr, m, ctx, &st.lin);
+        let words: Vec<String> = members(&specs, &theta)
+            .map(|(sp, th)| statement(sp, th, decision.relative_std, before, after, p_corr, m, ctx, &st.lin))
+            .collect();
+        let mut statement = if specs.len() == 1 {
+            words.join("; ")
+        } else {
+            format!("{} found together (each alone may be too small to pass): {}", decision.label, words.join("; "))
+        };
+        if let Some(c) = &decision.caution {
+            statement = format!("UNUSUAL: {c}. {statement}");
+        }
         if !decision.alternatives.is_empty() {
             statement.push_str(&format!(
                 "; the held-out data fit {} about as well, so that reading cannot be excluded",
                 decision.alternatives.join(" or ")
             ));
         }
-        let ev = evidence(0, &spec, ctx, &st.lin, &st.e0, &ls.e1, &telling);
+        let ev = evidence(0, spec, ctx, &st.lin, &st.e0, &ls.e1, &telling);
         let finding = Finding {
             effect: spec.name().into(),
-            joints: spec.joints_reported(),
-            parameters: parameter_map(&spec, &theta, &ctx.kinds),
+            joints: specs.iter().flat_map(|s| s.joints_reported()).collect(),
+            parameters: parameters_of(&specs, &theta, &ctx.kinds),
             heldout_before: before,
             heldout_after: after,
             explained_fraction: explained,
@@ -559,12 +660,56 @@ impl Family for KinematicFamily<'_> {
             telling_input: telling,
             evidence: Some(ev),
             decision: decision.clone(),
-            accepted: spec,
+            accepted: specs,
         };
         self.final_train_mm = new_cal.train_after.rms_mm;
         self.final_heldout_mm = if self.validation.is_empty() { cv_a } else { after };
         self.cal = new_cal;
         Ok(finding)
+    }
+}
+
+/// Each effect of a set with its slice of the parameters `theta`.
+pub(super) fn members<'s>(
+    specs: &'s [EffectSpec],
+    theta: &'s [f64],
+) -> impl Iterator<Item = (&'s EffectSpec, &'s [f64])> {
+    let mut at = 0;
+    specs.iter().map(move |s| {
+        let n = s.scales().len().min(theta.len().saturating_sub(at));
+        let slice = &theta[at..at + n];
+        at += n;
+        (s, slice)
+    })
+}
+
+/// The parameters of a set of effects with unit-carrying names; a group's are prefixed with the
+/// member's joint (`joint3.compliance_rad_per_nm`).
+pub(super) fn parameters_of(
+    specs: &[EffectSpec],
+    theta: &[f64],
+    kinds: &[JointKind],
+) -> std::collections::BTreeMap<String, f64> {
+    if specs.len() == 1 {
+        return parameter_map(&specs[0], theta, kinds);
+    }
+    let mut out = std::collections::BTreeMap::new();
+    for (k, (spec, th)) in members(specs, theta).enumerate() {
+        let tag = spec.joint().map_or(format!("effect{}", k + 1), |j| format!("joint{j}"));
+        for (name, v) in parameter_map(spec, th, kinds) {
+            out.insert(format!("{tag}.{name}"), v);
+        }
+    }
+    out
+}
+
+/// A member's size, to find a group's largest: the deflection it causes at the largest load for
+/// a compliance, else its main parameter's magnitude.
+fn member_size(spec: &EffectSpec, theta: &[f64], lin: &Lin) -> f64 {
+    let t = theta.first().copied().unwrap_or(0.0).abs();
+    match spec {
+        EffectSpec::JointCompliance { joint } => t * lin.tau.iter().map(|v| v[joint - 1].abs()).fold(0.0, f64::max),
+        _ => t,
     }
 }
 

@@ -65,7 +65,10 @@ use crate::measurement::{PoseMeasurement, Split};
 use candidates::{enumerate_candidates, period_grids};
 use family::{Ctx, KinematicFamily};
 
-/// Physical plausibility bounds of the candidate effects.
+/// Sizes of the candidate effects: the typical ranges of industrial arms (`max_*`, `thermal_alpha_per_k`;
+/// beyond them an effect is *unusual*: claimed only on strong held-out evidence and then
+/// reported as unusually large, never silently discarded) and the limits past which the
+/// effect's linear model no longer describes a machine (`limit_*`: vetoed, with the reason).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Bounds {
     /// Largest joint deflection under load a compliance may cause, revolute joints.
@@ -91,10 +94,79 @@ pub struct Bounds {
     /// housings of arms hold their axes to well under a milliradian; 2 mrad is generous.
     #[serde(default = "default_max_axis_wobble_rad")]
     pub max_axis_wobble_rad: f64,
+    /// Deflection of a revolute joint or a link past which a linear compliance means nothing
+    /// (0.25 rad, 14 deg: a lightweight arm's gravity sag is tens of milliradians).
+    #[serde(default = "limits::deflection_rad")]
+    pub limit_deflection_rad: f64,
+    /// The same for a prismatic joint.
+    #[serde(default = "limits::deflection_m")]
+    pub limit_deflection_m: f64,
+    /// Direction-dependent error of a revolute joint past which it is not a drive train's.
+    #[serde(default = "limits::backlash_rad")]
+    pub limit_backlash_rad: f64,
+    /// The same for a prismatic joint.
+    #[serde(default = "limits::backlash_m")]
+    pub limit_backlash_m: f64,
+    /// Scale error or coupling past which the joint's model is wrong, not its scale.
+    #[serde(default = "limits::scale_error")]
+    pub limit_scale_error: f64,
+    /// Periodic amplitude limit, revolute joints.
+    #[serde(default = "limits::periodic_rad")]
+    pub limit_periodic_rad: f64,
+    /// Periodic amplitude limit, prismatic joints.
+    #[serde(default = "limits::periodic_m")]
+    pub limit_periodic_m: f64,
+    /// Largest magnitude of a thermal expansion coefficient (per K) of any structure.
+    #[serde(default = "limits::thermal_alpha_per_k")]
+    pub limit_thermal_alpha_per_k: f64,
+    /// Largest relative length drift per hour.
+    #[serde(default = "limits::drift_per_hour")]
+    pub limit_drift_per_hour: f64,
+    /// Largest axis tilt amplitude.
+    #[serde(default = "limits::axis_wobble_rad")]
+    pub limit_axis_wobble_rad: f64,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 fn default_max_axis_wobble_rad() -> f64 {
     0.002
+}
+
+/// The default limits of [`Bounds`] (past them an effect's linear model means nothing).
+mod limits {
+    pub(super) fn deflection_rad() -> f64 {
+        0.25
+    }
+    pub(super) fn deflection_m() -> f64 {
+        0.05
+    }
+    pub(super) fn backlash_rad() -> f64 {
+        0.1
+    }
+    pub(super) fn backlash_m() -> f64 {
+        0.02
+    }
+    pub(super) fn scale_error() -> f64 {
+        0.1
+    }
+    pub(super) fn periodic_rad() -> f64 {
+        0.1
+    }
+    pub(super) fn periodic_m() -> f64 {
+        0.02
+    }
+    pub(super) fn thermal_alpha_per_k() -> f64 {
+        2e-4
+    }
+    pub(super) fn drift_per_hour() -> f64 {
+        1e-2
+    }
+    pub(super) fn axis_wobble_rad() -> f64 {
+        0.02
+    }
 }
 
 impl Default for Bounds {
@@ -110,6 +182,16 @@ impl Default for Bounds {
             thermal_alpha_per_k: [0.5e-6, 35e-6],
             max_drift_per_hour: 2e-4,
             max_axis_wobble_rad: default_max_axis_wobble_rad(),
+            limit_deflection_rad: limits::deflection_rad(),
+            limit_deflection_m: limits::deflection_m(),
+            limit_backlash_rad: limits::backlash_rad(),
+            limit_backlash_m: limits::backlash_m(),
+            limit_scale_error: limits::scale_error(),
+            limit_periodic_rad: limits::periodic_rad(),
+            limit_periodic_m: limits::periodic_m(),
+            limit_thermal_alpha_per_k: limits::thermal_alpha_per_k(),
+            limit_drift_per_hour: limits::drift_per_hour(),
+            limit_axis_wobble_rad: limits::axis_wobble_rad(),
         }
     }
 }
@@ -130,10 +212,18 @@ pub struct DiagnoseOptions {
     pub min_sin_angle: f64,
     /// Most effects added.
     pub max_effects: usize,
-    /// Candidates checked in detail per step (in order of held-out improvement).
+    /// Candidates confirmed by full refits per step (in order of held-out improvement; those
+    /// the cheap checks reject do not count).
     pub max_checked: usize,
     /// Position standard deviation of rows without a `sigma` column.
     pub sigma_position_m: f64,
+    /// When no row carries a `sigma`, take the noise level from the data (the geometric fit's
+    /// RMS per coordinate, corrected for the fitted parameters) instead of
+    /// [`sigma_position_m`](Self::sigma_position_m): a motion-capture table's millimetre is not
+    /// a tracker's 0.02 mm. It changes no decision (the tests are scale-free) but every stated
+    /// standard deviation of a parameter.
+    #[serde(default = "default_true")]
+    pub sigma_from_data: bool,
     /// Shortest period searched for a periodic error of a revolute joint.
     pub shortest_period_rad: f64,
     /// Shortest period searched for a periodic error of a prismatic joint.
@@ -157,6 +247,7 @@ impl Default for DiagnoseOptions {
             max_effects: 6,
             max_checked: 4,
             sigma_position_m: 20e-6,
+            sigma_from_data: true,
             shortest_period_rad: std::f64::consts::TAU / 200.0,
             shortest_period_m: 0.002,
             longest_period_rad: std::f64::consts::TAU,
@@ -313,6 +404,10 @@ pub struct Step {
 /// The whole analysis (`shared/spec/diagnose.md` plus extra fields).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct DiagnoseReport {
+    /// One or two sentences for the top of every view: what was found, or why nothing was
+    /// claimed although the residuals show structure (the best candidate and its verdict).
+    #[serde(default)]
+    pub summary: String,
     /// The geometric model's fit.
     pub nominal: NominalFit,
     /// Accepted effects, in order of acceptance.
@@ -394,11 +489,46 @@ pub fn diagnose(model: &RobotModel, rows: &[PoseMeasurement], opts: &DiagnoseOpt
     };
     let kinds = model.joint_kinds();
     let names = model.joint_names();
+    let mut noted_sigma: Option<String> = None;
+    let data_opts;
+    let opts = if opts.sigma_from_data && rows.iter().all(|r| r.sigma_m.is_none()) {
+        // The noise level from the geometric fit of the analysis rows.
+        let kin = KinematicOptions {
+            model_params: opts.model_params.clone(),
+            use_orientation: false,
+            sigma_position_m: opts.sigma_position_m,
+            lm: LmOptions { max_iterations: 100, ..LmOptions::default() },
+            ..KinematicOptions::default()
+        };
+        match calibrate(model, &analysis, &kin) {
+            Ok(c) => {
+                let n = 3 * analysis.len();
+                let dof = n.saturating_sub(c.free.len()).max(1);
+                let s = c.train_after.rms_mm * 1e-3 / 3f64.sqrt() * (n as f64 / dof as f64).sqrt();
+                if s.is_finite() && s > 0.0 {
+                    data_opts = DiagnoseOptions { sigma_position_m: s, ..opts.clone() };
+                    noted_sigma = Some(format!(
+                        "the table has no sigma column: the position noise is taken from the geometric fit, {} mm per coordinate (its residual RMS corrected for {} fitted parameters), which includes whatever the geometric model leaves out",
+                        sig(s * 1e3, 3),
+                        c.free.len()
+                    ));
+                    &data_opts
+                } else {
+                    opts
+                }
+            }
+            Err(_) => opts,
+        }
+    } else {
+        opts
+    };
     let sigma: Vec<f64> = analysis.iter().map(|r| r.sigma_m.unwrap_or(opts.sigma_position_m)).collect();
     let k = opts.folds;
     let folds_idx: Vec<Vec<usize>> = (0..k).map(|f| (0..analysis.len()).filter(|i| i % k == f).collect()).collect();
     let mut notes = Vec::new();
-    if rows.iter().any(|r| r.sigma_m.is_none()) {
+    if let Some(n) = noted_sigma {
+        notes.push(n);
+    } else if rows.iter().any(|r| r.sigma_m.is_none()) {
         notes.push(format!(
             "rows without a sigma column are weighted with the default position standard deviation of {} mm",
             sig(opts.sigma_position_m * 1e3, 3)
@@ -422,6 +552,7 @@ pub fn diagnose(model: &RobotModel, rows: &[PoseMeasurement], opts: &DiagnoseOpt
         grids,
     };
     let mut report = DiagnoseReport {
+        summary: String::new(),
         nominal: NominalFit { n_train: analysis.len(), n_heldout: validation.len(), ..Default::default() },
         findings: Vec::new(),
         final_fit: FinalFit::default(),
@@ -444,6 +575,7 @@ pub fn diagnose(model: &RobotModel, rows: &[PoseMeasurement], opts: &DiagnoseOpt
         Ok(c) => c,
         Err(CalibError::TooFew(m)) => {
             report.declined = Some(format!("too few poses for the geometric model: {m}; nothing is claimed"));
+            report.summary = format!("Declined: {}.", report.declined.as_deref().unwrap_or_default());
             report.elapsed_s = t0.elapsed().as_secs_f64();
             return Ok(report);
         }
@@ -473,6 +605,7 @@ pub fn diagnose(model: &RobotModel, rows: &[PoseMeasurement], opts: &DiagnoseOpt
             report.final_fit.heldout_rms_mm = report.nominal.train_rms_mm;
             report.notes.push("no rows were held out: the held-out figures repeat the training RMS".into());
         }
+        report.summary = format!("Declined: {}.", report.declined.as_deref().unwrap_or_default());
         report.elapsed_s = t0.elapsed().as_secs_f64();
         return Ok(report);
     }
@@ -567,7 +700,7 @@ fn verdict_words(row: &CandidateRow, m: usize, opts: &DiagnoseOptions) -> String
 fn finish(
     report: &mut DiagnoseReport,
     family: &KinematicFamily,
-    diagnosis: Diagnosis<EffectSpec>,
+    diagnosis: Diagnosis<Vec<EffectSpec>>,
     opts: &DiagnoseOptions,
 ) {
     report.nominal.cv_rms_mm = family.nominal_cv_mm;
@@ -601,32 +734,46 @@ fn finish(
             accepted: s.accepted.clone(),
         })
         .collect();
-    for (k, f) in diagnosis.findings.into_iter().enumerate() {
-        if let Some(mut ev) = f.evidence {
-            ev.finding = k;
+    for f in diagnosis.findings.into_iter() {
+        if let Some(mut ev) = f.evidence.clone() {
+            ev.finding = report.findings.len();
             report.evidence.push(ev);
         }
         let d = f.decision;
-        report.findings.push(Finding {
-            effect: f.effect,
-            joints: f.joints,
-            parameters: f.parameters,
-            heldout_rms_before_mm: f.heldout_before,
-            heldout_rms_after_mm: f.heldout_after,
-            explained_fraction: f.explained_fraction,
-            p_value: d.p_corrected,
-            statement: f.statement,
-            spec: f.accepted,
-            p_value_uncorrected: d.p_uncorrected,
-            candidates_tried: d.candidates_tried,
-            cv_rms_before_mm: d.heldout_before,
-            cv_rms_after_mm: d.heldout_after,
-            relative_std: d.relative_std,
-            std_from_covariance: f.std_from_covariance,
-            sin_angle_to_geometry: d.overlap_sine.unwrap_or(f64::NAN),
-            telling_input: f.telling_input,
-            alternatives: d.alternatives,
-        });
+        let group = f.accepted.len() > 1;
+        for spec in &f.accepted {
+            // A group's members are findings of their own (each with its `spec`, for
+            // `calibrate --effects`), with the group's held-out figures and statement.
+            let parameters = if group {
+                let tag = spec.joint().map(|j| format!("joint{j}.")).unwrap_or_default();
+                f.parameters
+                    .iter()
+                    .filter_map(|(k, v)| k.strip_prefix(tag.as_str()).map(|k| (k.to_string(), *v)))
+                    .collect()
+            } else {
+                f.parameters.clone()
+            };
+            report.findings.push(Finding {
+                effect: spec.name().into(),
+                joints: spec.joints_reported(),
+                parameters,
+                heldout_rms_before_mm: f.heldout_before,
+                heldout_rms_after_mm: f.heldout_after,
+                explained_fraction: f.explained_fraction,
+                p_value: d.p_corrected,
+                statement: f.statement.clone(),
+                spec: spec.clone(),
+                p_value_uncorrected: d.p_uncorrected,
+                candidates_tried: d.candidates_tried,
+                cv_rms_before_mm: d.heldout_before,
+                cv_rms_after_mm: d.heldout_after,
+                relative_std: d.relative_std,
+                std_from_covariance: f.std_from_covariance,
+                sin_angle_to_geometry: d.overlap_sine.unwrap_or(f64::NAN),
+                telling_input: f.telling_input.clone(),
+                alternatives: d.alternatives.clone(),
+            });
+        }
     }
     let capped = diagnosis.capped;
     if family.validation.is_empty() {
@@ -670,4 +817,97 @@ fn finish(
     }
     report.unexplained =
         Unexplained { structure_found: !sig_tests.is_empty(), depends_on: depends, details: sig_tests };
+    report.summary = summary(report, opts);
+}
+
+/// The screen's p-value (corrected) below which structure is called strong in the summary.
+pub const STRONG_STRUCTURE_P: f64 = 1e-6;
+
+/// The report's top sentence: the findings, or why nothing was claimed; and whether
+/// structure remains (see [`DiagnoseReport::summary`]).
+fn summary(report: &DiagnoseReport, opts: &DiagnoseOptions) -> String {
+    let strongest = |tests: &[InputStructure]| -> Option<InputStructure> {
+        tests.iter().filter(|t| t.significant).min_by(|a, b| a.p_corrected.total_cmp(&b.p_corrected)).cloned()
+    };
+    let inputs = |tests: &[InputStructure]| -> String {
+        let mut v: Vec<String> = Vec::new();
+        for t in tests.iter().filter(|t| t.significant && t.p_corrected < STRONG_STRUCTURE_P) {
+            if !v.contains(&t.input) {
+                v.push(t.input.clone());
+            }
+        }
+        v.truncate(6);
+        v.join(", ")
+    };
+    let unit = "mm";
+    let mut out = if report.findings.is_empty() {
+        let strong = strongest(&report.screening_nominal).filter(|t| t.p_corrected < STRONG_STRUCTURE_P);
+        match strong {
+            None => "No finding: nothing beyond the geometric model is supported by the held-out data, and the residuals show no strong structure.".to_string(),
+            Some(t) => {
+                // The best significant candidate of the first step and what happened to it.
+                let best = report.steps.first().and_then(|s| {
+                    s.candidates
+                        .iter()
+                        .filter(|c| c.p_corrected < opts.alpha && c.improvement >= opts.min_improvement)
+                        .max_by(|a, b| a.improvement.total_cmp(&b.improvement))
+                });
+                let why = match best {
+                    Some(c) => format!(
+                        "the best candidate, {} ({:.0} % better held out, {}), was {}",
+                        c.label,
+                        c.improvement * 100.0,
+                        fmt_p(c.p_corrected),
+                        c.verdict.trim_start_matches("rejected").trim_start_matches(':').trim_start()
+                    ),
+                    None => "no candidate effect of the list improves the held-out fit significantly: the physics behind it is not among the candidates (or needs several effects at once)".to_string(),
+                };
+                format!(
+                    "No finding, although the held-out residuals depend strongly on {} ({} for {} against {}): {why}.",
+                    inputs(&report.screening_nominal),
+                    fmt_p(t.p_corrected),
+                    t.quantity,
+                    t.input
+                )
+            }
+        }
+    } else {
+        let names: Vec<String> = report
+            .findings
+            .iter()
+            .map(|f| {
+                let on = if f.joints.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        " on joint{} {}",
+                        if f.joints.len() > 1 { "s" } else { "" },
+                        f.joints.iter().map(|j| j.to_string()).collect::<Vec<_>>().join(", ")
+                    )
+                };
+                let unusual =
+                    if f.statement.starts_with("UNUSUAL") { " (unusually large: see its statement)" } else { "" };
+                format!("{}{on}{unusual}", f.effect)
+            })
+            .collect();
+        format!(
+            "{} finding{}: {}; held-out RMS {} -> {} {unit}.",
+            report.findings.len(),
+            if report.findings.len() == 1 { "" } else { "s" },
+            names.join(", "),
+            sig(report.nominal.heldout_rms_mm, 3),
+            sig(report.final_fit.heldout_rms_mm, 3)
+        )
+    };
+    if !report.findings.is_empty() {
+        if let Some(t) = strongest(&report.screening_final).filter(|t| t.p_corrected < STRONG_STRUCTURE_P) {
+            out.push_str(&format!(
+                " Structure remains against {} ({} for {}): more physics than was found, or an effect of another form.",
+                inputs(&report.screening_final),
+                fmt_p(t.p_corrected),
+                t.quantity
+            ));
+        }
+    }
+    out
 }

@@ -62,16 +62,18 @@ pub(super) fn statement(
             }
         }
         EffectSpec::Backlash { joint } => {
-            if prismatic {
+            let size = if prismatic {
+                format!("{} mm", sig(t.abs() * 1e3, 2))
+            } else {
+                format!("{} mrad ({} deg)", sig(t.abs() * 1e3, 2), sig(t.abs().to_degrees(), 2))
+            };
+            if t >= 0.0 {
                 format!(
-                    "joint {joint} has {} mm of backlash {pm}: where it stops depends on the direction it was approached from",
-                    sig(t * 1e3, 2)
+                    "joint {joint} has {size} of backlash {pm}: where it stops depends on the direction it was approached from, the link lagging behind the motion"
                 )
             } else {
                 format!(
-                    "joint {joint} has {} mrad ({} deg) of backlash {pm}: where it stops depends on the direction it was approached from",
-                    sig(t * 1e3, 2),
-                    sig(t.to_degrees(), 2)
+                    "joint {joint}'s position depends on the direction it was approached from by {size} {pm}, the link ahead of its reading in the direction of motion (it leads: a load that coasts onto the leading tooth flank as it decelerates, a controller that overshoots, or a dir column defined the other way round); modelled as a backlash of negative sign"
                 )
             }
         }
