@@ -107,13 +107,26 @@ pub fn ur5_targets(r: &TargetReproduction) -> Check {
     Check::from_bool(
         "UR5 preset against the recorded targets",
         ok,
-        if ok { "within 0.05 mm (tool offset fitted from these data)" } else { "FAILED" },
+        format!(
+            "largest difference {:.4} mm on {} rows (limit {UR5_TARGET_MAX_MM} mm on {UR5_ROWS}; tool offset fitted from these data)",
+            r.max_mm, r.rows
+        ),
     )
 }
 
-/// The safety demo found safe configurations.
-pub fn safety(safe: usize) -> Check {
-    Check::from_bool("safety zones", safe > 0, "ok")
+/// The safety demo: the zones refuse a configuration planted inside an obstacle (named by
+/// `planted`, `None` when it was not refused by that obstacle) and accept some of the random
+/// ones.
+pub fn safety(safe: usize, samples: usize, planted: Option<&str>) -> Check {
+    let ok = safe > 0 && planted.is_some();
+    Check::from_bool(
+        "safety zones",
+        ok,
+        match planted {
+            Some(o) => format!("a configuration planted in the {o} is refused by it; {safe} of {samples} random ones are safe"),
+            None => format!("the configuration planted in an obstacle was NOT refused by it; {safe} of {samples} random ones are safe"),
+        },
+    )
 }
 
 /// The simulated session has an image of every pose from both cameras and a tracker table.

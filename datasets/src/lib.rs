@@ -40,19 +40,26 @@ pub mod render;
 pub mod sim;
 pub mod stiffsim;
 
-/// The environment variable of the kill tests (`tests/tests/kill.rs`): **test only**. When it
-/// holds a number of milliseconds, every command that commits outputs (`write_atomic`,
-/// `write_all_atomic`, the run folders of `plan` and `simulate`) says
+/// The environment variable of the kill tests (`tests/tests/kill.rs`): **test only**, and read
+/// only by builds with the `test-hooks` feature (the end-to-end tests' build; a release build of
+/// the binary never reads it). When it holds a number of milliseconds, every command that commits
+/// outputs (`write_atomic`, `write_all_atomic`, the run folders of `plan` and `simulate`) says
 /// `test hook: pausing before the commit` on stderr and sleeps that long right before it moves
 /// its outputs into place, so that a test can kill it at exactly that moment. Unset, nothing
 /// changes.
 pub const TEST_PAUSE_BEFORE_COMMIT: &str = "FERROCAL_TEST_PAUSE_BEFORE_COMMIT";
 
 /// The test-only pause of [`TEST_PAUSE_BEFORE_COMMIT`]; does nothing when the variable is unset
-/// or not a number.
+/// or not a number, and nothing at all without the `test-hooks` feature.
+#[cfg(feature = "test-hooks")]
 pub fn pause_before_commit() {
     if let Some(ms) = std::env::var(TEST_PAUSE_BEFORE_COMMIT).ok().and_then(|v| v.trim().parse::<u64>().ok()) {
         eprintln!("test hook: pausing before the commit ({ms} ms)");
         std::thread::sleep(std::time::Duration::from_millis(ms));
     }
 }
+
+/// Without the `test-hooks` feature the pause is compiled out.
+#[cfg(not(feature = "test-hooks"))]
+#[inline(always)]
+pub fn pause_before_commit() {}

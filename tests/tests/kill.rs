@@ -47,7 +47,10 @@ fn run_and_kill(cmd: &mut Command, moment: Moment) -> bool {
         Moment::BeforeCommit => {
             let mut lines = BufReader::new(stderr).lines();
             let paused = lines.any(|l| l.is_ok_and(|l| l.starts_with("test hook: pausing before the commit")));
-            assert!(paused, "{cmd:?} ended without reaching its commit");
+            assert!(
+                paused,
+                "{cmd:?} ended without reaching its commit (a binary built without the test-hooks feature never pauses: build it with `cargo test --workspace`, or `cargo build -p ferrocal --features ferrocal-datasets/test-hooks`)"
+            );
             child.kill().unwrap();
             child.wait().unwrap();
             true
