@@ -125,3 +125,13 @@ fn a_sagging_arm_gets_its_compliances_and_its_twin_gets_nothing() {
     assert!(twin.findings.is_empty(), "the compliance-free twin: {:#?}", twin.findings);
     assert!(twin.summary.starts_with("No finding"), "{}", twin.summary);
 }
+
+#[test]
+fn the_demo_cases_name_exactly_their_true_effects() {
+    let cases = ferrocal_datasets::sim::scenario::diagnose_cases(ferrocal_datasets::sim::scenario::DEMO_CASES_SEED)
+        .expect("the cases run");
+    for c in &cases {
+        eprintln!("{}: {:?} -> {:?}; {}", c.name, c.expected, c.found, c.summary);
+    }
+    assert!(cases.iter().all(|c| c.correct), "{cases:#?}");
+}

@@ -12,6 +12,7 @@ pub mod corrected;
 pub mod effects;
 pub mod plan;
 pub mod planning;
+pub mod scenario;
 pub mod temperature;
 pub mod tracker;
 

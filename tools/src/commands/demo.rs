@@ -207,5 +207,10 @@ fn sections_diagnose(args: &DemoArgs) -> Result<Vec<Section>> {
         s.id = format!("ur5-{}", s.id);
         s.title = format!("UR5 diagnose: {}", s.title.to_lowercase());
     }
+    // Recordings shaped like the real ones the fixed vetoes missed (the seed the tests check).
+    let pb = progress::bar(1, "diagnosing the large and leading cases");
+    let cases = ferrocal_datasets::sim::scenario::diagnose_cases(ferrocal_datasets::sim::scenario::DEMO_CASES_SEED)?;
+    pb.finish_and_clear();
+    out.push(ferrocal_report::diagnose::cases_section(&cases));
     Ok(out)
 }
