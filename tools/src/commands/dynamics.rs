@@ -11,6 +11,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use ferrocal_report::verdict::VerdictSettings;
 use anyhow::{anyhow, bail, Context, Result};
 use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
 use ferrocal_calib::dynamics::identify::{identify_from_streams, RowModel};
@@ -159,9 +160,9 @@ pub struct IdentifyStaticArgs {
 }
 
 /// Runs `ferrocal dynamics`.
-pub fn run(args: &DynamicsArgs) -> Result<ExitCode> {
+pub fn run(args: &DynamicsArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     match &args.command {
-        DynamicsCommand::Study(a) => run_study(a),
+        DynamicsCommand::Study(a) => run_study(a, vs),
         DynamicsCommand::Simulate(a) => run_simulate(a),
         DynamicsCommand::Identify(a) => run_identify(a),
         DynamicsCommand::IdentifyStatic(a) => run_identify_static(a),
@@ -268,7 +269,7 @@ fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn run_study(a: &StudyArgs) -> Result<ExitCode> {
+fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (repeats, evaluations) =
         if a.quick { (a.repeats.min(20), a.evaluations.min(500)) } else { (a.repeats, a.evaluations) };
     let t0 = std::time::Instant::now();
@@ -277,5 +278,5 @@ fn run_study(a: &StudyArgs) -> Result<ExitCode> {
     })?;
     let html = report.write(&a.out)?;
     println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    Ok(if report.failed() { ExitCode::from(2) } else { ExitCode::SUCCESS })
+    ferrocal_report::verdict::conclude_report(vs, &a.out, "study")
 }

@@ -12,7 +12,7 @@ use ferrocal_report::plan::PlanRequest;
 #[derive(Debug, clap::Args)]
 #[command(
     about = "Plan measurement poses: safe, measurable workspace, pose selection, predicted and simulated calibration, path and robot programs",
-    long_about = "Runs the source's automated calibration flow on a plan file (TOML; see docs/plan-format.md and datasets/cells/plan_gantry_tau_l1.toml):\n\n  1. the workspace by grid search, cut by joint limits, spherical-joint limits, the workspace-edge margin and every obstacle box with its margin;\n  2. the measurable region: the whole target inside every image with large enough features and an acceptable viewing angle, line of sight free (or a tracker's range and line of sight);\n  3. the regular grid for the wanted count (spacing = (volume / wanted)^(1/3)) and a denser pool;\n  4. selection by the A, D, K or N criterion (greedy deletion, exchange), the sigma_max^2/sigma_min check and the predicted accuracy, adding poses while a check fails;\n  5. simulated calibrations (Monte Carlo) against the predicted parameter deviations;\n  6. a short, checked path through joint space and the programs.\n\nWrites into --out: poses.csv (the measurement poses in visiting order), path.csv (every step), grid_poses.csv (the source's regular grid), program.mod (ABB RAPID), program.ngc (G-code), session_plan.toml (a [plan] table for `ferrocal simulate`), index.html and report.json, written aside and moved into place together (an existing non-empty folder needs --force). Exits 0 when the plan passes its checks, 2 when it was written but a check failed."
+    long_about = "Runs the source's automated calibration flow on a plan file (TOML; see docs/plan-format.md and datasets/cells/plan_gantry_tau_l1.toml):\n\n  1. the workspace by grid search, cut by joint limits, spherical-joint limits, the workspace-edge margin and every obstacle box with its margin;\n  2. the measurable region: the whole target inside every image with large enough features and an acceptable viewing angle, line of sight free (or a tracker's range and line of sight);\n  3. the regular grid for the wanted count (spacing = (volume / wanted)^(1/3)) and a denser pool;\n  4. selection by the A, D, K or N criterion (greedy deletion, exchange), the sigma_max^2/sigma_min check and the predicted accuracy, adding poses while a check fails;\n  5. simulated calibrations (Monte Carlo) against the predicted parameter deviations;\n  6. a short, checked path through joint space and the programs.\n\nWrites into --out: poses.csv (the measurement poses in visiting order), path.csv (every step), grid_poses.csv (the source's regular grid), program.mod (ABB RAPID), program.ngc (G-code), session_plan.toml (a [plan] table for `ferrocal simulate`), index.html and report.json, written aside and moved into place together (an existing non-empty folder needs --force). Exits 0 when the plan passes its checks, 2 when it was written but a check failed (0 with --keep); the last stdout line is the verdict, also in report.json."
 )]
 pub struct PlanArgs {
     /// The plan file (TOML).
@@ -44,7 +44,7 @@ pub struct PlanArgs {
 }
 
 /// Runs `ferrocal plan`.
-pub fn run(args: &PlanArgs) -> Result<ExitCode> {
+pub fn run(args: &PlanArgs, vs: &ferrocal_report::verdict::VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let log = |s: &str| eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
     let pb = std::cell::OnceCell::new();
@@ -71,5 +71,5 @@ pub fn run(args: &PlanArgs) -> Result<ExitCode> {
         if outcome.passed { "checks passed" } else { "a check FAILED" },
         outcome.html.display()
     ));
-    Ok(if outcome.passed { ExitCode::SUCCESS } else { ExitCode::from(2) })
+    ferrocal_report::verdict::conclude_report(vs, &args.out, "plan")
 }

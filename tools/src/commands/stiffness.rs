@@ -15,6 +15,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use ferrocal_report::verdict::VerdictSettings;
 use anyhow::{Context, Result};
 use ferrocal_calib::stiffness::problem::LinearProblem;
 use ferrocal_calib::stiffness::reduce::{reduce, Reduction, ReductionSettings};
@@ -103,20 +104,20 @@ pub struct IdentifyArgs {
 }
 
 /// Runs `ferrocal stiffness`.
-pub fn run(args: &StiffnessArgs) -> Result<ExitCode> {
+pub fn run(args: &StiffnessArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     match &args.command {
-        StiffnessCommand::Study(a) => run_study(a),
+        StiffnessCommand::Study(a) => run_study(a, vs),
         StiffnessCommand::Simulate(a) => run_simulate(a),
         StiffnessCommand::Identify(a) => run_identify(a),
     }
 }
 
-fn run_study(a: &StudyArgs) -> Result<ExitCode> {
+fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let report = study_report(a.seed, a.trials, a.quick)?;
     let html = report.write(&a.out)?;
     println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    Ok(if report.failed() { ExitCode::from(2) } else { ExitCode::SUCCESS })
+    ferrocal_report::verdict::conclude_report(vs, &a.out, "study")
 }
 
 fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
