@@ -93,14 +93,14 @@ impl Check {
     }
 
     /// A condition that is a warning when it holds (value 1) and a pass when not (value 0),
-    /// e.g. "structure left unexplained"; `label` says what holds.
-    pub fn flag(name: &str, label: &str, holds: bool) -> Self {
+    /// e.g. structure left unexplained; `holds` and `absent` say each case in words.
+    pub fn flag(name: &str, holds: &str, absent: &str, condition: bool) -> Self {
         Self {
             name: name.into(),
-            value: if holds { 1.0 } else { 0.0 },
+            value: if condition { 1.0 } else { 0.0 },
             limit: 0.0,
-            status: if holds { Status::Warning } else { Status::Pass },
-            what: if holds { format!("{label} (warning)") } else { format!("not {label}") },
+            status: if condition { Status::Warning } else { Status::Pass },
+            what: if condition { format!("{holds} (warning)") } else { absent.to_string() },
         }
     }
 

@@ -26,8 +26,9 @@ fn the_line_has_the_spec_format() {
     );
     assert!(line_matches_spec(&v.line()));
     // Line breaks in the words never break the line.
-    let v = Verdict::new(vec![Check::flag("x.y", "a\nb", true)], "c\nd");
+    let v = Verdict::new(vec![Check::flag("x.y", "a\nb", "no a", true)], "c\nd");
     assert_eq!(v.line(), "verdict: warning: a b (warning); next: c d");
+    assert_eq!(Check::flag("x.y", "a", "no a", false).what, "no a");
     assert!(line_matches_spec(&v.line()));
     // Without checks.
     assert_eq!(Verdict::new(Vec::new(), "").line(), "verdict: pass: nothing to check; next: none");

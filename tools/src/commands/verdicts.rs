@@ -50,7 +50,12 @@ pub fn calibrate(
             ));
         }
         None => {
-            checks.push(Check::flag("calibrate.heldout", "no poses held out (nothing checked on unseen poses)", true))
+            checks.push(Check::flag(
+                "calibrate.heldout",
+                "no poses held out (nothing checked on unseen poses)",
+                "poses held out",
+                true,
+            ))
         }
     }
     checks.push(Check::at_most(
@@ -138,7 +143,7 @@ pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verd
     let mut checks = Vec::new();
     let declined = report["declined"].as_str().map(str::to_string);
     if declined.is_some() {
-        checks.push(Check::flag("diagnose.declined", "the analysis declined (nothing claimed)", true));
+        checks.push(Check::flag("diagnose.declined", "the analysis declined (nothing claimed)", "analysed", true));
     } else {
         checks.push(Check::at_most(
             "diagnose.heldout_ratio",
@@ -165,6 +170,7 @@ pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verd
         } else {
             format!("structure left unexplained (against {})", depends.join(", "))
         },
+        "no structure left unexplained",
         structure,
     ));
     let rejected: Vec<&str> = report["notes"]
@@ -186,8 +192,9 @@ pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verd
         None => "the model explains the data: calibrate with it as it is".into(),
         Some("diagnose.declined") => format!("record more data: {}", declined.unwrap_or_default()),
         Some("diagnose.unexplained_structure") => format!(
-            "record data that varies {} on its own (with the other inputs spread) so that a candidate can explain it",
-            if depends.is_empty() { "the inputs the residuals follow".to_string() } else { depends.join(" and ") }
+            "the residuals still follow {}: record poses that vary {} over their whole range, the other inputs spread, and diagnose again (or add a candidate effect, docs/diagnose.md)",
+            if depends.is_empty() { "the inputs".to_string() } else { depends.join(", ") },
+            if depends.len() == 1 { "it" } else { "them" }
         ),
         Some("diagnose.rejected") => format!("look at the rejected candidate before trusting the findings: {first_rejected}"),
         _ => "the findings do not improve held-out data: do not model them; record more data".into(),
