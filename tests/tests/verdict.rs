@@ -106,11 +106,8 @@ fn evaluate_scores_the_held_out_rows_of_a_split_table() {
     assert_eq!(json_verdict(&ev), "pass");
     // Without the split column: every row.
     let text = std::fs::read_to_string(&table).unwrap();
-    let unsplit: String = text
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| format!("{}\n", l.rsplit_once(',').unwrap().0))
-        .collect();
+    let unsplit: String =
+        text.lines().filter(|l| !l.starts_with('#')).map(|l| format!("{}\n", l.rsplit_once(',').unwrap().0)).collect();
     assert!(unsplit.starts_with("pose_id,") && !unsplit.contains("split"), "{}", &unsplit[..80]);
     let all = tmp.path().join("all.csv");
     std::fs::write(&all, unsplit).unwrap();
@@ -134,7 +131,8 @@ fn fail_exits_non_zero_unless_kept_and_thresholds_override_the_limits() {
     assert_eq!(verdict_line(&evaluate(&robot, &cal, &table, &ev, &[])), "pass");
     // A stricter file: fails, exit 1, the JSON written with the failed verdict.
     let strict = tmp.path().join("strict.toml");
-    std::fs::write(&strict, "# stricter than the defaults\n[evaluate]\nrms_mm_warn = 0.2\nrms_mm_fail = 0.3\n").unwrap();
+    std::fs::write(&strict, "# stricter than the defaults\n[evaluate]\nrms_mm_warn = 0.2\nrms_mm_fail = 0.3\n")
+        .unwrap();
     let ev_fail = tmp.path().join("ev_fail.json");
     let thresholds = strict.to_str().unwrap();
     let out = evaluate(&robot, &cal, &table, &ev_fail, &["--thresholds", thresholds]);

@@ -74,8 +74,11 @@ fn numbers_are_short() {
 
 #[test]
 fn a_file_overrides_only_its_keys() {
-    let t = Thresholds::from_toml("[camera]\nrms_px_warn = 0.3\nviews_warn = 5\n\n[evaluate]\nrms_mm_fail = 1\n", Path::new("t.toml"))
-        .unwrap();
+    let t = Thresholds::from_toml(
+        "[camera]\nrms_px_warn = 0.3\nviews_warn = 5\n\n[evaluate]\nrms_mm_fail = 1\n",
+        Path::new("t.toml"),
+    )
+    .unwrap();
     assert_eq!(t.camera.rms_px_warn, 0.3);
     assert_eq!(t.camera.views_warn, 5.0);
     assert_eq!(t.camera.rms_px_fail, CameraLimits::default().rms_px_fail);

@@ -224,13 +224,15 @@ pub fn run_correct(a: &CorrectArgs, vs: &crate::verdict::VerdictSettings) -> Res
             l.correction_mm_fail,
         ),
     ];
-    let verdict = ferrocal_calib::verdict::Verdict::with_next(checks, |c| match c.map(|c| c.name.as_str()) {
+    let verdict = ferrocal_calib::verdict::Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
         None => format!("run {} on the robot and measure a few of its poses to confirm", a.out.display()),
         Some("correct.correction_mm") => format!(
             "the corrections are large: check that {} was made for this robot and frame (ferrocal evaluate on a recent table) before running the program",
             a.calibration.display()
         ),
         _ => "some commands cannot reach their pose exactly: move them away from singularities and joint limits".into(),
+    }
     });
     Ok(vs.conclude(&verdict))
 }

@@ -89,18 +89,38 @@ pub fn report_checks(report: &Value, section: &str, failed_fail: f64, skipped_wa
     } else {
         format!("report checks failed ({})", failed.join(", "))
     };
-    let mut out =
-        vec![Check::at_most(&format!("{section}.failed_checks"), &label, "", failed.len() as f64, failed_fail, failed_fail)];
+    let mut out = vec![Check::at_most(
+        &format!("{section}.failed_checks"),
+        &label,
+        "",
+        failed.len() as f64,
+        failed_fail,
+        failed_fail,
+    )];
     if let Some(w) = skipped_warn {
         let skipped = statuses.iter().filter(|(_, s)| s == "skipped").count();
-        out.push(Check::at_most(&format!("{section}.skipped"), "sections skipped", "", skipped as f64, w, f64::INFINITY));
+        out.push(Check::at_most(
+            &format!("{section}.skipped"),
+            "sections skipped",
+            "",
+            skipped as f64,
+            w,
+            f64::INFINITY,
+        ));
     }
     out
 }
 
 /// `measure` (both forms): the fraction of the poses measured and the camera's reprojection RMS
 /// (`rms_label` says which RMS: the calibration's, or the median of the poses' own).
-pub fn measure_verdict(t: &Thresholds, measured: usize, total: usize, rms_label: &str, rms_px: f64, out: Option<&Path>) -> Verdict {
+pub fn measure_verdict(
+    t: &Thresholds,
+    measured: usize,
+    total: usize,
+    rms_label: &str,
+    rms_px: f64,
+    out: Option<&Path>,
+) -> Verdict {
     let l = &t.measure;
     let checks = vec![
         Check::at_least(
@@ -114,12 +134,14 @@ pub fn measure_verdict(t: &Thresholds, measured: usize, total: usize, rms_label:
         Check::at_most("measure.rms_px", rms_label, "px", rms_px, l.rms_px_warn, l.rms_px_fail),
     ];
     let table = out.map_or("<the table>".to_string(), |p| p.display().to_string());
-    Verdict::with_next(checks, |c| match c.map(|c| c.name.as_str()) {
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
         None => format!("calibrate from the table: ferrocal calibrate --robot <model> --measurements {table} --out <cal.json>"),
         Some("measure.measured_fraction") => {
             "read why the images were left out (stderr and the JSON's skipped list); fix the pattern string or retake them".into()
         }
         _ => "the camera model fits the images poorly: calibrate the camera on its own (ferrocal camera calibrate) and pass it as --intrinsics".into(),
+    }
     })
 }
 
@@ -141,8 +163,12 @@ pub fn conclude_report(vs: &VerdictSettings, dir: &Path, name: &str) -> Result<E
     let html = dir.join("index.html");
     let v = Verdict::with_next(checks, |c| match c.map(|c| c.name.rsplit('.').next().unwrap_or("")) {
         None => format!("read the report: {}", html.display()),
-        Some("skipped") => format!("give the missing inputs (the skipped sections of {} say which) and run again", html.display()),
-        Some(_) => format!("read the failed sections of {} (their status says what missed its criterion)", html.display()),
+        Some("skipped") => {
+            format!("give the missing inputs (the skipped sections of {} say which) and run again", html.display())
+        }
+        Some(_) => {
+            format!("read the failed sections of {} (their status says what missed its criterion)", html.display())
+        }
     });
     add_verdict_to_file(&path, &v)?;
     Ok(vs.conclude_with(&v, ExitCode::SUCCESS, 2))

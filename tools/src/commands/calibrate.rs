@@ -331,10 +331,7 @@ pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCod
     // frame refit above uses the whole table, as the spec says.
     let n_test = rows.iter().filter(|r| r.split == Some(ferrocal_calib::Split::Test)).count();
     if n_test == 0 && rows.iter().any(|r| r.split.is_some()) {
-        eprintln!(
-            "note: {}: the split column marks no row 'test': every row is scored",
-            args.measurements.display()
-        );
+        eprintln!("note: {}: the split column marks no row 'test': every row is scored", args.measurements.display());
     }
     let has_split = n_test > 0;
     let scored: Vec<PoseMeasurement> = if has_split {
@@ -347,11 +344,8 @@ pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCod
     if let Some(record) = &refit {
         out["refit_frame"] = serde_json::to_value(record)?;
     }
-    let scored_words = if has_split {
-        format!("the {} held-out (test) rows", stats.n)
-    } else {
-        format!("all {} rows", stats.n)
-    };
+    let scored_words =
+        if has_split { format!("the {} held-out (test) rows", stats.n) } else { format!("all {} rows", stats.n) };
     let verdict = super::verdicts::evaluate(&vs.thresholds, &stats, &scored_words);
     add_verdict(&mut out, &verdict);
     write_atomic(&args.json, serde_json::to_string_pretty(&out)?.as_bytes())?;

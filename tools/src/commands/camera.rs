@@ -408,8 +408,7 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         println!("{}", compare_with_opencv(&paths, &pattern, &options)?);
     }
     let n_used = cal.views.iter().filter(|v| v.used).count();
-    let verdict =
-        camera_verdict(&vs.thresholds.camera, cal.rms_px, n_used, held_out.as_ref().and_then(|h| h.rms_px));
+    let verdict = camera_verdict(&vs.thresholds.camera, cal.rms_px, n_used, held_out.as_ref().and_then(|h| h.rms_px));
     if let Some(p) = &a.json {
         let mut v = camera_json(cal);
         add_verdict(&mut v, &verdict);

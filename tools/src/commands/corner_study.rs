@@ -7,9 +7,9 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use ferrocal_calib::verdict::{Check, Verdict};
 use ferrocal_datasets::render::corner_study::{corner_study, rows_csv, CornerStudySettings};
 use ferrocal_report::corner_study::markdown;
-use ferrocal_calib::verdict::{Check, Verdict};
 use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::write_atomic;
 
@@ -51,9 +51,11 @@ pub fn run(args: &CornerStudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         vs.thresholds.study.corner_over_crb_warn,
         f64::INFINITY,
     )];
-    let verdict = Verdict::with_next(checks, |c| match c {
+    let verdict = Verdict::with_next(checks, |c| {
+        match c {
         None => format!("read the table: {}", args.out.join("corner_study.md").display()),
         Some(_) => "look at the rows far above the bound in corner_study.md (blur and noise levels) before trusting corners there".into(),
+    }
     });
     // The study's JSON is an array of rows (its format since it was written): the verdict is
     // written beside it.

@@ -15,8 +15,8 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::demo;
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::{write_atomic, Provenance, Report, Section};
 use ferrocal_robot::RobotModel;
 use serde_json::json;

@@ -11,7 +11,6 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use ferrocal_report::verdict::VerdictSettings;
 use anyhow::{anyhow, bail, Context, Result};
 use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
 use ferrocal_calib::dynamics::identify::{identify_from_streams, RowModel};
@@ -22,6 +21,7 @@ use ferrocal_datasets::dynsim::PlatformSim;
 use ferrocal_datasets::formats::dynamics_tables::{self, FORCE_COLUMNS, LEG_COLUMNS};
 use ferrocal_lsq::linear::{fit, LinearFit, LinearOptions, Weighting};
 use ferrocal_report::dynamics::{fit_json, study_report};
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::write_atomic;
 use ferrocal_robot::dynamics::HexapodDynamics;
 use ferrocal_robot::Pose;

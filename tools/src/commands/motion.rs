@@ -6,7 +6,6 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use ferrocal_report::verdict::VerdictSettings;
 use anyhow::{bail, Result};
 use ferrocal_datasets::motion::leadthrough::{LeadSettings, SensorPlacement};
 use ferrocal_report::motion::{
@@ -14,6 +13,7 @@ use ferrocal_report::motion::{
 };
 use ferrocal_report::motion_cell::cell_report;
 use ferrocal_report::report::Report;
+use ferrocal_report::verdict::VerdictSettings;
 
 /// `ferrocal motion`.
 #[derive(Debug, clap::Args)]

@@ -15,7 +15,6 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use ferrocal_report::verdict::VerdictSettings;
 use anyhow::{Context, Result};
 use ferrocal_calib::stiffness::problem::LinearProblem;
 use ferrocal_calib::stiffness::reduce::{reduce, Reduction, ReductionSettings};
@@ -23,6 +22,7 @@ use ferrocal_calib::stiffness::StiffnessIdError;
 use ferrocal_datasets::formats::deflections::{read_deflections, stiffness_model};
 use ferrocal_datasets::stiffsim::tables::simulated_deflections;
 use ferrocal_report::stiffness::{identify_section, study_report};
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::{write_atomic, Provenance, Report};
 use ferrocal_robot::stiffness::WrenchLimits;
 use serde_json::json;

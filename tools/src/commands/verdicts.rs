@@ -49,14 +49,12 @@ pub fn calibrate(
                 l.heldout_over_train_fail,
             ));
         }
-        None => {
-            checks.push(Check::flag(
-                "calibrate.heldout",
-                "no poses held out (nothing checked on unseen poses)",
-                "poses held out",
-                true,
-            ))
-        }
+        None => checks.push(Check::flag(
+            "calibrate.heldout",
+            "no poses held out (nothing checked on unseen poses)",
+            "poses held out",
+            true,
+        )),
     }
     checks.push(Check::at_most(
         "calibrate.unidentified",
@@ -67,7 +65,8 @@ pub fn calibrate(
         f64::INFINITY,
     ));
     let advice = cal.advice.first().cloned().unwrap_or_default();
-    Verdict::with_next(checks, |c| match c.map(|c| c.name.as_str()) {
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
         None => format!(
             "use the calibration: ferrocal evaluate --robot {robot} --calibration {} --measurements <a table of other poses>, or ferrocal export / correct",
             out.display()
@@ -82,6 +81,7 @@ pub fn calibrate(
         Some("calibrate.heldout_vs_nominal") => "the calibration gains little on unseen poses: measure more poses spread over the workspace, or run ferrocal diagnose for the physics the model leaves out".into(),
         Some("calibrate.heldout_over_train") => "the fit does not carry over to unseen poses: identify fewer parameters (--params, --practical-threshold) or measure more poses".into(),
         _ => format!("find what the model leaves out: ferrocal diagnose --robot {robot} --measurements <the table>"),
+    }
     })
 }
 
@@ -96,12 +96,14 @@ pub fn evaluate(t: &Thresholds, stats: &ErrorStats, scored: &str) -> Verdict {
         l.rms_mm_warn,
         l.rms_mm_fail,
     )];
-    Verdict::with_next(checks, |c| match c.map(|c| c.status) {
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.status) {
         None => "use the calibration: ferrocal export (URDF, DH) or ferrocal correct (a program's commands)".into(),
         Some(ferrocal_calib::verdict::Status::Warning) => {
             "look at the largest per-pose errors in the JSON, then run ferrocal diagnose on the table for what the model leaves out".into()
         }
         Some(_) => "check that the table and the calibration share the measuring device's frame (else --refit-frame) and the robot; then run ferrocal diagnose on the table".into(),
+    }
     })
 }
 
@@ -126,9 +128,11 @@ pub fn export(t: &Thresholds, roundtrip_mm: f64, roundtrip_deg: f64) -> Verdict 
             l.roundtrip_deg_fail,
         ),
     ];
-    Verdict::with_next(checks, |c| match c {
+    Verdict::with_next(checks, |c| {
+        match c {
         None => "load the exported model in the other tool and check one pose against ferrocal robot fk".into(),
         Some(_) => "the written model does not reproduce the calibration: use the calibration file with ferrocal directly and report this".into(),
+    }
     })
 }
 
@@ -187,7 +191,8 @@ pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verd
     ));
     let n_findings = report["findings"].as_array().map_or(0, Vec::len);
     let first_rejected = rejected.first().map(|s| s.to_string()).unwrap_or_default();
-    Verdict::with_next(checks, |c| match c.map(|c| c.name.as_str()) {
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
         None if n_findings > 0 => format!("model the findings: {rerun}"),
         None => "the model explains the data: calibrate with it as it is".into(),
         Some("diagnose.declined") => format!("record more data: {}", declined.unwrap_or_default()),
@@ -198,25 +203,21 @@ pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verd
         ),
         Some("diagnose.rejected") => format!("look at the rejected candidate before trusting the findings: {first_rejected}"),
         _ => "the findings do not improve held-out data: do not model them; record more data".into(),
+    }
     })
 }
 
 /// `import`: the rows written.
 pub fn import(t: &Thresholds, rows: usize, test_rows: usize, out: &std::path::Path) -> Verdict {
     let l = &t.import;
-    let checks = vec![Check::at_least(
-        "import.rows",
-        "rows written",
-        "",
-        rows as f64,
-        l.rows_warn,
-        l.rows_fail,
-    )];
-    Verdict::with_next(checks, |c| match c {
+    let checks = vec![Check::at_least("import.rows", "rows written", "", rows as f64, l.rows_warn, l.rows_fail)];
+    Verdict::with_next(checks, |c| {
+        match c {
         None => format!(
             "calibrate from the table ({test_rows} rows marked test are held out): ferrocal calibrate --robot <model> --measurements {} --out <cal.json>",
             out.display()
         ),
         Some(_) => "the recording holds too few rows for a calibration: record more poses".into(),
+    }
     })
 }

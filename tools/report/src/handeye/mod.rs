@@ -239,12 +239,8 @@ pub fn run(a: &HandeyeArgs, vs: &crate::verdict::VerdictSettings) -> Result<Exit
     print_summary(&result, best_baseline(&baselines), source);
     let has_heldout = result.figures.heldout_rms_px.is_some();
     let split = if has_heldout { ferrocal_calib::Split::Test } else { ferrocal_calib::Split::Train };
-    let mut checks = verdict::chain_checks(
-        &vs.thresholds,
-        &result.figures,
-        verdict::pnp_rms_px(&data, &result, split),
-        "handeye",
-    );
+    let mut checks =
+        verdict::chain_checks(&vs.thresholds, &result.figures, verdict::pnp_rms_px(&data, &result, split), "handeye");
     if let (Some(out), Some(model), Some(spec)) = (&a.out, &robot, &a.robot) {
         let rows: std::collections::HashMap<&str, &ferrocal_datasets::handeye::PoseRow> =
             table.rows.iter().map(|r| (r.image.as_str(), r)).collect();
@@ -436,13 +432,15 @@ pub fn run_import_ic(
     )];
     let mount_name = set.mount.name();
     let pattern = set.pattern.clone().unwrap_or_else(|| "<pattern>".into());
-    let verdict = ferrocal_calib::verdict::Verdict::with_next(checks, |c| match c {
+    let verdict = ferrocal_calib::verdict::Verdict::with_next(checks, |c| {
+        match c {
         None => format!(
             "calibrate ({n_test} rows marked test are held out): ferrocal handeye --images {}/images --poses {} --pattern {pattern} --mount {mount_name} --json <result.json>",
             input.display(),
             out.display()
         ),
         Some(_) => "the set holds too few images for a hand-eye calibration: record more poses".into(),
+    }
     });
     Ok(vs.conclude(&verdict))
 }
