@@ -366,8 +366,8 @@ impl Default for ExportLimits {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlanLimits {
-    /// The plan's own checks that failed (sigma ratio, predicted accuracy, simulated
-    /// calibrations, path): failure above (default 0).
+    /// The plan's own checks that failed (selection, sigma ratio, predicted accuracy, path):
+    /// failure above (default 0).
     pub failed_checks_fail: f64,
 }
 

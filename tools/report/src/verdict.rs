@@ -145,8 +145,8 @@ pub fn measure_verdict(
     })
 }
 
-/// Ends a study or flow that wrote `dir/report.json` (`demo`, `plan`, `dynamics study`,
-/// `stiffness study`, `motion ...`): its verdict counts the report's failed and skipped checks
+/// Ends a study that wrote `dir/report.json` (`demo`, `dynamics study`, `stiffness study`,
+/// `motion ...`): its verdict counts the report's failed and skipped checks
 /// (`<name>.failed_checks`, `<name>.skipped`), is added to `report.json`, and a failed verdict
 /// exits 2, these commands' documented status for a failed check (0 with `--keep`).
 pub fn conclude_report(vs: &VerdictSettings, dir: &Path, name: &str) -> Result<ExitCode> {
@@ -154,12 +154,7 @@ pub fn conclude_report(vs: &VerdictSettings, dir: &Path, name: &str) -> Result<E
     let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
     let report: Value = serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
     let l = &vs.thresholds.study;
-    let (fail, skip) = if name == "plan" {
-        (vs.thresholds.plan.failed_checks_fail, None)
-    } else {
-        (l.failed_checks_fail, Some(l.skipped_warn))
-    };
-    let checks = report_checks(&report, name, fail, skip);
+    let checks = report_checks(&report, name, l.failed_checks_fail, Some(l.skipped_warn));
     let html = dir.join("index.html");
     let v = Verdict::with_next(checks, |c| match c.map(|c| c.name.rsplit('.').next().unwrap_or("")) {
         None => format!("read the report: {}", html.display()),

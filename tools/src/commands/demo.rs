@@ -78,7 +78,7 @@ pub fn run(args: &DemoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     report.provenance = prov;
     let html = report.write(&args.out)?;
     let n = report.counts();
-    eprintln!(
+    println!(
         "report written: {} ({} passed, {} failed, {} skipped, {} reported)",
         html.display(),
         n.passed,
