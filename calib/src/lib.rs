@@ -14,7 +14,8 @@
 //! - [`diagnose`]: missing physics found by cross-validated candidate effects;
 //! - [`motion`]: black-box and physical identification of compliant axes, learning control;
 //! - [`stiffness`]: elastostatic identification with model reduction to practically identifiable
-//!   parameters, experiment design and compliance compensation.
+//!   parameters, experiment design and compliance compensation;
+//! - [`verdict`]: the pass / warning / fail line every command ends with, and its named limits.
 //!
 //! # Conventions
 //! SI units inside; see `docs/conventions.md` at the workspace root.
@@ -37,6 +38,7 @@ pub mod lsq;
 pub mod measurement;
 pub mod motion;
 pub mod stiffness;
+pub mod verdict;
 
 pub use error::{CalibError, Result};
 pub use measurement::{MeasurementSet, PoseCovariance, PoseMeasurement, Split};

@@ -48,8 +48,14 @@ fn test_rows(table: &Path, dir: &Path) -> PathBuf {
 }
 
 fn evaluate(cal: &Path, table: &Path, json_out: &Path, refit: bool) -> serde_json::Value {
+    evaluate_with(cal, table, json_out, refit, &[])
+}
+
+/// `evaluate` with global flags before the command (`--keep`: a failed verdict exits 0).
+fn evaluate_with(cal: &Path, table: &Path, json_out: &Path, refit: bool, flags: &[&str]) -> serde_json::Value {
     let mut cmd = ferrocal();
-    cmd.args(["evaluate", "--robot", "ur5", "--calibration"])
+    cmd.args(flags)
+        .args(["evaluate", "--robot", "ur5", "--calibration"])
         .arg(cal)
         .arg("--measurements")
         .arg(table)
@@ -142,7 +148,21 @@ fn evaluate_refit_frame_scores_a_model_in_another_devices_frame() {
     let moved_path = tmp.path().join("moved.csv");
     std::fs::write(&moved_path, moved).unwrap();
     let own = evaluate(&cal, &table, &tmp.path().join("own.json"), false);
-    let plain = evaluate(&cal, &moved_path, &tmp.path().join("plain.json"), false);
+    // Without the refit the errors are the frame change: the verdict fails (exit 1), and
+    // --keep keeps the result to read its numbers.
+    let plain_json = tmp.path().join("plain.json");
+    let out = ferrocal_tests::run(
+        ferrocal()
+            .args(["evaluate", "--robot", "ur5", "--calibration"])
+            .arg(&cal)
+            .arg("--measurements")
+            .arg(&moved_path)
+            .arg("--json")
+            .arg(&plain_json),
+    );
+    assert_eq!(out.status.code(), Some(1), "a 100 mm error is a failed evaluation");
+    assert_eq!(json(&plain_json)["verdict"]["status"], "fail");
+    let plain = evaluate_with(&cal, &moved_path, &plain_json, false, &["--keep"]);
     let refit = evaluate(&cal, &moved_path, &tmp.path().join("refit.json"), true);
     let (o, p, r) =
         (own["mean_mm"].as_f64().unwrap(), plain["mean_mm"].as_f64().unwrap(), refit["mean_mm"].as_f64().unwrap());

@@ -9,3 +9,4 @@ mod measure;
 mod motion;
 mod positioner;
 mod reliability;
+mod verdict;

@@ -7,12 +7,28 @@ use clap::{Args, Parser, Subcommand};
 /// ferrocal: cameras and a printed pattern in place of a laser tracker. Measures end-effector
 /// poses, plans safe measurement poses, calibrates robot models and explains what they miss.
 #[derive(Debug, Parser)]
-#[command(name = "ferrocal", version, about, long_about = None, propagate_version = true)]
+#[command(name = "ferrocal", version, about, long_about = None, propagate_version = true, after_help = VERDICT_HELP)]
 pub struct Cli {
+    /// Limits of the verdict line every command ends with, from this TOML file (only the keys
+    /// to change; docs/verdicts.md lists every key and its default). An unknown key is refused.
+    #[arg(long, global = true, value_name = "FILE.toml")]
+    pub thresholds: Option<PathBuf>,
+    /// Keep a result whose verdict is `fail`: exit 0 instead of 1 (its outputs are written either
+    /// way, and stderr says that it failed its checks).
+    #[arg(long, global = true)]
+    pub keep: bool,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
 }
+
+/// The verdict and the exit status, in `--help`.
+const VERDICT_HELP: &str = "Every command that computes a result ends its output on stdout with one line \
+`verdict: pass|warning|fail: <what was checked>; next: <the next step>` and writes the same as `verdict` \
+in its JSON. Exit status: 0 on success (and on a `warning`); 1 when the command fails or its result's \
+verdict is `fail` (the outputs are still written; `--keep` exits 0); 2 where a command documents it \
+(`detect`: an image failed; `plan`, `demo` and the studies: a check failed). Limits: docs/verdicts.md, \
+overridden with --thresholds FILE.toml.";
 
 /// The commands.
 #[derive(Debug, Subcommand)]

@@ -141,7 +141,7 @@ pub struct CorrectArgs {
 /// Runs `ferrocal correct`: every command is corrected through the calibrated model so that it
 /// reaches the pose the nominal model meant; a command that cannot be corrected is an error
 /// naming its pose id and line, and nothing is written.
-pub fn run_correct(a: &CorrectArgs) -> Result<std::process::ExitCode> {
+pub fn run_correct(a: &CorrectArgs, vs: &crate::verdict::VerdictSettings) -> Result<std::process::ExitCode> {
     use anyhow::Context;
     use ferrocal_calib::kinematic::correct::{correct_program, CorrectOptions};
     for input in [&a.program, &a.calibration] {
@@ -171,6 +171,7 @@ pub fn run_correct(a: &CorrectArgs) -> Result<std::process::ExitCode> {
     }
     out.push_str(",removed_error_mm,residual_mm\n");
     let mut removed = Vec::new();
+    let mut worst_residual_mm = 0.0f64;
     let corrected = correct_program(&cm, &program.set.rows, &opts)
         .with_context(|| format!("correcting {}", a.program.display()))?;
     for (row, c) in program.set.rows.iter().zip(&corrected) {
@@ -189,6 +190,7 @@ pub fn run_correct(a: &CorrectArgs) -> Result<std::process::ExitCode> {
         }
         out.push_str(&format!(",{:.6},{:.6}\n", c.nominal_error_m * 1e3, c.residual_m * 1e3));
         removed.push(c.nominal_error_m * 1e3);
+        worst_residual_mm = worst_residual_mm.max(c.residual_m * 1e3);
     }
     let programs = corrected_programs(a, &model, &program.set.rows, &corrected)?;
     crate::report::write_atomic(&a.out, out.as_bytes())?;
@@ -202,7 +204,37 @@ pub fn run_correct(a: &CorrectArgs) -> Result<std::process::ExitCode> {
         removed.len(),
         a.out.display()
     );
-    Ok(std::process::ExitCode::SUCCESS)
+    let l = &vs.thresholds.export;
+    let largest = removed.iter().copied().fold(0.0, f64::max);
+    let checks = vec![
+        ferrocal_calib::verdict::Check::at_most(
+            "correct.residual_mm",
+            "largest distance left from an intended pose",
+            "mm",
+            worst_residual_mm,
+            l.residual_mm_warn,
+            l.residual_mm_fail,
+        ),
+        ferrocal_calib::verdict::Check::at_most(
+            "correct.correction_mm",
+            "largest correction",
+            "mm",
+            largest,
+            l.correction_mm_warn,
+            l.correction_mm_fail,
+        ),
+    ];
+    let verdict = ferrocal_calib::verdict::Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
+        None => format!("run {} on the robot and measure a few of its poses to confirm", a.out.display()),
+        Some("correct.correction_mm") => format!(
+            "the corrections are large: check that {} was made for this robot and frame (ferrocal evaluate on a recent table) before running the program",
+            a.calibration.display()
+        ),
+        _ => "some commands cannot reach their pose exactly: move them away from singularities and joint limits".into(),
+    }
+    });
+    Ok(vs.conclude(&verdict))
 }
 
 /// The corrected commands as the robot programs `a` asks for (path, text), all composed before

@@ -11,7 +11,8 @@
 //! - [`plan`]: the measurement plan (`ferrocal plan`), its flow and its report;
 //! - [`dynamics`]: force-sensor models and hexapod dynamics (`ferrocal dynamics study`);
 //! - [`stiffness`]: elastostatic identification (`ferrocal stiffness study` and `identify`);
-//! - [`demo`]: the sections of `ferrocal demo`.
+//! - [`demo`]: the sections of `ferrocal demo`;
+//! - [`verdict`]: how every command ends (the verdict line, its JSON, the exit status).
 #![deny(missing_docs)]
 
 pub mod calibrate;
@@ -30,6 +31,7 @@ pub mod plot;
 pub mod recording;
 pub mod report;
 pub mod stiffness;
+pub mod verdict;
 
 pub use report::{
     check_outputs, inline_png, write_all_atomic, write_atomic, Block, Provenance, Report, Section, StagedFolder,

@@ -49,6 +49,7 @@ pub fn run(
     out: Option<&PathBuf>,
     json_out: Option<&PathBuf>,
     corner_sigma_px: f64,
+    vs: &crate::verdict::VerdictSettings,
 ) -> Result<ExitCode> {
     let (Some(poses), Some(pattern_text)) = (&a.poses, &a.pattern) else {
         bail!("measure: --images needs --poses and --pattern (or give --session)");
@@ -116,6 +117,18 @@ pub fn run(
         files.push((out.as_path(), text.into_bytes()));
         println!("table {} ({} rows)", out.display(), rows.rows.len());
     }
+    let verdict = {
+        let total = m.poses.len() + m.skipped.len() + skipped_images.len();
+        let (label, rms) = match m.camera.calibration_rms_px {
+            Some(r) => ("camera calibration RMS", r),
+            None => {
+                let mut r: Vec<f64> = m.poses.iter().map(|p| p.estimate.rms_px).collect();
+                r.sort_by(f64::total_cmp);
+                ("median reprojection RMS of the poses", r.get(r.len() / 2).copied().unwrap_or(f64::NAN))
+            }
+        };
+        crate::verdict::measure_verdict(&vs.thresholds, m.poses.len(), total, label, rms, out.map(PathBuf::as_path))
+    };
     if let Some(j) = json_out {
         let mut skipped: Vec<serde_json::Value> = skipped_images
             .iter()
@@ -143,10 +156,12 @@ pub fn run(
                 "sigma_rotation_deg": p.sigma_rotation_deg(),
             })).collect::<Vec<_>>(),
         });
+        let mut v = v;
+        crate::verdict::add_verdict(&mut v, &verdict);
         files.push((j.as_path(), serde_json::to_string_pretty(&v)?.into_bytes()));
     }
     write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }
 
 fn frame_note(mount: MountArg) -> &'static str {

@@ -14,6 +14,7 @@ use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
 use serde_json::json;
 
 use ferrocal_report::calibrate::{calibrate_table, calibration_sections, evaluate_json, report_json, CalibrationRun};
+use ferrocal_report::verdict::{add_verdict, VerdictSettings};
 use ferrocal_report::{check_outputs, write_all_atomic, write_atomic, Provenance, Report};
 
 /// `ferrocal calibrate`.
@@ -86,7 +87,9 @@ pub struct EvaluateArgs {
     /// Measurement table to predict.
     #[arg(long)]
     pub measurements: PathBuf,
-    /// Write `{"n", "mean_mm", "rms_mm", "max_mm", ...}` here.
+    /// Write `{"n", "mean_mm", "rms_mm", "max_mm", "rows_scored", "verdict", ...}` here. A table
+    /// with a `split` column is scored on its `test` rows only (`"rows_scored": "test"`), else
+    /// (no column, or no row marked `test`) on every row (`"all"`).
     #[arg(long)]
     pub json: PathBuf,
     /// First refit only the device frame and the measured point on the tool on this table, so
@@ -225,7 +228,7 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
     })
 }
 
-pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
+pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let opts = options(args)?;
     let outputs: Vec<&Path> =
         [Some(args.out.as_path()), args.json.as_deref(), args.report.as_deref()].into_iter().flatten().collect();
@@ -270,6 +273,14 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
     if let Some(spatial) = heldout_spatial {
         summary["heldout_spatial"] = spatial.clone();
     }
+    let verdict = super::verdicts::calibrate(
+        &vs.thresholds,
+        cal,
+        validation.as_ref().map(|(v, b, a)| (v, b, a)),
+        &args.robot,
+        &args.out,
+    );
+    add_verdict(&mut summary, &verdict);
     if let Some(j) = &args.json {
         files.push((j, serde_json::to_string_pretty(&summary)?.into_bytes()));
     }
@@ -281,7 +292,7 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
         files.push((h, rep.to_html().into_bytes()));
     }
     write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
-    eprintln!(
+    println!(
         "calibrated {} on {} poses: RMS {:.4} mm -> {:.4} mm (mean {:.4} mm){}",
         model.name(),
         final_rows.len(),
@@ -294,12 +305,12 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<ExitCode> {
             .unwrap_or_default()
     );
     for line in ferrocal_report::calibrate::physical_summary(cal) {
-        eprintln!("{line}");
+        println!("{line}");
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }
 
-pub fn run_evaluate(args: &EvaluateArgs) -> Result<ExitCode> {
+pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     check_outputs(&[&args.json], &[&args.measurements, &args.calibration, Path::new(&args.robot)])?;
     let (model, rows) = load_model_and_rows(&args.robot, &args.measurements)?;
     let file = CalibrationFile::read(&args.calibration)?;
@@ -316,16 +327,33 @@ pub fn run_evaluate(args: &EvaluateArgs) -> Result<ExitCode> {
         cm = m;
         refit = Some(record);
     }
-    let (mut out, stats) = evaluate_json(&cm, &rows)?;
+    // A table with a split column is scored on its test rows only (shared/spec/cli.md); the
+    // frame refit above uses the whole table, as the spec says.
+    let n_test = rows.iter().filter(|r| r.split == Some(ferrocal_calib::Split::Test)).count();
+    if n_test == 0 && rows.iter().any(|r| r.split.is_some()) {
+        eprintln!("note: {}: the split column marks no row 'test': every row is scored", args.measurements.display());
+    }
+    let has_split = n_test > 0;
+    let scored: Vec<PoseMeasurement> = if has_split {
+        rows.into_iter().filter(|r| r.split == Some(ferrocal_calib::Split::Test)).collect()
+    } else {
+        rows
+    };
+    let (mut out, stats) = evaluate_json(&cm, &scored)?;
+    out["rows_scored"] = json!(if has_split { "test" } else { "all" });
     if let Some(record) = &refit {
         out["refit_frame"] = serde_json::to_value(record)?;
     }
+    let scored_words =
+        if has_split { format!("the {} held-out (test) rows", stats.n) } else { format!("all {} rows", stats.n) };
+    let verdict = super::verdicts::evaluate(&vs.thresholds, &stats, &scored_words);
+    add_verdict(&mut out, &verdict);
     write_atomic(&args.json, serde_json::to_string_pretty(&out)?.as_bytes())?;
-    eprintln!(
-        "{} poses: mean {:.4} mm, RMS {:.4} mm, max {:.4} mm",
-        stats.n, stats.mean_mm, stats.rms_mm, stats.max_mm
+    println!(
+        "scored on {scored_words}: mean {:.4} mm, RMS {:.4} mm, max {:.4} mm",
+        stats.mean_mm, stats.rms_mm, stats.max_mm
     );
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }
 
 /// `ferrocal export`.
@@ -348,7 +376,7 @@ pub struct ExportArgs {
     pub dh: Option<PathBuf>,
 }
 
-pub fn run_export(args: &ExportArgs) -> Result<ExitCode> {
+pub fn run_export(args: &ExportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let model = RobotModel::load(&args.robot).with_context(|| format!("cannot load robot model '{}'", args.robot))?;
     let file = CalibrationFile::read(&args.calibration)?;
     file.check_robot(&args.robot, &model).with_context(|| format!("{}", args.calibration.display()))?;
@@ -361,8 +389,10 @@ pub fn run_export(args: &ExportArgs) -> Result<ExitCode> {
     }
     // Everything is composed first, then written.
     let mut outputs: Vec<(PathBuf, String)> = Vec::new();
+    let mut roundtrip = (0.0f64, 0.0f64);
     if let Some(dh) = &args.dh {
         let ex = ferrocal_calib::export::export_mdh(&cm)?;
+        roundtrip = (ex.roundtrip_m_rad.0 * 1e3, ex.roundtrip_m_rad.1.to_degrees());
         let comment = vec![
             format!("written by ferrocal {} from {} (robot {})", env!("CARGO_PKG_VERSION"), args.calibration.display(), args.robot),
             "the measuring device's frame is in 'base', the measured target in 'tool'; effects (if any) stay in the calibration file".into(),
@@ -377,9 +407,9 @@ pub fn run_export(args: &ExportArgs) -> Result<ExitCode> {
     let Some(urdf) = &args.urdf else {
         for (p, text) in &outputs {
             write_atomic(p, text.as_bytes())?;
-            eprintln!("wrote {}", p.display());
+            println!("wrote {}", p.display());
         }
-        return Ok(ExitCode::SUCCESS);
+        return Ok(vs.conclude(&super::verdicts::export(&vs.thresholds, roundtrip.0, roundtrip.1)));
     };
     let companion_path = companion_path.expect("set with the URDF");
     let comment = format!(
@@ -389,15 +419,16 @@ pub fn run_export(args: &ExportArgs) -> Result<ExitCode> {
         args.robot
     );
     let ex = ferrocal_calib::export::export_urdf(&cm, &args.robot, &urdf.display().to_string(), &comment)?;
+    roundtrip = (roundtrip.0.max(ex.roundtrip_m_rad.0 * 1e3), roundtrip.1.max(ex.roundtrip_m_rad.1.to_degrees()));
     outputs.push((urdf.clone(), ex.urdf.clone()));
     outputs.push((companion_path.clone(), serde_json::to_string_pretty(&ex.companion)?));
     for (p, text) in &outputs {
         write_atomic(p, text.as_bytes())?;
     }
     if let Some(dh) = &args.dh {
-        eprintln!("wrote {}", dh.display());
+        println!("wrote {}", dh.display());
     }
-    eprintln!(
+    println!(
         "wrote {} and {} (read back: {:.2e} mm, {:.2e} deg from the calibrated model{})",
         urdf.display(),
         companion_path.display(),
@@ -409,5 +440,5 @@ pub fn run_export(args: &ExportArgs) -> Result<ExitCode> {
             format!("; {} effect(s) kept in the calibration file", cm.effects.len())
         }
     );
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&super::verdicts::export(&vs.thresholds, roundtrip.0, roundtrip.1)))
 }

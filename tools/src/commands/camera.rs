@@ -10,10 +10,12 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use ferrocal_calib::verdict::{CameraLimits, Check, Thresholds, Verdict};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
 use ferrocal_report::camera_report::{camera_report, stereo_report, CameraReportInput, StereoReportInput};
 use ferrocal_report::report::{check_outputs, write_all_atomic, Provenance};
+use ferrocal_report::verdict::{add_verdict, VerdictSettings};
 use ferrocal_vision::calib::corners::{
     detect_pattern_views, detect_view_slots, CornerMethod, SkippedImage, SubpixWindow,
 };
@@ -253,11 +255,38 @@ pub struct StereoArgs {
 }
 
 /// Runs a camera command.
-pub fn run(cmd: CameraCommand) -> Result<ExitCode> {
+pub fn run(cmd: CameraCommand, vs: &VerdictSettings) -> Result<ExitCode> {
     match cmd {
-        CameraCommand::Calibrate(a) => calibrate(&a),
-        CameraCommand::Stereo(a) => stereo(&a),
+        CameraCommand::Calibrate(a) => calibrate(&a, vs),
+        CameraCommand::Stereo(a) => stereo(&a, vs),
     }
+}
+
+/// The verdict of one camera's calibration: fit RMS, views used, held-out over fit RMS.
+fn camera_verdict(l: &CameraLimits, rms_px: f64, views: usize, heldout_px: Option<f64>) -> Verdict {
+    let mut checks = vec![
+        Check::at_most("camera.rms_px", "reprojection RMS", "px", rms_px, l.rms_px_warn, l.rms_px_fail),
+        Check::at_least("camera.views", "views used", "", views as f64, l.views_warn, l.views_fail),
+    ];
+    if let Some(h) = heldout_px {
+        checks.push(Check::at_most(
+            "camera.heldout_ratio",
+            "held-out over fit RMS",
+            "",
+            h / rms_px,
+            l.heldout_ratio_warn,
+            l.heldout_ratio_fail,
+        ));
+    }
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
+            None => "use the camera model (the JSON, or --opencv-yaml / --ros-yaml), e.g. as --intrinsics of ferrocal handeye",
+            Some("camera.views") => "record more views (10 or more), with the pattern tilted and covering the whole image, and calibrate again",
+            Some("camera.heldout_ratio") => "the model does not predict views it did not see: record more views reaching the image corners, or try --model rational8",
+            _ => "look at the per-view RMS (the JSON's per_view, or --report) and retake or drop the worst views; try --reject-outliers",
+        }
+        .to_string()
+    })
 }
 
 fn report_skipped(skipped: &[SkippedImage]) {
@@ -326,7 +355,7 @@ fn print_camera(label: &str, cal: &CameraCalibration) {
     }
 }
 
-fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
+fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (pattern, _, options) = a.solve.options()?;
     let mut skipped = Vec::new();
     let paths = expand_image_specs(&a.images, &mut skipped);
@@ -378,8 +407,11 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
     if a.compare_opencv {
         println!("{}", compare_with_opencv(&paths, &pattern, &options)?);
     }
+    let n_used = cal.views.iter().filter(|v| v.used).count();
+    let verdict = camera_verdict(&vs.thresholds.camera, cal.rms_px, n_used, held_out.as_ref().and_then(|h| h.rms_px));
     if let Some(p) = &a.json {
         let mut v = camera_json(cal);
+        add_verdict(&mut v, &verdict);
         v["circle_bias"] = json!(pc.circle_bias);
         v["pattern"] = json!(pattern.to_string());
         v["fix_aspect"] = json!(a.solve.fix_aspect);
@@ -408,10 +440,10 @@ fn calibrate(a: &CalibrateArgs) -> Result<ExitCode> {
         out.text(p, &camera_report(cal, input).to_html());
     }
     out.write()?;
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }
 
-fn stereo(a: &StereoArgs) -> Result<ExitCode> {
+fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (pattern, target, options) = a.solve.options()?;
     let mut skipped = Vec::new();
     let left_paths = expand_image_specs(&a.left, &mut skipped);
@@ -501,8 +533,10 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
         }
         None => (Vec::new(), f64::NAN),
     };
+    let verdict = stereo_verdict(&vs.thresholds, st.calibration.rms_px, n_pairs, pair.as_ref().map(|_| row_rms_px));
     if let Some(p) = &a.json {
         let mut v = stereo_json(&st, n_pairs, &pattern.pattern(), a.solve.fix_aspect, &skipped);
+        add_verdict(&mut v, &verdict);
         v["rectification"] =
             pair.as_ref().map_or(Value::Null, |pair| rectification_json(pair, row_rms_px, corners.len()));
         out.json(p, &v)?;
@@ -514,7 +548,7 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
     }
     let Some(pair) = &pair else {
         out.write()?;
-        return Ok(ExitCode::SUCCESS);
+        return Ok(vs.conclude(&verdict));
     };
     if a.left_ros_yaml.is_some() || a.right_ros_yaml.is_some() {
         let (l, r) = io::to_ros_stereo_yaml(pair, "left", "right")?;
@@ -543,7 +577,35 @@ fn stereo(a: &StereoArgs) -> Result<ExitCode> {
         out.text(p, &stereo_report(&st, input).to_html());
     }
     out.write()?;
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
+}
+
+/// The verdict of a stereo pair: the pair's RMS, the pairs used, the rectified row difference.
+fn stereo_verdict(t: &Thresholds, rms_px: f64, pairs: usize, row_rms_px: Option<f64>) -> Verdict {
+    let (l, c) = (&t.stereo, &t.camera);
+    let mut checks = vec![
+        Check::at_most("stereo.rms_px", "reprojection RMS", "px", rms_px, l.rms_px_warn, l.rms_px_fail),
+        Check::at_least("camera.views", "pairs used", "", pairs as f64, c.views_warn, c.views_fail),
+    ];
+    if let Some(r) = row_rms_px {
+        checks.push(Check::at_most(
+            "stereo.row_rms_px",
+            "rectified row difference RMS",
+            "px",
+            r,
+            l.row_rms_px_warn,
+            l.row_rms_px_fail,
+        ));
+    }
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
+            None => "use the pair (--opencv-stereo-yaml or --left-ros-yaml / --right-ros-yaml for rectification)",
+            Some("camera.views") => "record more pairs (10 or more) with the pattern seen by both cameras across the image",
+            Some("stereo.row_rms_px") => "the pair does not rectify well: check that the images are synchronous and the rig rigid, then calibrate again",
+            _ => "look at the per-view RMS of both cameras in the JSON and retake or drop the worst pairs",
+        }
+        .to_string()
+    })
 }
 
 /// The rectification in the stereo JSON: OpenCV's matrices row by row (T, P2 and Q in

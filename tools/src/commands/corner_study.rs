@@ -7,8 +7,10 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use ferrocal_calib::verdict::{Check, Verdict};
 use ferrocal_datasets::render::corner_study::{corner_study, rows_csv, CornerStudySettings};
 use ferrocal_report::corner_study::markdown;
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::write_atomic;
 
 /// `ferrocal corner-study`.
@@ -29,14 +31,37 @@ pub struct CornerStudyArgs {
 }
 
 /// Runs the study.
-pub fn run(args: &CornerStudyArgs) -> Result<ExitCode> {
+pub fn run(args: &CornerStudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let settings = CornerStudySettings { images: args.images, seed: args.seed, width: args.width };
     let (rows, w, h) = corner_study(&settings, &|s| eprintln!("{s}"))?;
     let md = markdown(&rows, args.images, args.seed, w, h);
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
     write_atomic(&args.out.join("corner_study.md"), md.as_bytes())?;
+    // The worst ratio of the project's corner error to the Cramer-Rao bound where there is noise.
+    let ratio = rows
+        .iter()
+        .filter(|r| r.crb_rms_px > 0.0 && r.crb_rms_px.is_finite() && r.ours_rms_px.is_finite())
+        .map(|r| r.ours_rms_px / r.crb_rms_px)
+        .fold(f64::NAN, f64::max);
+    let checks = vec![Check::at_most(
+        "study.corner_over_crb",
+        "largest corner RMS error over the Cramer-Rao bound",
+        "",
+        ratio,
+        vs.thresholds.study.corner_over_crb_warn,
+        f64::INFINITY,
+    )];
+    let verdict = Verdict::with_next(checks, |c| {
+        match c {
+        None => format!("read the table: {}", args.out.join("corner_study.md").display()),
+        Some(_) => "look at the rows far above the bound in corner_study.md (blur and noise levels) before trusting corners there".into(),
+    }
+    });
+    // The study's JSON is an array of rows (its format since it was written): the verdict is
+    // written beside it.
     write_atomic(&args.out.join("corner_study.json"), &serde_json::to_vec_pretty(&rows)?)?;
+    write_atomic(&args.out.join("verdict.json"), &serde_json::to_vec_pretty(&verdict.to_json())?)?;
     write_atomic(&args.out.join("corner_study.csv"), rows_csv(&rows)?.as_bytes())?;
     println!("{md}");
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }

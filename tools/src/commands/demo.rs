@@ -16,6 +16,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use ferrocal_report::demo;
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::{write_atomic, Provenance, Report, Section};
 use ferrocal_robot::RobotModel;
 use serde_json::json;
@@ -24,7 +25,7 @@ use crate::cli::DemoArgs;
 use crate::progress::{self, Bars};
 
 /// Runs `ferrocal demo`.
-pub fn run(args: &DemoArgs) -> Result<ExitCode> {
+pub fn run(args: &DemoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let bars = Bars::default();
     let tick = |label: &str, pos: u64, len: u64| bars.tick(label, pos, len);
     let settings = json!({"samples": args.samples, "seed": args.seed, "data": args.data.display().to_string()});
@@ -77,7 +78,7 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
     report.provenance = prov;
     let html = report.write(&args.out)?;
     let n = report.counts();
-    eprintln!(
+    println!(
         "report written: {} ({} passed, {} failed, {} skipped, {} reported)",
         html.display(),
         n.passed,
@@ -85,7 +86,7 @@ pub fn run(args: &DemoArgs) -> Result<ExitCode> {
         n.skipped,
         n.reported
     );
-    Ok(if report.failed() { ExitCode::from(2) } else { ExitCode::SUCCESS })
+    ferrocal_report::verdict::conclude_report(vs, &args.out, "demo")
 }
 
 /// Runs a `ferrocal` command in-process, as a user would call it.

@@ -14,6 +14,9 @@ use ferrocal_vision::detect::{
     load_gray, median_background, AprilTagOptions, DetectOptions, Detector, ImageResult, Pattern, TagBackend, TagRefine,
 };
 
+use ferrocal_calib::verdict::{Check, Verdict};
+use ferrocal_report::verdict::VerdictSettings;
+
 use crate::report::write_atomic;
 
 /// `ferrocal detect`.
@@ -28,7 +31,8 @@ with their ids in `corner_ids` (OpenCV's numbering); a circle grid one detection
 not corrected for perspective) from the origin dot.\n\n\
 An image that cannot be read, is empty, or does not show the pattern is reported on stderr and in its JSON entry; the \
 batch goes on.\n\n\
-Exit status: 0 when the pattern was found in every image; 2 when at least one image failed (the JSON is still written); \
+Exit status: 0 when the pattern was found in every image; 2 when at least one image failed (the JSON is still written; \
+the last stdout line, the verdict, fails below `detect.found_fraction_fail`, docs/verdicts.md); \
 1 when the command itself fails (a pattern that does not parse, no images at all, the JSON cannot be written)."
 )]
 pub struct DetectArgs {
@@ -64,7 +68,7 @@ pub struct DetectArgs {
 }
 
 /// Runs `ferrocal detect`.
-pub fn run(args: &DetectArgs) -> Result<ExitCode> {
+pub fn run(args: &DetectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let pattern: Pattern = args.pattern.parse()?;
     let mut options = DetectOptions { refine: !args.no_refine, partial: args.partial, ..DetectOptions::default() };
     options.apriltag = AprilTagOptions {
@@ -115,5 +119,25 @@ pub fn run(args: &DetectArgs) -> Result<ExitCode> {
         failed,
         args.json.display()
     );
-    Ok(if failed == 0 { ExitCode::SUCCESS } else { ExitCode::from(2) })
+    let l = &vs.thresholds.detect;
+    let found = (results.len() - failed) as f64 / results.len() as f64;
+    let checks = vec![Check::at_least(
+        "detect.found_fraction",
+        &format!("pattern found in {} of {} images, fraction", results.len() - failed, results.len()),
+        "",
+        found,
+        l.found_fraction_warn,
+        l.found_fraction_fail,
+    )];
+    let verdict = Verdict::with_next(checks, |c| {
+        match c {
+            None => "calibrate with these images: ferrocal camera calibrate --images ... --pattern ...",
+            Some(_) => "read the failed images' reasons above (and in the JSON's error fields): check the --pattern string (inner corners for a chessboard), focus and lighting, or leave those images out",
+        }
+        .to_string()
+    });
+    // The JSON is an array per the spec: the verdict is on the terminal only. Failed images keep
+    // their documented exit status 2; a failed verdict has at least one failed image.
+    let ok = if failed == 0 { ExitCode::SUCCESS } else { ExitCode::from(2) };
+    Ok(vs.conclude_with(&verdict, ok, 2))
 }

@@ -10,6 +10,7 @@ use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions};
 use ferrocal_report::diagnose::{camera_section, force_section, sections};
 use serde_json::json;
 
+use ferrocal_report::verdict::{add_verdict, VerdictSettings};
 use ferrocal_report::{write_atomic, Provenance, Report};
 
 /// `ferrocal diagnose`.
@@ -62,15 +63,15 @@ pub struct DiagnoseArgs {
 }
 
 /// Runs `ferrocal diagnose`.
-pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
+pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     if args.out.is_some() && (!args.images.is_empty() || args.pattern.is_some() || args.forces.is_some()) {
         bail!("--out writes a robot calibration: it needs --robot and --measurements, not --images or --forces");
     }
     if !args.images.is_empty() || args.pattern.is_some() {
-        return run_camera(args);
+        return run_camera(args, vs);
     }
     if let Some(path) = &args.forces {
-        return run_forces(args, path);
+        return run_forces(args, path, vs);
     }
     let (Some(robot), Some(meas)) = (&args.robot, &args.measurements) else {
         bail!("diagnose needs --robot <model> and --measurements <csv> (or --images and --pattern for a camera, --forces for a force-sensing end-effector)");
@@ -104,7 +105,15 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
         None => None,
     };
     // Composed first, then written together (no half-set outputs).
-    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.json, serde_json::to_string_pretty(&rep)?.into_bytes())];
+    let mut rep_json = serde_json::to_value(&rep)?;
+    let rerun = format!(
+        "ferrocal calibrate --robot {robot} --measurements {} --effects {} --out <calibration.json>",
+        meas.display(),
+        args.json.display()
+    );
+    let verdict = super::verdicts::diagnose(&vs.thresholds, &rep_json, "mm", &rerun);
+    add_verdict(&mut rep_json, &verdict);
+    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.json, serde_json::to_string_pretty(&rep_json)?.into_bytes())];
     if let (Some(path), Some(cal)) = (&args.out, &compensated) {
         let file = ferrocal_calib::file::CalibrationFile::new(robot, &cal.calibrated);
         files.push((path, serde_json::to_string_pretty(&file)?.into_bytes()));
@@ -118,7 +127,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
     }
     ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     if let (Some(path), Some(cal)) = (&args.out, &compensated) {
-        eprintln!(
+        println!(
             "wrote {} ({} effect(s) with the geometry; training RMS {:.4} mm)",
             path.display(),
             cal.calibrated.effects.len(),
@@ -126,9 +135,9 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
         );
     }
     if let Some(d) = &rep.declined {
-        eprintln!("diagnose: {d}");
+        println!("diagnose: {d}");
     }
-    eprintln!(
+    println!(
         "diagnosed {} on {} poses in {:.1} s: held-out RMS {:.4} mm (geometric model) -> {:.4} mm; {} finding(s){}",
         model.name(),
         rep.n_poses,
@@ -144,14 +153,14 @@ pub fn run(args: &DiagnoseArgs) -> Result<ExitCode> {
     );
     eprintln!("  {}", rep.summary);
     for f in &rep.findings {
-        eprintln!("  {}: {}", f.effect, f.statement);
+        println!("  {}: {}", f.effect, f.statement);
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }
 
 /// The camera variant: detect the pattern in every image, calibrate with the default lens model
 /// and a flat target, test what the images show beyond it.
-fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
+fn run_camera(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     use ferrocal_calib::diagnose::camera::{diagnose_camera, CameraDiagnoseOptions};
     use ferrocal_vision::calib::{PlanarTarget, View};
     use ferrocal_vision::camera::ImageSize;
@@ -231,7 +240,15 @@ fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
     let target = PlanarTarget { points_m: points, reversible: false };
     let opts = CameraDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..CameraDiagnoseOptions::default() };
     let rep = diagnose_camera(&views, &target, &opts).context("camera diagnosis")?;
-    write_atomic(&args.json, serde_json::to_string_pretty(&rep)?.as_bytes())?;
+    let mut rep_json = serde_json::to_value(&rep)?;
+    let verdict = super::verdicts::diagnose(
+        &vs.thresholds,
+        &rep_json,
+        "px",
+        "calibrate with the lens model or target shape the findings name (ferrocal camera calibrate --model ...)",
+    );
+    add_verdict(&mut rep_json, &verdict);
+    write_atomic(&args.json, serde_json::to_string_pretty(&rep_json)?.as_bytes())?;
     if let Some(h) = &args.report {
         let prov = Provenance::new(json!({"images": args.images, "pattern": pattern_text, "options": opts}));
         let mut r =
@@ -240,9 +257,9 @@ fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
         write_atomic(h, r.to_html().as_bytes())?;
     }
     if let Some(d) = &rep.declined {
-        eprintln!("diagnose: {d}");
+        println!("diagnose: {d}");
     }
-    eprintln!(
+    println!(
         "diagnosed a camera from {} views: held-out reprojection RMS {:.4} px -> {:.4} px; {} finding(s)",
         rep.n_views,
         rep.nominal.heldout_rms_px,
@@ -250,27 +267,35 @@ fn run_camera(args: &DiagnoseArgs) -> Result<ExitCode> {
         rep.findings.len()
     );
     for f in &rep.findings {
-        eprintln!("  {}: {}", f.effect, f.statement);
+        println!("  {}: {}", f.effect, f.statement);
     }
     if rep.unexplained.structure_found {
-        eprintln!("  unexplained structure, depending on {}:", rep.unexplained.depends_on.join(" and "));
+        println!("  unexplained structure, depending on {}:", rep.unexplained.depends_on.join(" and "));
         for e in &rep.unexplained.evidence {
-            eprintln!("    {e}");
+            println!("    {e}");
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }
 
 /// The force-sensor variant: identify the rigid body and offsets, test the deformation terms on
 /// held-out poses.
-fn run_forces(args: &DiagnoseArgs, path: &std::path::Path) -> Result<ExitCode> {
+fn run_forces(args: &DiagnoseArgs, path: &std::path::Path, vs: &VerdictSettings) -> Result<ExitCode> {
     use ferrocal_calib::diagnose::force::{diagnose_force_sensor, ForceDiagnoseOptions};
     let (poses, forces) = super::dynamics::read_static_table(path)?;
     let reg = super::dynamics::rig_sensor_regressor()?;
     let opts = ForceDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..ForceDiagnoseOptions::default() };
     let rep = diagnose_force_sensor(&reg, &poses, &forces, &opts)
         .with_context(|| format!("force-sensor diagnosis of {}", path.display()))?;
-    write_atomic(&args.json, serde_json::to_string_pretty(&rep)?.as_bytes())?;
+    let mut rep_json = serde_json::to_value(&rep)?;
+    let verdict = super::verdicts::diagnose(
+        &vs.thresholds,
+        &rep_json,
+        "n",
+        "identify the sensor with the terms the findings name (docs/dynamics.md)",
+    );
+    add_verdict(&mut rep_json, &verdict);
+    write_atomic(&args.json, serde_json::to_string_pretty(&rep_json)?.as_bytes())?;
     if let Some(h) = &args.report {
         let prov = Provenance::new(json!({"forces": path.display().to_string(), "options": opts}));
         let mut r =
@@ -279,9 +304,9 @@ fn run_forces(args: &DiagnoseArgs, path: &std::path::Path) -> Result<ExitCode> {
         write_atomic(h, r.to_html().as_bytes())?;
     }
     if let Some(d) = &rep.declined {
-        eprintln!("diagnose: {d}");
+        println!("diagnose: {d}");
     }
-    eprintln!(
+    println!(
         "diagnosed a force-sensing end-effector from {} poses: held-out force RMS {:.3} N -> {:.3} N; {} finding(s); mass {:.2} -> {:.2} kg",
         poses.len(),
         rep.nominal.heldout_rms_n,
@@ -291,7 +316,7 @@ fn run_forces(args: &DiagnoseArgs, path: &std::path::Path) -> Result<ExitCode> {
         rep.mass_kg[1]
     );
     for f in &rep.findings {
-        eprintln!("  {}: {}", f.effect, f.statement);
+        println!("  {}: {}", f.effect, f.statement);
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }

@@ -21,6 +21,7 @@ use ferrocal_datasets::dynsim::PlatformSim;
 use ferrocal_datasets::formats::dynamics_tables::{self, FORCE_COLUMNS, LEG_COLUMNS};
 use ferrocal_lsq::linear::{fit, LinearFit, LinearOptions, Weighting};
 use ferrocal_report::dynamics::{fit_json, study_report};
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::write_atomic;
 use ferrocal_robot::dynamics::HexapodDynamics;
 use ferrocal_robot::Pose;
@@ -159,9 +160,9 @@ pub struct IdentifyStaticArgs {
 }
 
 /// Runs `ferrocal dynamics`.
-pub fn run(args: &DynamicsArgs) -> Result<ExitCode> {
+pub fn run(args: &DynamicsArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     match &args.command {
-        DynamicsCommand::Study(a) => run_study(a),
+        DynamicsCommand::Study(a) => run_study(a, vs),
         DynamicsCommand::Simulate(a) => run_simulate(a),
         DynamicsCommand::Identify(a) => run_identify(a),
         DynamicsCommand::IdentifyStatic(a) => run_identify_static(a),
@@ -268,7 +269,7 @@ fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn run_study(a: &StudyArgs) -> Result<ExitCode> {
+fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (repeats, evaluations) =
         if a.quick { (a.repeats.min(20), a.evaluations.min(500)) } else { (a.repeats, a.evaluations) };
     let t0 = std::time::Instant::now();
@@ -277,5 +278,5 @@ fn run_study(a: &StudyArgs) -> Result<ExitCode> {
     })?;
     let html = report.write(&a.out)?;
     println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    Ok(if report.failed() { ExitCode::from(2) } else { ExitCode::SUCCESS })
+    ferrocal_report::verdict::conclude_report(vs, &a.out, "study")
 }

@@ -13,36 +13,40 @@ pub mod plan;
 mod robot;
 pub mod simulate;
 pub mod stiffness;
+mod verdicts;
 
 use std::process::ExitCode;
 
 use anyhow::{bail, Result};
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_robot::{JointKind, Kinematics};
 
 use crate::cli::{Cli, Command};
 
-/// Runs the parsed command.
+/// Runs the parsed command: the thresholds file is read first (a bad one stops before any
+/// work), then the command, which ends with its verdict (`ferrocal_report::verdict`).
 pub fn run(cli: Cli) -> Result<ExitCode> {
+    let vs = &VerdictSettings::new(cli.thresholds.as_deref(), cli.keep)?;
     match cli.command {
-        Command::Demo(a) => demo::run(&a),
+        Command::Demo(a) => demo::run(&a, vs),
         Command::Doctor => doctor::run(),
         Command::Robot(c) => robot::run(c),
-        Command::Detect(a) => detect::run(&a),
-        Command::CornerStudy(a) => corner_study::run(&a),
-        Command::Camera(c) => camera::run(c),
+        Command::Detect(a) => detect::run(&a, vs),
+        Command::CornerStudy(a) => corner_study::run(&a, vs),
+        Command::Camera(c) => camera::run(c, vs),
         Command::Simulate(a) => simulate::run_simulate(&a),
-        Command::Import(a) => simulate::run_import(&a),
-        Command::Measure(a) => simulate::run_measure(&a),
-        Command::Correct(a) => ferrocal_report::compensate::run_correct(&a),
-        Command::Plan(a) => plan::run(&a),
-        Command::Calibrate(a) => calibrate::run_calibrate(&a),
-        Command::Diagnose(a) => diagnose::run(&a),
-        Command::Handeye(a) => ferrocal_report::handeye::run(&a),
-        Command::Evaluate(a) => calibrate::run_evaluate(&a),
-        Command::Export(a) => calibrate::run_export(&a),
-        Command::Dynamics(a) => dynamics::run(&a),
-        Command::Stiffness(a) => stiffness::run(&a),
-        Command::Motion(a) => motion::run(&a),
+        Command::Import(a) => simulate::run_import(&a, vs),
+        Command::Measure(a) => simulate::run_measure(&a, vs),
+        Command::Correct(a) => ferrocal_report::compensate::run_correct(&a, vs),
+        Command::Plan(a) => plan::run(&a, vs),
+        Command::Calibrate(a) => calibrate::run_calibrate(&a, vs),
+        Command::Diagnose(a) => diagnose::run(&a, vs),
+        Command::Handeye(a) => ferrocal_report::handeye::run(&a, vs),
+        Command::Evaluate(a) => calibrate::run_evaluate(&a, vs),
+        Command::Export(a) => calibrate::run_export(&a, vs),
+        Command::Dynamics(a) => dynamics::run(&a, vs),
+        Command::Stiffness(a) => stiffness::run(&a, vs),
+        Command::Motion(a) => motion::run(&a, vs),
     }
 }
 

@@ -13,6 +13,7 @@ use ferrocal_report::motion::{
 };
 use ferrocal_report::motion_cell::cell_report;
 use ferrocal_report::report::Report;
+use ferrocal_report::verdict::VerdictSettings;
 
 /// `ferrocal motion`.
 #[derive(Debug, clap::Args)]
@@ -150,7 +151,7 @@ pub enum Sensor {
 }
 
 /// Runs `ferrocal motion`.
-pub fn run(a: &MotionArgs) -> Result<ExitCode> {
+pub fn run(a: &MotionArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let progress = |s: &str| eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
     let (report, common) = match &a.command {
@@ -171,7 +172,7 @@ pub fn run(a: &MotionArgs) -> Result<ExitCode> {
         MotionCommand::Leadthrough(s) => (leadthrough_report(&lead_settings(s)?, &progress)?, &s.common),
         MotionCommand::Cell(s) => (cell_report(s.common.seed, s.quick, &progress)?, &s.common),
     };
-    write(&report, common, t0)
+    write(&report, common, t0, vs)
 }
 
 fn contact_force(f_n: f64) -> Result<()> {
@@ -208,8 +209,8 @@ fn lead_settings(a: &LeadthroughArgs) -> Result<LeadSettings> {
     Ok(s)
 }
 
-fn write(report: &Report, common: &CommonArgs, t0: std::time::Instant) -> Result<ExitCode> {
+fn write(report: &Report, common: &CommonArgs, t0: std::time::Instant, vs: &VerdictSettings) -> Result<ExitCode> {
     let html = report.write(&common.out)?;
     println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    Ok(if report.failed() { ExitCode::from(2) } else { ExitCode::SUCCESS })
+    ferrocal_report::verdict::conclude_report(vs, &common.out, "study")
 }

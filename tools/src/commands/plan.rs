@@ -6,13 +6,14 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use ferrocal_calib::design::criteria::Criterion;
+use ferrocal_calib::verdict::{Check, Verdict};
 use ferrocal_report::plan::PlanRequest;
 
 /// `ferrocal plan`.
 #[derive(Debug, clap::Args)]
 #[command(
     about = "Plan measurement poses: safe, measurable workspace, pose selection, predicted and simulated calibration, path and robot programs",
-    long_about = "Runs the source's automated calibration flow on a plan file (TOML; see docs/plan-format.md and datasets/cells/plan_gantry_tau_l1.toml):\n\n  1. the workspace by grid search, cut by joint limits, spherical-joint limits, the workspace-edge margin and every obstacle box with its margin;\n  2. the measurable region: the whole target inside every image with large enough features and an acceptable viewing angle, line of sight free (or a tracker's range and line of sight);\n  3. the regular grid for the wanted count (spacing = (volume / wanted)^(1/3)) and a denser pool;\n  4. selection by the A, D, K or N criterion (greedy deletion, exchange), the sigma_max^2/sigma_min check and the predicted accuracy, adding poses while a check fails;\n  5. simulated calibrations (Monte Carlo) against the predicted parameter deviations;\n  6. a short, checked path through joint space and the programs.\n\nWrites into --out: poses.csv (the measurement poses in visiting order), path.csv (every step), grid_poses.csv (the source's regular grid), program.mod (ABB RAPID), program.ngc (G-code), session_plan.toml (a [plan] table for `ferrocal simulate`), index.html and report.json, written aside and moved into place together (an existing non-empty folder needs --force). Exits 0 when the plan passes its checks, 2 when it was written but a check failed."
+    long_about = "Runs the source's automated calibration flow on a plan file (TOML; see docs/plan-format.md and datasets/cells/plan_gantry_tau_l1.toml):\n\n  1. the workspace by grid search, cut by joint limits, spherical-joint limits, the workspace-edge margin and every obstacle box with its margin;\n  2. the measurable region: the whole target inside every image with large enough features and an acceptable viewing angle, line of sight free (or a tracker's range and line of sight);\n  3. the regular grid for the wanted count (spacing = (volume / wanted)^(1/3)) and a denser pool;\n  4. selection by the A, D, K or N criterion (greedy deletion, exchange), the sigma_max^2/sigma_min check and the predicted accuracy, adding poses while a check fails;\n  5. simulated calibrations (Monte Carlo) against the predicted parameter deviations;\n  6. a short, checked path through joint space and the programs.\n\nWrites into --out: poses.csv (the measurement poses in visiting order), path.csv (every step), grid_poses.csv (the source's regular grid), program.mod (ABB RAPID), program.ngc (G-code), session_plan.toml (a [plan] table for `ferrocal simulate`), index.html and report.json, written aside and moved into place together (an existing non-empty folder needs --force). Exits 0 when the plan passes its checks, 2 when it was written but a check failed (0 with --keep); the last stdout line is the verdict, also in report.json."
 )]
 pub struct PlanArgs {
     /// The plan file (TOML).
@@ -44,7 +45,7 @@ pub struct PlanArgs {
 }
 
 /// Runs `ferrocal plan`.
-pub fn run(args: &PlanArgs) -> Result<ExitCode> {
+pub fn run(args: &PlanArgs, vs: &ferrocal_report::verdict::VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let log = |s: &str| eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
     let pb = std::cell::OnceCell::new();
@@ -65,11 +66,53 @@ pub fn run(args: &PlanArgs) -> Result<ExitCode> {
         b.finish_and_clear();
     }
     let outcome = outcome?;
-    log(&format!(
+    println!(
         "{} poses planned ({}); report {}",
         outcome.measurements,
         if outcome.passed { "checks passed" } else { "a check FAILED" },
         outcome.html.display()
-    ));
-    Ok(if outcome.passed { ExitCode::SUCCESS } else { ExitCode::from(2) })
+    );
+    // The plan's own checks (selection, sigma ratio, predicted accuracy, path) decide, as its
+    // exit status always did; another failed section of the report (the Monte Carlo check of the
+    // prediction on few runs) is a warning.
+    let report_path = args.out.join("report.json");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report_path)?)?;
+    let failed: Vec<String> = report["sections"]
+        .as_object()
+        .map(|m| m.iter().filter(|(_, v)| v["check"] == "fail").map(|(k, _)| k.clone()).collect())
+        .unwrap_or_default();
+    let l = &vs.thresholds.plan;
+    let design_failed = if outcome.passed { 0.0 } else { failed.len().max(1) as f64 };
+    let checks = vec![
+        Check::at_most(
+            "plan.failed_checks",
+            "the plan's checks failed",
+            "",
+            design_failed,
+            l.failed_checks_fail,
+            l.failed_checks_fail,
+        ),
+        Check::at_most(
+            "plan.other_checks",
+            &if failed.is_empty() {
+                "report sections failed".to_string()
+            } else {
+                format!("report sections failed ({})", failed.join(", "))
+            },
+            "",
+            if outcome.passed { failed.len() as f64 } else { 0.0 },
+            0.0,
+            f64::INFINITY,
+        ),
+    ];
+    let html = outcome.html.display().to_string();
+    let verdict = Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
+        None => format!("measure the poses: {} (poses.csv and the programs beside it)", html),
+        Some("plan.other_checks") => format!("the plan passed, but read the failed section of {html}; more simulations (--simulations) settle a Monte Carlo check"),
+        _ => format!("read the failed checks of {html}: widen the workspace, add poses (--wanted) or change the criterion"),
+    }
+    });
+    ferrocal_report::verdict::add_verdict_to_file(&report_path, &verdict)?;
+    Ok(vs.conclude_with(&verdict, ExitCode::SUCCESS, 2))
 }

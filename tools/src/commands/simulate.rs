@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use ferrocal_datasets::import::{self, LengthUnit, WriteOptions};
 use ferrocal_datasets::sim::{simulate, CellConfig};
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_robot::JointKind;
 
 /// `ferrocal simulate`.
@@ -107,7 +108,7 @@ pub struct ImportArgs {
     pub robot_out: Option<PathBuf>,
 }
 
-pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
+pub fn run_import(args: &ImportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let mut outputs = vec![args.out.as_path()];
     outputs.extend(args.robot_out.as_deref());
     outputs.extend(args.intrinsics_out.as_deref());
@@ -117,7 +118,7 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
     let (set, kinds) = match args.kind {
         ImportKind::IcHandeye => {
             let cam = args.intrinsics_out.as_deref();
-            return ferrocal_report::handeye::run_import_ic(&args.input, &args.out, args.test_every, cam);
+            return ferrocal_report::handeye::run_import_ic(&args.input, &args.out, args.test_every, cam, vs);
         }
         ImportKind::IcKinematic => {
             let s = ferrocal_datasets::handeye::read_ic_kinematic(&args.input, args.test_every)?;
@@ -160,8 +161,9 @@ pub fn run_import(args: &ImportArgs) -> Result<ExitCode> {
         import::measurements_to_string(&set, &opts).with_context(|| format!("writing {}", args.out.display()))?;
     files.insert(0, (args.out.as_path(), table.into_bytes()));
     ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
-    eprintln!("{} rows written to {}", set.rows.len(), args.out.display());
-    Ok(ExitCode::SUCCESS)
+    let n_test = set.rows.iter().filter(|r| r.split == Some(ferrocal_calib::Split::Test)).count();
+    println!("{} rows written to {}", set.rows.len(), args.out.display());
+    Ok(vs.conclude(&super::verdicts::import(&vs.thresholds, set.rows.len(), n_test, &args.out)))
 }
 
 /// `ferrocal measure`.
@@ -194,7 +196,7 @@ pub struct MeasureArgs {
 
 /// Runs `ferrocal measure`: every image that cannot be used is named on stderr and in the JSON,
 /// and the batch goes on; the table is written only when at least one pose was measured.
-pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
+pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     use ferrocal_datasets::measure::{measure_session, CornerSource, MeasureOptions};
     if !(args.corner_sigma_px.is_finite() && args.corner_sigma_px > 0.0) {
         anyhow::bail!("measure: --corner-sigma-px must be positive, got {}", args.corner_sigma_px);
@@ -205,6 +207,7 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
             args.out.as_ref(),
             args.json.as_ref(),
             args.corner_sigma_px,
+            vs,
         );
     };
     let opts = MeasureOptions {
@@ -267,8 +270,16 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
         }
         _ => None,
     };
+    let verdict = ferrocal_report::verdict::measure_verdict(
+        &vs.thresholds,
+        m.rows.rows.len(),
+        m.rows.rows.len() + m.skipped.len(),
+        "rig calibration RMS",
+        m.rig.rms_px,
+        Some(out),
+    );
     if let Some(j) = &args.json {
-        let v = serde_json::json!({
+        let mut v = serde_json::json!({
             "tracker_comparison": comparison,
             "session": session.display().to_string(),
             "n_measured": m.rows.rows.len(),
@@ -282,8 +293,9 @@ pub fn run_measure(args: &MeasureArgs) -> Result<ExitCode> {
                 "sigma_rotation_deg": p.estimate.sigma_rotation_deg().as_slice(),
             })).collect::<Vec<_>>(),
         });
+        ferrocal_report::verdict::add_verdict(&mut v, &verdict);
         files.push((j.as_path(), serde_json::to_string_pretty(&v)?.into_bytes()));
     }
     ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }

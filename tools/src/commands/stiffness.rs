@@ -22,6 +22,7 @@ use ferrocal_calib::stiffness::StiffnessIdError;
 use ferrocal_datasets::formats::deflections::{read_deflections, stiffness_model};
 use ferrocal_datasets::stiffsim::tables::simulated_deflections;
 use ferrocal_report::stiffness::{identify_section, study_report};
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::{write_atomic, Provenance, Report};
 use ferrocal_robot::stiffness::WrenchLimits;
 use serde_json::json;
@@ -103,20 +104,20 @@ pub struct IdentifyArgs {
 }
 
 /// Runs `ferrocal stiffness`.
-pub fn run(args: &StiffnessArgs) -> Result<ExitCode> {
+pub fn run(args: &StiffnessArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     match &args.command {
-        StiffnessCommand::Study(a) => run_study(a),
+        StiffnessCommand::Study(a) => run_study(a, vs),
         StiffnessCommand::Simulate(a) => run_simulate(a),
         StiffnessCommand::Identify(a) => run_identify(a),
     }
 }
 
-fn run_study(a: &StudyArgs) -> Result<ExitCode> {
+fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let report = study_report(a.seed, a.trials, a.quick)?;
     let html = report.write(&a.out)?;
     println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    Ok(if report.failed() { ExitCode::from(2) } else { ExitCode::SUCCESS })
+    ferrocal_report::verdict::conclude_report(vs, &a.out, "study")
 }
 
 fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {

@@ -7,6 +7,7 @@ pub mod demo;
 pub mod html;
 pub mod joint_demo;
 pub mod json;
+pub mod verdict;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -162,7 +163,7 @@ fn write_json(path: &Path, v: &Value) -> Result<()> {
 }
 
 /// Runs `ferrocal handeye` (or its study).
-pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
+pub fn run(a: &HandeyeArgs, vs: &crate::verdict::VerdictSettings) -> Result<ExitCode> {
     match &a.command {
         Some(HandeyeCommand::Study(s)) => return run_study(s),
         Some(HandeyeCommand::Simulate(s)) => return run_simulate(s),
@@ -227,10 +228,6 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
     skipped_json.extend(skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
     skipped_json.extend(result.skipped.iter().map(|s| json!({"image": s.name, "reason": s.reason})));
     let source = table.source.as_deref();
-    if let Some(p) = &a.json {
-        let v = json::handeye_json(&result, &baselines, Value::Array(skipped_json), source);
-        files.push((p, serde_json::to_string_pretty(&v)?.into_bytes()));
-    }
     if let Some(h) = &a.report {
         let mut prov =
             Provenance::new(json!({"pattern": pattern_text, "mount": mount.name(), "options": format!("{options:?}")}));
@@ -240,6 +237,10 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
         files.push((h, rep.to_html().into_bytes()));
     }
     print_summary(&result, best_baseline(&baselines), source);
+    let has_heldout = result.figures.heldout_rms_px.is_some();
+    let split = if has_heldout { ferrocal_calib::Split::Test } else { ferrocal_calib::Split::Train };
+    let mut checks =
+        verdict::chain_checks(&vs.thresholds, &result.figures, verdict::pnp_rms_px(&data, &result, split), "handeye");
     if let (Some(out), Some(model), Some(spec)) = (&a.out, &robot, &a.robot) {
         let rows: std::collections::HashMap<&str, &ferrocal_datasets::handeye::PoseRow> =
             table.rows.iter().map(|r| (r.image.as_str(), r)).collect();
@@ -260,6 +261,13 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
         let joint = calibrate_joint_from(model, &scaled, &joints, result.clone(), &joint_options)
             .context("handeye: the joint adjustment of robot and camera")?;
         files.push((out, serde_json::to_string_pretty(&joint.file(spec))?.into_bytes()));
+        // The joint adjustment's chain, scored as the hand-eye fit's (no PnP floor: its camera
+        // is the adjustment's own).
+        checks.extend(
+            verdict::chain_checks(&vs.thresholds, &joint.figures, None, "handeye.joint")
+                .into_iter()
+                .filter(|c| c.name.ends_with("chain_rms_px")),
+        );
         let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
         println!(
             "joint adjustment: {} robot parameters, chain RMS train {:.4} px, held-out {} px, s0 {:.3}; calibration written to {}",
@@ -270,8 +278,15 @@ pub fn run(a: &HandeyeArgs) -> Result<ExitCode> {
             out.display()
         );
     }
+    let out_text = a.out.as_ref().map(|p| p.display().to_string());
+    let verdict = verdict::handeye_verdict(checks, mount, has_heldout, out_text.as_deref());
+    if let Some(p) = &a.json {
+        let mut v = json::handeye_json(&result, &baselines, Value::Array(skipped_json), source);
+        crate::verdict::add_verdict(&mut v, &verdict);
+        files.insert(0, (p, serde_json::to_string_pretty(&v)?.into_bytes()));
+    }
     crate::report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }
 
 fn print_summary(
@@ -395,15 +410,37 @@ pub fn run_import_ic(
     out: &Path,
     test_every: Option<usize>,
     intrinsics_out: Option<&Path>,
+    vs: &crate::verdict::VerdictSettings,
 ) -> Result<ExitCode> {
     let set = ferrocal_datasets::handeye::import_ic_handeye(input, out, test_every, intrinsics_out)?;
     let n_test = set.rows.iter().filter(|r| r.2 == ferrocal_calib::Split::Test).count();
-    eprintln!(
+    println!(
         "{} rows ({n_test} test) written to {}; mount {}{}",
         set.rows.len(),
         out.display(),
         set.mount.name(),
-        set.pattern.map(|p| format!(", pattern {p}")).unwrap_or_default()
+        set.pattern.as_ref().map(|p| format!(", pattern {p}")).unwrap_or_default()
     );
-    Ok(ExitCode::SUCCESS)
+    let l = &vs.thresholds.import;
+    let checks = vec![ferrocal_calib::verdict::Check::at_least(
+        "import.rows",
+        "rows written",
+        "",
+        set.rows.len() as f64,
+        l.rows_warn,
+        l.rows_fail,
+    )];
+    let mount_name = set.mount.name();
+    let pattern = set.pattern.clone().unwrap_or_else(|| "<pattern>".into());
+    let verdict = ferrocal_calib::verdict::Verdict::with_next(checks, |c| {
+        match c {
+        None => format!(
+            "calibrate ({n_test} rows marked test are held out): ferrocal handeye --images {}/images --poses {} --pattern {pattern} --mount {mount_name} --json <result.json>",
+            input.display(),
+            out.display()
+        ),
+        Some(_) => "the set holds too few images for a hand-eye calibration: record more poses".into(),
+    }
+    });
+    Ok(vs.conclude(&verdict))
 }

@@ -1,0 +1,106 @@
+use std::path::Path;
+
+use super::*;
+
+fn line_matches_spec(line: &str) -> bool {
+    // ^verdict: (pass|warning|fail): .+; next: .+$ without a regex crate.
+    let Some(rest) = line.strip_prefix("verdict: ") else { return false };
+    let Some((status, rest)) = rest.split_once(": ") else { return false };
+    let Some((what, next)) = rest.rsplit_once("; next: ") else { return false };
+    ["pass", "warning", "fail"].contains(&status) && !what.is_empty() && !next.is_empty() && !line.contains('\n')
+}
+
+#[test]
+fn the_line_has_the_spec_format() {
+    let v = Verdict::new(
+        vec![
+            Check::at_most("camera.rms_px", "reprojection RMS", "px", 0.178, 0.5, 2.0),
+            Check::at_least("camera.views", "views", "", 13.0, 10.0, 3.0),
+        ],
+        "use the calibration",
+    );
+    assert_eq!(v.status, Status::Pass);
+    assert_eq!(
+        v.line(),
+        "verdict: pass: reprojection RMS 0.178 px <= 0.5 px, views 13 >= 10; next: use the calibration"
+    );
+    assert!(line_matches_spec(&v.line()));
+    // Line breaks in the words never break the line.
+    let v = Verdict::new(vec![Check::flag("x.y", "a\nb", "no a", true)], "c\nd");
+    assert_eq!(v.line(), "verdict: warning: a b (warning); next: c d");
+    assert_eq!(Check::flag("x.y", "a", "no a", false).what, "no a");
+    assert!(line_matches_spec(&v.line()));
+    // Without checks.
+    assert_eq!(Verdict::new(Vec::new(), "").line(), "verdict: pass: nothing to check; next: none");
+}
+
+#[test]
+fn the_status_is_the_worst_of_the_checks() {
+    let pass = Check::at_most("a", "a", "mm", 0.1, 1.0, 2.0);
+    let warn = Check::at_most("b", "b", "mm", 1.5, 1.0, 2.0);
+    let fail = Check::at_least("c", "c", "", 0.2, 1.0, 0.5);
+    assert_eq!((pass.status, warn.status, fail.status), (Status::Pass, Status::Warning, Status::Fail));
+    assert_eq!(fail.limit, 0.5);
+    assert_eq!(warn.limit, 1.0);
+    assert_eq!(worst(&[pass.clone(), warn.clone()]), Status::Warning);
+    assert_eq!(worst(&[warn.clone(), fail.clone(), pass.clone()]), Status::Fail);
+    assert_eq!(worst(&[]), Status::Pass);
+    let v = Verdict::with_next(vec![pass.clone(), warn.clone(), fail.clone()], |c| {
+        format!("fix {}", c.map_or("nothing", |c| c.name.as_str()))
+    });
+    assert!(v.failed());
+    assert_eq!(v.next, "fix c");
+    assert!(v.line().starts_with("verdict: fail: a 0.1 mm <= 1 mm, b 1.5 mm > 1 mm (warning), c 0.2 < 0.5 (fail)"));
+    // A value that could not be computed is a warning, never a pass.
+    assert_eq!(Check::at_most("d", "d", "px", f64::NAN, 1.0, 2.0).status, Status::Warning);
+    // The JSON object of the spec.
+    let j = v.to_json();
+    assert_eq!(j["status"], "fail");
+    assert_eq!(j["checks"][1]["status"], "warning");
+    for k in ["name", "value", "limit", "status"] {
+        assert!(j["checks"][0].get(k).is_some(), "{k}");
+    }
+    assert_eq!(j["next"], "fix c");
+}
+
+#[test]
+fn numbers_are_short() {
+    assert_eq!(fmt_num(0.38141), "0.3814");
+    assert_eq!(fmt_num(2.0), "2");
+    assert_eq!(fmt_num(1424.4), "1424");
+    assert_eq!(fmt_num(1e-7), "1.00e-7");
+    assert_eq!(fmt_num(-0.5), "-0.5");
+}
+
+#[test]
+fn a_file_overrides_only_its_keys() {
+    let t = Thresholds::from_toml(
+        "[camera]\nrms_px_warn = 0.3\nviews_warn = 5\n\n[evaluate]\nrms_mm_fail = 1\n",
+        Path::new("t.toml"),
+    )
+    .unwrap();
+    assert_eq!(t.camera.rms_px_warn, 0.3);
+    assert_eq!(t.camera.views_warn, 5.0);
+    assert_eq!(t.camera.rms_px_fail, CameraLimits::default().rms_px_fail);
+    assert_eq!(t.evaluate.rms_mm_fail, 1.0);
+    assert_eq!(t.evaluate.rms_mm_warn, 1.0);
+    assert_eq!(t.handeye, HandeyeLimits::default());
+    assert_eq!(Thresholds::from_toml("", Path::new("e.toml")).unwrap(), Thresholds::default());
+    // Every default is listed under its dotted name.
+    let list = Thresholds::defaults_list();
+    assert!(list.iter().any(|(k, v)| k == "camera.rms_px_warn" && *v == 0.5), "{list:?}");
+}
+
+#[test]
+fn unknown_keys_and_bad_values_are_refused_by_name() {
+    let e = Thresholds::from_toml("[camera]\nrms_px_warm = 0.3\n", Path::new("limits.toml")).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, ThresholdsError::UnknownKey { ref key, .. } if key == "camera.rms_px_warm"), "{msg}");
+    assert!(msg.contains("limits.toml") && msg.contains("camera.rms_px_warm") && msg.contains("rms_px_warn"), "{msg}");
+    let e = Thresholds::from_toml("[cameras]\nrms_px_warn = 0.3\n", Path::new("limits.toml")).unwrap_err();
+    assert!(e.to_string().contains("'cameras'"), "{e}");
+    let e = Thresholds::from_toml("[camera]\nrms_px_warn = \"low\"\n", Path::new("limits.toml")).unwrap_err();
+    assert!(e.to_string().contains("camera.rms_px_warn") && e.to_string().contains("number"), "{e}");
+    let e = Thresholds::from_toml("[camera\n", Path::new("limits.toml")).unwrap_err();
+    assert!(matches!(e, ThresholdsError::Parse { .. }) && e.to_string().starts_with("limits.toml: "), "{e}");
+}

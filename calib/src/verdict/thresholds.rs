@@ -1,0 +1,476 @@
+//! The named limits of the verdicts, their documented defaults, and the TOML file that
+//! overrides them (`ferrocal --thresholds FILE.toml`; `docs/verdicts.md`).
+//!
+//! The file holds one table per section, with only the keys to change:
+//!
+//! ```toml
+//! [camera]
+//! rms_px_warn = 0.3
+//!
+//! [evaluate]
+//! rms_mm_fail = 1.0
+//! ```
+//!
+//! A key the program does not know (a misspelt name) is refused with the file and the key
+//! named, so that a limit never silently stays at its default.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+/// Why a thresholds file was refused.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ThresholdsError {
+    /// The file could not be read.
+    #[error("{}: cannot read the thresholds file: {source}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The reason.
+        source: std::io::Error,
+    },
+    /// The file is not TOML, or a value has the wrong type.
+    #[error("{}: {message}", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// What the TOML reader said.
+        message: String,
+    },
+    /// The file names a key (or a section) that does not exist.
+    #[error("{}: unknown key '{key}' in the thresholds file (known: {known}; docs/verdicts.md lists them)", path.display())]
+    UnknownKey {
+        /// The file.
+        path: PathBuf,
+        /// The unknown key, dotted from the file's root (`camera.rms_px_warm`).
+        key: String,
+        /// The keys known at that level, comma-separated.
+        known: String,
+    },
+    /// A limit is not a finite number or infinity as TOML writes it (`inf`).
+    #[error("{}: '{key}' must be a number, got {value}", path.display())]
+    NotANumber {
+        /// The file.
+        path: PathBuf,
+        /// The key.
+        key: String,
+        /// The value as written.
+        value: String,
+    },
+}
+
+/// Every limit of every verdict. `Default` gives the documented defaults; [`Thresholds::load`]
+/// reads a file that overrides some of them.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Thresholds {
+    /// `camera calibrate` (and every camera calibrated on the way).
+    pub camera: CameraLimits,
+    /// `camera stereo`.
+    pub stereo: StereoLimits,
+    /// `handeye`.
+    pub handeye: HandeyeLimits,
+    /// `calibrate`.
+    pub calibrate: CalibrateLimits,
+    /// `evaluate`.
+    pub evaluate: EvaluateLimits,
+    /// `diagnose` (robot, camera and force-sensor variants).
+    pub diagnose: DiagnoseLimits,
+    /// `detect`.
+    pub detect: DetectLimits,
+    /// `measure` (session and recording forms).
+    pub measure: MeasureLimits,
+    /// `import`.
+    pub import: ImportLimits,
+    /// `export` and `correct`.
+    pub export: ExportLimits,
+    /// `plan`.
+    pub plan: PlanLimits,
+    /// The studies (`demo`, `dynamics`, `stiffness`, `motion`, `corner-study`).
+    pub study: StudyLimits,
+}
+
+/// Limits of a single camera's calibration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraLimits {
+    /// Reprojection RMS of the fit, px: warning above (default 0.5 px, the usual mark of a good
+    /// calibration with sub-pixel corners; OpenCV's sample reaches 0.4 px).
+    pub rms_px_warn: f64,
+    /// Reprojection RMS of the fit, px: failure above (default 2.0 px; industrial_calibration's
+    /// own tests accept up to 1.5 px).
+    pub rms_px_fail: f64,
+    /// Held-out reprojection RMS over the fit's RMS (`--test-every`): warning above (default 1.5).
+    pub heldout_ratio_warn: f64,
+    /// Held-out over fit RMS: failure above (default 3.0: the model does not predict new views).
+    pub heldout_ratio_fail: f64,
+    /// Views used: warning below (default 10; Zhang's method needs 3, OpenCV's documentation
+    /// recommends 10 or more).
+    pub views_warn: f64,
+    /// Views used: failure below (default 3, the minimum of Zhang's method).
+    pub views_fail: f64,
+}
+
+impl Default for CameraLimits {
+    fn default() -> Self {
+        Self {
+            rms_px_warn: 0.5,
+            rms_px_fail: 2.0,
+            heldout_ratio_warn: 1.5,
+            heldout_ratio_fail: 3.0,
+            views_warn: 10.0,
+            views_fail: 3.0,
+        }
+    }
+}
+
+/// Limits of a stereo pair.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct StereoLimits {
+    /// Reprojection RMS of the pair's joint fit, px: warning above (default 0.5).
+    pub rms_px_warn: f64,
+    /// Reprojection RMS of the pair: failure above (default 2.0).
+    pub rms_px_fail: f64,
+    /// Row difference of corresponding corners after rectification, px RMS: warning above
+    /// (default 0.5; stereo matching searches along rows).
+    pub row_rms_px_warn: f64,
+    /// Rectified row difference: failure above (default 2.0).
+    pub row_rms_px_fail: f64,
+}
+
+impl Default for StereoLimits {
+    fn default() -> Self {
+        Self { rms_px_warn: 0.5, rms_px_fail: 2.0, row_rms_px_warn: 0.5, row_rms_px_fail: 2.0 }
+    }
+}
+
+/// Limits of a hand-eye calibration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HandeyeLimits {
+    /// Chain reprojection RMS (held-out images, else training), px: warning above (default 1.5,
+    /// industrial_calibration's acceptance for both of its hand-eye sets).
+    pub chain_rms_px_warn: f64,
+    /// Chain reprojection RMS: failure above (default 20 px).
+    pub chain_rms_px_fail: f64,
+    /// The smallest per-image PnP RMS the chain is compared with, px (default 0.1: corners on
+    /// real images are rarely located better, and rendered ones reach 0.01 px).
+    pub pnp_floor_px: f64,
+    /// Chain RMS over the per-image PnP RMS of the same images and camera: warning above
+    /// (default 20: the robot's pose errors add to the corners' noise).
+    pub chain_over_pnp_warn: f64,
+    /// Chain over PnP RMS: failure above (default 100: the chain does not describe the images;
+    /// a wrong `--mount` gives hundreds).
+    pub chain_over_pnp_fail: f64,
+    /// Mean distance of the chain's target origin from PnP's, mm: warning above (default 6,
+    /// industrial_calibration's limit on its ChArUco set).
+    pub pnp_position_mm_warn: f64,
+    /// PnP position agreement: failure above (default 20, its limit on the 10 x 10 set with
+    /// uncalibrated intrinsics).
+    pub pnp_position_mm_fail: f64,
+    /// Mean angle between the chain's target orientation and PnP's, degrees: warning above
+    /// (default 1.5, the ChArUco set's limit).
+    pub pnp_rotation_deg_warn: f64,
+    /// PnP orientation agreement: failure above (default 3, the 10 x 10 set's limit).
+    pub pnp_rotation_deg_fail: f64,
+}
+
+impl Default for HandeyeLimits {
+    fn default() -> Self {
+        Self {
+            chain_rms_px_warn: 1.5,
+            chain_rms_px_fail: 20.0,
+            pnp_floor_px: 0.1,
+            chain_over_pnp_warn: 20.0,
+            chain_over_pnp_fail: 100.0,
+            pnp_position_mm_warn: 6.0,
+            pnp_position_mm_fail: 20.0,
+            pnp_rotation_deg_warn: 1.5,
+            pnp_rotation_deg_fail: 3.0,
+        }
+    }
+}
+
+/// Limits of a kinematic calibration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CalibrateLimits {
+    /// Held-out position RMS of the calibrated model, mm: warning above (default 2.0,
+    /// industrial_calibration's acceptance for its camera-measured positioner).
+    pub heldout_rms_mm_warn: f64,
+    /// Held-out position RMS: failure above (default 10 mm).
+    pub heldout_rms_mm_fail: f64,
+    /// Held-out RMS of the calibrated model over the nominal model's (frames fitted on the same
+    /// rows): warning above (default 0.9: industrial_calibration asks for more than 10 % better
+    /// than nominal).
+    pub heldout_vs_nominal_warn: f64,
+    /// Calibrated over nominal held-out RMS: failure above (default 1.05: the calibration makes
+    /// poses it did not see worse, beyond 5 % of scatter).
+    pub heldout_vs_nominal_fail: f64,
+    /// Held-out RMS over training RMS of the same fit: warning above (default 2.0: overfitting
+    /// or a split that differs from the training poses).
+    pub heldout_over_train_warn: f64,
+    /// Held-out over training RMS: failure above (default 5.0).
+    pub heldout_over_train_fail: f64,
+    /// Joints the data cannot identify (advice given): warning above (default 0).
+    pub unidentified_warn: f64,
+}
+
+impl Default for CalibrateLimits {
+    fn default() -> Self {
+        Self {
+            heldout_rms_mm_warn: 2.0,
+            heldout_rms_mm_fail: 10.0,
+            heldout_vs_nominal_warn: 0.9,
+            heldout_vs_nominal_fail: 1.05,
+            heldout_over_train_warn: 2.0,
+            heldout_over_train_fail: 5.0,
+            unidentified_warn: 0.0,
+        }
+    }
+}
+
+/// Limits of `evaluate`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EvaluateLimits {
+    /// Position RMS of the scored rows, mm: warning above (default 1.0).
+    pub rms_mm_warn: f64,
+    /// Position RMS: failure above (default 2.0, industrial_calibration's acceptance for its
+    /// positioner).
+    pub rms_mm_fail: f64,
+}
+
+impl Default for EvaluateLimits {
+    fn default() -> Self {
+        Self { rms_mm_warn: 1.0, rms_mm_fail: 2.0 }
+    }
+}
+
+/// Limits of `diagnose`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DiagnoseLimits {
+    /// Final over nominal held-out RMS: warning above (default 1.0: the accepted effects do not
+    /// predict held-out data better).
+    pub heldout_ratio_warn: f64,
+    /// Final over nominal held-out RMS: failure above (default 1.1).
+    pub heldout_ratio_fail: f64,
+    /// Significant candidates rejected (for physics or stability): warning above (default 0).
+    pub rejected_warn: f64,
+}
+
+impl Default for DiagnoseLimits {
+    fn default() -> Self {
+        Self { heldout_ratio_warn: 1.0, heldout_ratio_fail: 1.1, rejected_warn: 0.0 }
+    }
+}
+
+/// Limits of `detect`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DetectLimits {
+    /// Fraction of the images in which the pattern was found: warning below (default 1.0).
+    pub found_fraction_warn: f64,
+    /// Fraction found: failure below (default 0.5).
+    pub found_fraction_fail: f64,
+}
+
+impl Default for DetectLimits {
+    fn default() -> Self {
+        Self { found_fraction_warn: 1.0, found_fraction_fail: 0.5 }
+    }
+}
+
+/// Limits of `measure`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MeasureLimits {
+    /// Fraction of the poses measured: warning below (default 0.9).
+    pub measured_fraction_warn: f64,
+    /// Fraction measured: failure below (default 0.5).
+    pub measured_fraction_fail: f64,
+    /// Reprojection RMS of the camera (rig) calibration, px: warning above (default 0.5).
+    pub rms_px_warn: f64,
+    /// Camera calibration RMS: failure above (default 2.0).
+    pub rms_px_fail: f64,
+}
+
+impl Default for MeasureLimits {
+    fn default() -> Self {
+        Self { measured_fraction_warn: 0.9, measured_fraction_fail: 0.5, rms_px_warn: 0.5, rms_px_fail: 2.0 }
+    }
+}
+
+/// Limits of `import`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ImportLimits {
+    /// Rows written: warning below (default 10; a calibration needs many distinct poses).
+    pub rows_warn: f64,
+    /// Rows written: failure below (default 3, the fewest a frame registration needs).
+    pub rows_fail: f64,
+}
+
+impl Default for ImportLimits {
+    fn default() -> Self {
+        Self { rows_warn: 10.0, rows_fail: 3.0 }
+    }
+}
+
+/// Limits of `export` and `correct`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ExportLimits {
+    /// Largest position difference of the written model read back from the calibrated one, mm:
+    /// warning above (default 1e-6 mm).
+    pub roundtrip_mm_warn: f64,
+    /// Read-back position difference: failure above (default 1e-3 mm).
+    pub roundtrip_mm_fail: f64,
+    /// Largest orientation difference read back, degrees: warning above (default 1e-6).
+    pub roundtrip_deg_warn: f64,
+    /// Read-back orientation difference: failure above (default 1e-3).
+    pub roundtrip_deg_fail: f64,
+    /// `correct`: largest distance a corrected command leaves from its intended pose under the
+    /// calibrated model, mm: warning above (default 1e-4 mm).
+    pub residual_mm_warn: f64,
+    /// `correct`: largest distance left: failure above (default 1e-3 mm; commands beyond it are
+    /// refused anyway).
+    pub residual_mm_fail: f64,
+    /// `correct`: largest change a correction makes to a command's pose, mm: warning above
+    /// (default 10 mm: a calibration that moves the robot this far is worth a second look).
+    pub correction_mm_warn: f64,
+    /// `correct`: largest correction: failure above (default 50 mm: the calibration most likely
+    /// belongs to another robot or frame).
+    pub correction_mm_fail: f64,
+}
+
+impl Default for ExportLimits {
+    fn default() -> Self {
+        Self {
+            roundtrip_mm_warn: 1e-6,
+            roundtrip_mm_fail: 1e-3,
+            roundtrip_deg_warn: 1e-6,
+            roundtrip_deg_fail: 1e-3,
+            residual_mm_warn: 1e-4,
+            residual_mm_fail: 1e-3,
+            correction_mm_warn: 10.0,
+            correction_mm_fail: 50.0,
+        }
+    }
+}
+
+/// Limits of `plan`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlanLimits {
+    /// The plan's own checks that failed (selection, sigma ratio, predicted accuracy, path):
+    /// failure above (default 0).
+    pub failed_checks_fail: f64,
+}
+
+impl Default for PlanLimits {
+    fn default() -> Self {
+        Self { failed_checks_fail: 0.0 }
+    }
+}
+
+/// Limits of the studies' reports.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct StudyLimits {
+    /// Report sections whose check failed: failure above (default 0).
+    pub failed_checks_fail: f64,
+    /// Report sections skipped (an input is missing): warning above (default 0).
+    pub skipped_warn: f64,
+    /// `corner-study`: the largest ratio of this project's corner RMS error to the Cramer-Rao
+    /// bound over the noisy levels: warning above (default 3: an efficient estimator reaches 1).
+    pub corner_over_crb_warn: f64,
+}
+
+impl Default for StudyLimits {
+    fn default() -> Self {
+        Self { failed_checks_fail: 0.0, skipped_warn: 0.0, corner_over_crb_warn: 3.0 }
+    }
+}
+
+impl Thresholds {
+    /// Reads a thresholds file: the defaults with the file's keys in their place.
+    pub fn load(path: &Path) -> Result<Self, ThresholdsError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|source| ThresholdsError::Read { path: path.into(), source })?;
+        Self::from_toml(&text, path)
+    }
+
+    /// Parses the text of a thresholds file; `path` names it in errors.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, ThresholdsError> {
+        let parse = |message: String| ThresholdsError::Parse { path: path.into(), message };
+        let mut given: toml::Table = toml::from_str(text).map_err(|e| parse(one_line(&e.to_string())))?;
+        let defaults = default_table().map_err(parse)?;
+        check_keys(&mut given, &defaults, "", path)?;
+        toml::Value::Table(given).try_into().map_err(|e: toml::de::Error| parse(one_line(&e.to_string())))
+    }
+
+    /// Every limit as `(dotted name, default value)`, in the order of the file (for the
+    /// documentation and `--help`).
+    pub fn defaults_list() -> Vec<(String, f64)> {
+        let mut out = Vec::new();
+        if let Ok(t) = default_table() {
+            for (section, v) in &t {
+                if let Some(inner) = v.as_table() {
+                    for (k, x) in inner {
+                        out.push((format!("{section}.{k}"), x.as_float().unwrap_or(f64::NAN)));
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The defaults as a TOML table.
+fn default_table() -> Result<toml::Table, String> {
+    match toml::Value::try_from(Thresholds::default()) {
+        Ok(toml::Value::Table(t)) => Ok(t),
+        Ok(_) => Err("the default thresholds are not a table".into()),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// Refuses keys of `given` that `known` lacks (recursively); integers become floats.
+fn check_keys(given: &mut toml::Table, known: &toml::Table, prefix: &str, path: &Path) -> Result<(), ThresholdsError> {
+    for (key, value) in given.iter_mut() {
+        let dotted = if prefix.is_empty() { key.clone() } else { format!("{prefix}.{key}") };
+        let Some(k) = known.get(key) else {
+            return Err(ThresholdsError::UnknownKey {
+                path: path.into(),
+                key: dotted,
+                known: known.keys().cloned().collect::<Vec<_>>().join(", "),
+            });
+        };
+        match (value, k) {
+            (toml::Value::Table(g), toml::Value::Table(kt)) => check_keys(g, kt, &dotted, path)?,
+            (v @ toml::Value::Integer(_), toml::Value::Float(_)) => {
+                let i = v.as_integer().unwrap_or_default();
+                *v = toml::Value::Float(i as f64);
+            }
+            (toml::Value::Float(_), toml::Value::Float(_)) => {}
+            (v, toml::Value::Float(_)) => {
+                return Err(ThresholdsError::NotANumber { path: path.into(), key: dotted, value: v.to_string() })
+            }
+            (v, _) => {
+                return Err(ThresholdsError::Parse {
+                    path: path.into(),
+                    message: format!("'{dotted}' must be a table of limits, got {v}"),
+                })
+            }
+        }
+    }
+    Ok(())
+}
+
+fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}

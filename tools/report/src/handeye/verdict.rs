@@ -1,0 +1,110 @@
+//! The verdict of `ferrocal handeye` (`docs/verdicts.md`): the chain reprojection RMS against
+//! industrial_calibration's 1.5 px, the chain RMS over the per-image PnP RMS of the same images
+//! and camera (a wrong `--mount` or a wrong pose convention shows a chain residual far above
+//! PnP's), and the chain's agreement with PnP in position and orientation.
+
+use ferrocal_calib::handeye::{ChainFigures, HandEyeData, HandEyeResult, Mount};
+use ferrocal_calib::verdict::{fmt_num, Check, Status, Thresholds, Verdict};
+use ferrocal_calib::Split;
+use ferrocal_vision::pose::{estimate_pose, CornerNoise};
+
+/// Fallback corner noise for corners the detector gives no covariance for, pixels (PnP's
+/// weights only; the RMS does not depend on it much).
+const FALLBACK_SIGMA_PX: f64 = 0.1;
+
+/// The pooled per-image PnP reprojection RMS, pixels, over the images of `split` that the chain
+/// figures score, with `result`'s camera: the floor the chain residual is compared with.
+pub fn pnp_rms_px(data: &HandEyeData, result: &HandEyeResult, split: Split) -> Option<f64> {
+    let scored: std::collections::HashSet<&str> =
+        result.figures.views.iter().filter(|v| v.split == split).map(|v| v.name.as_str()).collect();
+    let (mut sum, mut n) = (0.0, 0usize);
+    for v in data.views.iter().filter(|v| v.split == split && scored.contains(v.name.as_str())) {
+        let noise = CornerNoise::from_detected(&v.covariances_px2, FALLBACK_SIGMA_PX);
+        if let Ok(e) = estimate_pose(&result.camera, &data.target_points_m, &v.point_ids, &v.corners_px, &noise) {
+            sum += e.rms_px * e.rms_px * e.n_corners as f64;
+            n += e.n_corners;
+        }
+    }
+    (n > 0).then(|| (sum / n as f64).sqrt())
+}
+
+/// The checks of the chain figures `f` (held-out images when there are any, else training)
+/// with the PnP floor `pnp_px`; `prefix` names them (`handeye` or `handeye.joint`).
+pub fn chain_checks(t: &Thresholds, f: &ChainFigures, pnp_px: Option<f64>, prefix: &str) -> Vec<Check> {
+    let l = &t.handeye;
+    let (which, rms, pos, rot) = match f.heldout_rms_px {
+        Some(h) => ("held-out", h, f.heldout_pnp_position_mm, f.heldout_pnp_rotation_deg),
+        None => ("training", f.train_rms_px, f.train_pnp_position_mm, f.train_pnp_rotation_deg),
+    };
+    let mut out = vec![Check::at_most(
+        &format!("{prefix}.chain_rms_px"),
+        &format!("{which} chain RMS"),
+        "px",
+        rms,
+        l.chain_rms_px_warn,
+        l.chain_rms_px_fail,
+    )];
+    if let Some(p) = pnp_px {
+        let floor = p.max(l.pnp_floor_px);
+        let words = if floor > p {
+            format!("chain RMS over {} px (per-image PnP RMS {} px, floored)", fmt_num(floor), fmt_num(p))
+        } else {
+            format!("chain over per-image PnP RMS ({} px)", fmt_num(p))
+        };
+        out.push(Check::at_most(
+            &format!("{prefix}.chain_over_pnp"),
+            &words,
+            "",
+            rms / floor,
+            l.chain_over_pnp_warn,
+            l.chain_over_pnp_fail,
+        ));
+    }
+    if let Some(p) = pos {
+        out.push(Check::at_most(
+            &format!("{prefix}.pnp_position_mm"),
+            &format!("{which} distance from PnP"),
+            "mm",
+            p,
+            l.pnp_position_mm_warn,
+            l.pnp_position_mm_fail,
+        ));
+    }
+    if let Some(r) = rot {
+        out.push(Check::at_most(
+            &format!("{prefix}.pnp_rotation_deg"),
+            &format!("{which} angle from PnP"),
+            "deg",
+            r,
+            l.pnp_rotation_deg_warn,
+            l.pnp_rotation_deg_fail,
+        ));
+    }
+    out
+}
+
+/// The verdict of a hand-eye run from its checks; `has_heldout` says whether test images were
+/// scored, `joint_out` is the calibration file of `--out`.
+pub fn handeye_verdict(checks: Vec<Check>, mount: Mount, has_heldout: bool, joint_out: Option<&str>) -> Verdict {
+    let other = match mount {
+        Mount::EyeInHand => "eye-to-hand",
+        Mount::EyeToHand => "eye-in-hand",
+    };
+    Verdict::with_next(checks, |c| {
+        let Some(c) = c else {
+            return match joint_out {
+                Some(out) => format!("use the calibrated robot: ferrocal evaluate --robot <model> --calibration {out} --measurements <a tracker table> --refit-frame"),
+                None if has_heldout => "use the hand-eye transform (hand_eye in the JSON)".into(),
+                None => "use the hand-eye transform; mark some rows `test` in the poses table to check it on images the fit did not see".into(),
+            };
+        };
+        let name = c.name.rsplit('.').next().unwrap_or("");
+        match (name, c.status) {
+            ("chain_over_pnp" | "chain_rms_px", Status::Fail) => format!(
+                "the chain does not explain the images: re-run with --mount {other}, and check the poses' convention (T_base_flange, quaternion scalar first, mm)"
+            ),
+            ("chain_over_pnp" | "chain_rms_px", _) => "the robot's poses scatter more than the corners: give --robot-poses-as-measurements, or calibrate the robot with --robot and --out".into(),
+            _ => "the chain and the single-image poses disagree: check the camera (--intrinsics, or more varied views) and the target's size in --pattern".into(),
+        }
+    })
+}
