@@ -151,7 +151,7 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
             String::new()
         }
     );
-    eprintln!("  {}", rep.summary);
+    println!("  {}", rep.summary);
     for f in &rep.findings {
         println!("  {}: {}", f.effect, f.statement);
     }

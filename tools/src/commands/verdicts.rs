@@ -191,11 +191,18 @@ pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verd
     ));
     let n_findings = report["findings"].as_array().map_or(0, Vec::len);
     let first_rejected = rejected.first().map(|s| s.to_string()).unwrap_or_default();
+    // The robot report's top sentence (why nothing was claimed, when the residuals show strong
+    // structure).
+    let summary = report["summary"].as_str().unwrap_or_default().to_string();
     Verdict::with_next(checks, |c| {
         match c.map(|c| c.name.as_str()) {
         None if n_findings > 0 => format!("model the findings: {rerun}"),
         None => "the model explains the data: calibrate with it as it is".into(),
         Some("diagnose.declined") => format!("record more data: {}", declined.unwrap_or_default()),
+        Some("diagnose.unexplained_structure") if n_findings == 0 && !summary.is_empty() => format!(
+            "{summary} Read the candidate table, then record poses that vary {} over their whole range and diagnose again (docs/diagnose.md)",
+            if depends.is_empty() { "the inputs".to_string() } else { depends.join(", ") }
+        ),
         Some("diagnose.unexplained_structure") => format!(
             "the residuals still follow {}: record poses that vary {} over their whole range, the other inputs spread, and diagnose again (or add a candidate effect, docs/diagnose.md)",
             if depends.is_empty() { "the inputs".to_string() } else { depends.join(", ") },
