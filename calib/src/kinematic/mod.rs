@@ -55,7 +55,8 @@ pub use split::{split_rows, split_rows_by_plane, split_rows_in_blocks, SplitPlan
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum ModelParams {
     /// The default for the model kind: a serial chain's per-joint correction transforms (a
-    /// complete error model), every parameter of a parallel robot.
+    /// complete error model) and the coupling multipliers of its mimic joints
+    /// (`mimic<k>.coupling`), every parameter of a parallel robot.
     Default,
     /// All parameters but a serial chain's `base.*` and `tool.*`.
     All,
@@ -222,7 +223,7 @@ impl StateLayout {
                     return false;
                 }
                 match selection {
-                    ModelParams::Default => !serial || p.name.contains(".corr_"),
+                    ModelParams::Default => !serial || p.name.contains(".corr_") || p.name.ends_with(".coupling"),
                     ModelParams::All => true,
                     ModelParams::None => false,
                     ModelParams::Prefixes { prefixes } => prefixes.iter().any(|x| p.name.starts_with(x.as_str())),

@@ -27,7 +27,8 @@ pub(crate) fn priority(name: &str) -> u32 {
         0
     } else if name.starts_with("frame.") {
         1
-    } else if name.starts_with("joint") && !name.contains(".corr_") {
+    } else if (name.starts_with("joint") || name.starts_with("mimic")) && !name.contains(".corr_") {
+        // Link geometry, and a mimic joint's coupling multiplier (`mimic<k>.coupling`).
         2
     } else if name.contains(".corr_") {
         3
