@@ -550,3 +550,7 @@ fn equilibrium_failure(model: &RobotModel, q: &[f64], compliance: &[f64], payloa
     let names = model.joint_names();
     CalibError::Equilibrium { joint: j + 1, name: names.get(j).cloned().unwrap_or_default(), factor: f }
 }
+
+#[cfg(test)]
+#[path = "effects_tests.rs"]
+mod tests;
