@@ -321,7 +321,7 @@ impl KinProblem<'_> {
                 let payload = row.payload_kg.unwrap_or(0.0);
                 let m = crate::effects::equilibrium_sensitivity(&cm.load_model, &qq, &compliance, payload)
                     .map_err(|e| row_error(row, e))?;
-                jg = jg * m;
+                jg *= m;
             }
             let lever = p - (cm.device_frame * t_base_flange).translation.vector;
             for i in 0..cm.model.dof() {
