@@ -11,7 +11,7 @@
 //!
 //! | effect | parameters | correction |
 //! | --- | --- | --- |
-//! | `joint_compliance` | `c` (rad/(N m) or m/N) | `dq_j = -c tau_j(q, payload)`, `tau` the holding torque from the model's inertials (a serial chain's links, or 1 kg at the tool for other models, when `c` then absorbs the mass) |
+//! | `joint_compliance` | `c` (rad/(N m) or m/N) | `dq_j = -c tau_j(q_eff, payload)` at the equilibrium (below), `tau` the holding torque from the model's inertials (a serial chain's links, or 1 kg at the tool for other models, when `c` then absorbs the mass) |
 //! | `backlash` | `b` (rad or m) | `dq_j = -b d_j / 2`, `d_j` the approach direction |
 //! | `joint_scale_error` | `s` | `dq_j = s q_j` |
 //! | `periodic_joint_error` | `a, b` (rad or m), period `P` fixed | `dq_j = a sin(2 pi q_j / P) + b cos(2 pi q_j / P)` |
@@ -19,6 +19,23 @@
 //! | `time_drift` | `v` (per hour) | as thermal expansion with `t` in hours instead of `T - T_ref` |
 //! | `coupled_transmission` | `c` (joint units of `J` per joint unit of `K`) | `dq_J = c q_K`: joint `J`'s transmission is coupled to joint `K`'s motion (a wrist whose motors sit on an earlier link, a cable passing a joint) |
 //! | `axis_misalignment` | `c_x, c_y` (rad) | revolute joint `J`'s axis wobbles with its angle: everything beyond the joint turns about the joint's axis point by the rotation vector `c_x e_1(q) + c_y e_2(q)`, `e_1 = cos 2q u + sin 2q v`, `e_2 = -sin 2q u + cos 2q v` with `(u, v)` normal to the axis and fixed on the joint's stationary side ([`axis_wobble`]): a tilt of amplitude `hypot(c_x, c_y)` whose direction turns once per revolution relative to the moving link (twice relative to the stationary side) |
+//!
+//! Joint compliance is solved as the equilibrium of every compliant joint together,
+//! `q_eff = q0 - C tau(q_eff)` ([`compliance_equilibrium`]), where `q0` is the reading with the
+//! zero offsets and the other effects' corrections: the joint holds the load at the angle it
+//! deflects to, not at the commanded one. The fixed-point iteration converges when the
+//! compliance times the gravity stiffness `d tau / d q` is below 1 at every joint (it contracts by
+//! that factor per iteration: 3-5 iterations to 1e-9 rad for a sag of tens of mrad) and stops
+//! with [`CalibError::Equilibrium`] naming the joint otherwise. The first iterate,
+//! `q0 - C tau(q0)`, is the one-step deflection; they differ by about the sag times the factor
+//! `c dtau/dq` (0.5 mrad for a 25 mrad sag at a factor of 0.02).
+//!
+//! Coupled (mimic) joints: effects are indexed over the actuated joints (1-based, as the
+//! measurement table's `q1..qN`); `tau` is the actuated coordinates' holding torque, so a mimic
+//! joint's torque reaches its leader's entry times the multiplier (`tau_leader + m tau_mimic`),
+//! and `joint_compliance:J` on a leader is the compliance of the whole transmission its drive
+//! moves (the leader and the joints coupled to it), deflecting the leader's coordinate and with
+//! it the mimic joints (see `docs/diagnose.md`, "Coupled joints").
 //!
 //! Why that form of axis misalignment: a tilt of the axis fixed on the stationary side is a
 //! different axis direction, and a tilt fixed on the moving link (its direction turning once per
@@ -28,7 +45,7 @@
 //! with the joint as seen from the link, i.e. at twice the joint's rate as seen from the base.
 
 use ferrocal_robot::{JointKind, Kinematics, RobotModel, Unit};
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{CalibError, Result};
@@ -253,7 +270,9 @@ impl EffectSpec {
         Ok(())
     }
 
-    /// Adds the effect's joint corrections for `row` to `dq`.
+    /// Adds the effect's joint corrections for `row` to `dq`. For `joint_compliance` that is the
+    /// one-step deflection `-c tau(q_reading)`; [`CalibratedModel::effective`](crate::kinematic::CalibratedModel::effective)
+    /// solves the equilibrium instead ([`compliance_equilibrium`]).
     pub fn add_joint_delta(
         &self,
         model: &RobotModel,
@@ -334,10 +353,9 @@ pub fn axis_wobble(model: &RobotModel, joint: usize, q: &[f64]) -> Result<(Vecto
     let RobotModel::Serial(chain) = model else {
         return Err(CalibError::Data("axis_misalignment needs a serial chain".into()));
     };
-    if joint == 0 || joint > chain.joints.len() {
+    let Some(i) = joint.checked_sub(1).and_then(|a| chain.joint_index_of_actuated(a)) else {
         return Err(CalibError::Data(format!("axis_misalignment: joint {joint} does not exist")));
-    }
-    let i = joint - 1;
+    };
     let frames = chain.frames(q)?;
     let z = frames.axes[i];
     let stationary = if i == 0 { chain.base.rotation } else { frames.links[i - 1].rotation };
@@ -349,7 +367,7 @@ pub fn axis_wobble(model: &RobotModel, joint: usize, q: &[f64]) -> Result<(Vecto
     let u_local = (e_k - z_local * z_local.dot(&e_k)).normalize();
     let u = stationary * u_local;
     let v = z.cross(&u);
-    let (s, c) = (2.0 * q[i]).sin_cos();
+    let (s, c) = (2.0 * q[joint - 1]).sin_cos();
     let e1 = u * c + v * s;
     let e2 = z.cross(&e1);
     Ok((e1, e2, frames.axis_points[i]))
@@ -380,6 +398,7 @@ pub fn link_bendings(model: &RobotModel, q: &[f64], payload_kg: f64) -> Result<V
     let RobotModel::Serial(chain) = model else {
         return Err(CalibError::Data("link_compliance needs a serial chain".into()));
     };
+    chain.require_no_mimic("link_compliance")?;
     let frames = chain.frames(q)?;
     let g = Vector3::from(chain.gravity_m_s2);
     // The loads beyond each link: (mass, position), bodies in chain order, the payload last.
@@ -420,3 +439,118 @@ pub fn holding_torques(model: &RobotModel, q: &[f64], payload_kg: f64) -> Result
         }
     }
 }
+
+/// Largest number of fixed-point iterations of [`compliance_equilibrium`].
+pub const EQUILIBRIUM_MAX_ITERATIONS: usize = 100;
+
+/// Convergence tolerance of [`compliance_equilibrium`]: the largest joint change of the last
+/// iteration (rad or m). Well below the 1e-9 rad that matters for a pose, so that the central
+/// differences of the effect columns (steps of 1e-9 rad/(N m), joint changes of 1e-8 rad) see
+/// a smooth function.
+pub const EQUILIBRIUM_TOLERANCE: f64 = 1e-12;
+
+/// The compliance of every joint (`n` of them) from the `joint_compliance` effects among
+/// `effects` (summed per joint; zero elsewhere).
+pub fn compliances(effects: &[(EffectSpec, Vec<f64>)], n: usize) -> Result<Vec<f64>> {
+    let mut c = vec![0.0; n];
+    for (e, theta) in effects {
+        if let EffectSpec::JointCompliance { joint } = e {
+            let v = joint
+                .checked_sub(1)
+                .and_then(|j| c.get_mut(j))
+                .ok_or_else(|| CalibError::Data(format!("joint_compliance: joint {joint} does not exist")))?;
+            *v += theta.first().copied().unwrap_or(0.0);
+        }
+    }
+    Ok(c)
+}
+
+/// `d q_eff / d q0` of the equilibrium `q_eff = q0 - C tau(q_eff)` at its solution `q_eff`:
+/// `(I + C K)^-1` with `K = d tau / d q` (central differences of [`holding_torques`]).
+pub fn equilibrium_sensitivity(
+    model: &RobotModel,
+    q_eff: &[f64],
+    compliance: &[f64],
+    payload_kg: f64,
+) -> Result<DMatrix<f64>> {
+    let n = q_eff.len();
+    let mut a = DMatrix::identity(n, n);
+    let h = 1e-6;
+    for k in 0..n {
+        let (mut qp, mut qm) = (q_eff.to_vec(), q_eff.to_vec());
+        qp[k] += h;
+        qm[k] -= h;
+        let (tp, tm) = (holding_torques(model, &qp, payload_kg)?, holding_torques(model, &qm, payload_kg)?);
+        for j in 0..n {
+            a[(j, k)] += compliance[j] * (tp[j] - tm[j]) / (2.0 * h);
+        }
+    }
+    a.try_inverse().ok_or_else(|| equilibrium_failure(model, q_eff, compliance, payload_kg))
+}
+
+/// The joint values at which compliant joints hold their load: the solution of
+/// `q = q0 - C tau(q)` with `C = diag(compliance)` (one per joint, rad/(N m) or m/N; zero for a
+/// stiff joint) and `tau` the [`holding_torques`] with `payload_kg`, by fixed-point iteration
+/// from `q0` to a change below [`EQUILIBRIUM_TOLERANCE`]. The iteration contracts by the largest
+/// `c_j d tau_j / d q_j` (gravity stiffness); when an iteration's change does not shrink, or
+/// after [`EQUILIBRIUM_MAX_ITERATIONS`], it stops with [`CalibError::Equilibrium`] naming the
+/// joint with the largest such factor.
+pub fn compliance_equilibrium(model: &RobotModel, q0: &[f64], compliance: &[f64], payload_kg: f64) -> Result<Vec<f64>> {
+    if compliance.len() != q0.len() {
+        return Err(CalibError::Data(format!(
+            "compliance equilibrium: {} compliances for {} joints",
+            compliance.len(),
+            q0.len()
+        )));
+    }
+    if compliance.iter().all(|c| *c == 0.0) {
+        return Ok(q0.to_vec());
+    }
+    let next = |q: &[f64]| -> Result<Vec<f64>> {
+        let tau = holding_torques(model, q, payload_kg)?;
+        Ok(q0.iter().zip(compliance).zip(&tau).map(|((a, c), t)| a - c * t).collect())
+    };
+    let change = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    let mut q = q0.to_vec();
+    let mut last = f64::INFINITY;
+    for _ in 0..EQUILIBRIUM_MAX_ITERATIONS {
+        let q_new = next(&q)?;
+        let d = change(&q_new, &q);
+        q = q_new;
+        if d <= EQUILIBRIUM_TOLERANCE {
+            return Ok(q);
+        }
+        if d.is_nan() || d >= last {
+            break;
+        }
+        last = d;
+    }
+    Err(equilibrium_failure(model, &q, compliance, payload_kg))
+}
+
+/// The error of a diverging equilibrium: the joint with the largest compliance times gravity
+/// stiffness (central differences of the holding torque).
+fn equilibrium_failure(model: &RobotModel, q: &[f64], compliance: &[f64], payload_kg: f64) -> CalibError {
+    let h = 1e-6;
+    let factor = |j: usize| -> f64 {
+        let mut qp = q.to_vec();
+        qp[j] += h;
+        let mut qm = q.to_vec();
+        qm[j] -= h;
+        match (holding_torques(model, &qp, payload_kg), holding_torques(model, &qm, payload_kg)) {
+            (Ok(a), Ok(b)) => compliance[j] * (a[j] - b[j]) / (2.0 * h),
+            _ => f64::NAN,
+        }
+    };
+    let (j, f) = (0..q.len())
+        .filter(|&j| compliance[j] != 0.0)
+        .map(|j| (j, factor(j)))
+        .filter(|(_, f)| f.is_finite())
+        .fold((0, f64::NAN), |best, (j, f)| if best.1.is_nan() || f.abs() > best.1.abs() { (j, f) } else { best });
+    let names = model.joint_names();
+    CalibError::Equilibrium { joint: j + 1, name: names.get(j).cloned().unwrap_or_default(), factor: f }
+}
+
+#[cfg(test)]
+#[path = "effects_tests.rs"]
+mod tests;

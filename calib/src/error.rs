@@ -16,6 +16,18 @@ pub enum CalibError {
     /// The optimisation failed to make progress or diverged.
     #[error("the fit diverged: {0}")]
     Diverged(String),
+    /// The compliance equilibrium `q = q0 - C tau(q)` of the `joint_compliance` effects does not
+    /// converge: at joint `joint` the compliance times the gravity stiffness `d tau / d q` is 1 or
+    /// more (the joint cannot hold its load; the fixed-point iteration diverges).
+    #[error("joint_compliance: the equilibrium q = q0 - c tau(q) does not converge at joint {joint} ('{name}'): compliance times gravity stiffness = {factor:.3} (must be below 1)")]
+    Equilibrium {
+        /// The joint (1-based, actuated).
+        joint: usize,
+        /// Its name.
+        name: String,
+        /// `c_j * d tau_j / d q_j` at the last iterate.
+        factor: f64,
+    },
     /// A linear-algebra step failed (singular matrix, SVD did not converge).
     #[error("linear algebra: {0}")]
     Numeric(String),

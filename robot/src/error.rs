@@ -142,6 +142,15 @@ pub enum RobotError {
     /// A preset name that does not exist.
     #[error("unknown robot preset '{0}' (known: {known})", known = crate::presets::PRESET_NAMES.join(", "))]
     UnknownPreset(String),
+    /// A coupled (mimic) joint whose coupling the model cannot use, or an operation that does
+    /// not support coupled joints.
+    #[error("joint '{joint}': {message}")]
+    Coupling {
+        /// The mimic joint.
+        joint: String,
+        /// What is wrong.
+        message: String,
+    },
     /// A safety configuration that cannot hold (e.g. an empty workspace).
     #[error("safety configuration: {0}")]
     Safety(String),

@@ -325,8 +325,8 @@ impl SafetyBody for SerialChain {
     }
 
     fn motion_bound_m(&self, q_a: &[f64], q_b: &[f64], extra_radius_m: f64) -> Result<f64> {
-        crate::kinematics::check_len(q_a, self.joints.len())?;
-        crate::kinematics::check_len(q_b, self.joints.len())?;
+        // Every joint's values (a mimic joint moves by its multiplier times its leader's move).
+        let (q_a, q_b) = (&self.all_joint_values(q_a)?, &self.all_joint_values(q_b)?);
         // Any body point lies within `reach` of any joint axis point; prismatic travel adds.
         let prismatic: f64 = self
             .joints

@@ -346,6 +346,7 @@ fn joint_geometry_conventions_agree_for_the_ur5() {
             limits: j.limits,
             inertial: None,
             correction: [0.0; 6],
+            mimic: None,
         });
         post_prev = Pose::translation(0.0, 0.0, d_m)
             * Pose::translation(a_m, 0.0, 0.0)

@@ -3,6 +3,7 @@
 
 mod cli;
 mod compensate;
+mod coupled;
 mod handeye;
 mod kill;
 mod measure;

@@ -240,12 +240,15 @@ fn long_cell_is_cut_in_the_error_message() {
 }
 
 #[test]
-fn urdf_mimic_joint_is_refused_and_a_5000_joint_chain_loads_in_seconds() {
+fn urdf_mimic_joint_is_coupled_or_refused_by_name_and_a_5000_joint_chain_loads_in_seconds() {
     let tmp = tempfile::tempdir().unwrap();
-    let chain = |n: usize, mimic: bool| {
+    let chain = |n: usize, leader: Option<&str>| {
         let mut s = String::from("<robot name=\"long\">\n<link name=\"l0\"/>\n");
         for i in 1..=n {
-            let m = if mimic && i == 3 { "<mimic joint=\"j2\"/>" } else { "" };
+            let m = match leader {
+                Some(l) if i == 3 => format!("<mimic joint=\"{l}\"/>"),
+                _ => String::new(),
+            };
             s.push_str(&format!(
                 "<link name=\"l{i}\"/><joint name=\"j{i}\" type=\"revolute\"><parent link=\"l{}\"/><child link=\"l{i}\"/><origin xyz=\"0 0 0.01\"/><axis xyz=\"0 0 1\"/><limit lower=\"-3\" upper=\"3\"/>{m}</joint>\n",
                 i - 1
@@ -253,12 +256,18 @@ fn urdf_mimic_joint_is_refused_and_a_5000_joint_chain_loads_in_seconds() {
         }
         s + "</robot>\n"
     };
+    // A mimic joint is a coupled joint: five actuated joints of six.
     let p = tmp.path().join("mimic.urdf");
-    std::fs::write(&p, chain(6, true)).unwrap();
+    std::fs::write(&p, chain(6, Some("j2"))).unwrap();
+    let out = run(ferrocal().args(["robot", "info", "--robot"]).arg(&p));
+    assert!(out.status.success() && String::from_utf8_lossy(&out.stdout).contains("(5 joints"));
+    // A mimic of a joint that does not exist is refused by name.
+    let p = tmp.path().join("bad_mimic.urdf");
+    std::fs::write(&p, chain(6, Some("j9"))).unwrap();
     let err = fails_within(ferrocal().args(["robot", "info", "--robot"]).arg(&p), Duration::from_secs(10));
-    assert!(err.contains("joint 'j3' mimics joint 'j2'"), "{err}");
+    assert!(err.contains("joint 'j3' mimics joint 'j9', which is not defined"), "{err}");
     let p = tmp.path().join("long.urdf");
-    std::fs::write(&p, chain(5000, false)).unwrap();
+    std::fs::write(&p, chain(5000, None)).unwrap();
     let t0 = Instant::now();
     let out = run(ferrocal().args(["robot", "info", "--robot"]).arg(&p));
     let secs = t0.elapsed().as_secs_f64();

@@ -201,12 +201,12 @@ impl RobotMap {
         for &(k, pi) in &self.model_cols {
             let name = &names[pi].name;
             let corr = frames.as_ref().and_then(|(chain, fr)| {
-                let joint: usize = name.strip_prefix("joint")?.split('.').next()?.parse().ok()?;
+                let joint = chain.joint_of_parameter(name)?;
                 let comp =
                     ferrocal_robot::serial::CORRECTION_NAMES.iter().position(|c| name.ends_with(&format!(".{c}")))?;
-                let c = chain.joints.get(joint - 1)?.correction;
+                let c = chain.joints.get(joint)?.correction;
                 let cr = Vector3::new(c[3], c[4], c[5]);
-                let link = fr.links[joint - 1];
+                let link = fr.links[joint];
                 let r_a = link.rotation * UnitQuaternion::from_scaled_axis(cr).inverse();
                 Some(if comp < 3 {
                     (r_a * Vector3::ith(comp, 1.0), Vector3::zeros())

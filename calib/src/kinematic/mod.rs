@@ -54,8 +54,8 @@ pub use split::{split_rows, split_rows_by_plane, split_rows_in_blocks, SplitPlan
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum ModelParams {
-    /// The default for the model kind: a serial chain's per-joint correction transforms (a
-    /// complete error model), every parameter of a parallel robot.
+    /// The default for the model kind: a serial chain's per-joint correction transforms and the
+    /// couplings of its mimic joints (`mimic<k>.coupling`), every parameter of a parallel robot.
     Default,
     /// All parameters but a serial chain's `base.*` and `tool.*`.
     All,
@@ -222,7 +222,7 @@ impl StateLayout {
                     return false;
                 }
                 match selection {
-                    ModelParams::Default => !serial || p.name.contains(".corr_"),
+                    ModelParams::Default => !serial || p.name.contains(".corr_") || p.name.ends_with(".coupling"),
                     ModelParams::All => true,
                     ModelParams::None => false,
                     ModelParams::Prefixes { prefixes } => prefixes.iter().any(|x| p.name.starts_with(x.as_str())),
@@ -405,7 +405,7 @@ pub fn calibrate(
             ));
         }
     }
-    let layout = StateLayout::new(model, tool_dim, &opts.model_params, &opts.effects);
+    let layout = StateLayout::for_rows(model, tool_dim, opts, rows)?;
     let mut problem = start_problem(model, rows, opts, &layout, use_ori)?;
     let start = problem.start.clone();
     let all = problem.free.clone();
@@ -527,7 +527,7 @@ pub fn identifiable_candidates(
         return Err(row_error(r, format!("{} joint values, the model has {}", r.q.len(), model.dof())));
     }
     let use_ori = opts.use_orientation && rows.iter().all(|r| r.orientation.is_some());
-    let layout = StateLayout::new(model, if use_ori { 6 } else { 3 }, &opts.model_params, &opts.effects);
+    let layout = StateLayout::for_rows(model, if use_ori { 6 } else { 3 }, opts, rows)?;
     let mut problem = start_problem(model, rows, opts, &layout, use_ori)?;
     let at = frames_first(&mut problem, &layout, opts)?;
     let (fixed_reason, _, id) = structural_selection(&problem, &layout, &at, opts)?;
@@ -781,7 +781,7 @@ pub fn design_jacobian(
     }
     let refs: Vec<&PoseMeasurement> = rows.iter().collect();
     let use_ori = with_orientation && opts.use_orientation;
-    let layout = StateLayout::new(model, if use_ori { 6 } else { 3 }, &opts.model_params, &opts.effects);
+    let layout = StateLayout::for_rows(model, if use_ori { 6 } else { 3 }, opts, &refs)?;
     let start = layout.start_values(model);
     let problem = KinProblem {
         base_model: model.clone(),

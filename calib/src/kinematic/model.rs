@@ -4,7 +4,7 @@ use ferrocal_robot::{Kinematics, RobotModel};
 use nalgebra::{Isometry3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::effects::EffectSpec;
+use crate::effects::{compliance_equilibrium, compliances, EffectSpec};
 use crate::error::{CalibError, Result};
 use crate::measurement::PoseMeasurement;
 
@@ -92,7 +92,9 @@ impl CalibratedModel {
         }
     }
 
-    /// Effective joint values and length scale of `row` under the joint offsets and effects.
+    /// Effective joint values and length scale of `row` under the joint offsets and effects:
+    /// the reading plus the offsets and the joint effects' corrections, then the
+    /// `joint_compliance` effects' equilibrium ([`compliance_equilibrium`]) from there.
     pub fn effective(&self, row: &PoseMeasurement) -> Result<(Vec<f64>, f64)> {
         if row.q.len() != self.joint_offsets.len() {
             return Err(CalibError::Data(format!(
@@ -103,11 +105,16 @@ impl CalibratedModel {
         }
         let mut dq = self.joint_offsets.clone();
         let mut scale = 1.0;
+        let compliance = compliances(&self.effects, dq.len())?;
         for (e, theta) in &self.effects {
-            e.add_joint_delta(&self.load_model, row, theta, &mut dq)?;
+            if !matches!(e, EffectSpec::JointCompliance { .. }) {
+                e.add_joint_delta(&self.load_model, row, theta, &mut dq)?;
+            }
             scale *= e.length_scale(row, theta);
         }
-        Ok((row.q.iter().zip(&dq).map(|(a, b)| a + b).collect(), scale))
+        let q0: Vec<f64> = row.q.iter().zip(&dq).map(|(a, b)| a + b).collect();
+        let q = compliance_equilibrium(&self.load_model, &q0, &compliance, row.payload_kg.unwrap_or(0.0))?;
+        Ok((q, scale))
     }
 
     /// Predicted `T_device_target` for a measured row (its joints and, for effects, its

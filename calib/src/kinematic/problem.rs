@@ -206,19 +206,20 @@ impl KinProblem<'_> {
             RobotModel::Serial(c) => Some(c),
             _ => None,
         };
+        // (column, joint index into the chain's joints, correction component).
         let corr_cols: Vec<(usize, usize, usize)> = match serial {
-            Some(_) => self
+            Some(chain) => self
                 .layout
                 .model_index
                 .iter()
                 .enumerate()
                 .filter_map(|(k, &pi)| {
                     let name = &self.base_model.parameters()[pi].name;
-                    let joint: usize = name.strip_prefix("joint")?.split('.').next()?.parse().ok()?;
+                    let joint = chain.joint_of_parameter(name)?;
                     let comp = ferrocal_robot::serial::CORRECTION_NAMES
                         .iter()
                         .position(|c| name.ends_with(&format!(".{c}")))?;
-                    Some((self.layout.model.start + k, joint - 1, comp))
+                    Some((self.layout.model.start + k, joint, comp))
                 })
                 .collect(),
             None => Vec::new(),
@@ -250,6 +251,10 @@ impl KinProblem<'_> {
                 .collect(),
             None => Vec::new(),
         };
+        // Compliant joints: the joint readings (and offsets) reach the kinematics through the
+        // equilibrium `q_eff = q0 - C tau(q_eff)`, whose derivative is `(I + C K)^-1`.
+        let compliance = crate::effects::compliances(&cm.effects, cm.model.dof())?;
+        let compliant = compliance.iter().any(|c| *c != 0.0);
         for (k, row) in self.rows.iter().enumerate() {
             let (qq, scale) = cm.effective(row).map_err(|e| row_error(row, e))?;
             let t_base_flange = cm.model.forward(&qq).map_err(|e| row_error(row, e))?;
@@ -311,7 +316,13 @@ impl KinProblem<'_> {
                 }
             }
             // Joint offsets: geometric Jacobian of the model's tool point, moved to the target.
-            let jg = cm.model.jacobian(&qq).map_err(|e| row_error(row, e))?;
+            let mut jg = cm.model.jacobian(&qq).map_err(|e| row_error(row, e))?;
+            if compliant {
+                let payload = row.payload_kg.unwrap_or(0.0);
+                let m = crate::effects::equilibrium_sensitivity(&cm.load_model, &qq, &compliance, payload)
+                    .map_err(|e| row_error(row, e))?;
+                jg *= m;
+            }
             let lever = p - (cm.device_frame * t_base_flange).translation.vector;
             for i in 0..cm.model.dof() {
                 let v = rf * Vector3::new(jg[(0, i)], jg[(1, i)], jg[(2, i)]);

@@ -27,7 +27,8 @@ pub(crate) fn priority(name: &str) -> u32 {
         0
     } else if name.starts_with("frame.") {
         1
-    } else if name.starts_with("joint") && !name.contains(".corr_") {
+    } else if (name.starts_with("joint") || name.starts_with("mimic")) && !name.contains(".corr_") {
+        // Link geometry, and a mimic joint's coupling multiplier (`mimic<k>.coupling`).
         2
     } else if name.contains(".corr_") {
         3
@@ -158,6 +159,53 @@ pub(super) fn frames_first(
         at[i] = start[i];
     }
     Ok(at)
+}
+
+/// The joint torque (N m) below which a `joint_compliance` parameter's scale follows the load:
+/// [`StateLayout::scale_compliances`].
+pub(crate) const COMPLIANCE_SCALE_TORQUE_NM: f64 = 10.0;
+
+impl StateLayout {
+    /// [`StateLayout::new`] for `opts`, with the compliance scales of
+    /// [`StateLayout::scale_compliances`] for `rows`.
+    pub(crate) fn for_rows(
+        model: &ferrocal_robot::RobotModel,
+        tool_dim: usize,
+        opts: &KinematicOptions,
+        rows: &[&crate::PoseMeasurement],
+    ) -> Result<Self> {
+        let mut layout = StateLayout::new(model, tool_dim, &opts.model_params, &opts.effects);
+        layout.scale_compliances(model, rows, &opts.effects)?;
+        Ok(layout)
+    }
+
+    /// Rescales the `joint_compliance` parameters of lightly loaded joints: the fixed scale of
+    /// 1e-6 rad/(N m) deflects a joint by 1e-5 rad at 10 N m, but a wrist holding 0.2 N m moves
+    /// by 2e-7 rad per scale unit, which the selection takes for an unidentifiable column even
+    /// when such a wrist sags by 25 mrad (the simulated coupled arm of `tests/tests/coupled.rs`).
+    /// A joint whose largest holding torque over `rows` is below [`COMPLIANCE_SCALE_TORQUE_NM`]
+    /// gets the scale `1e-4 rad / max |tau|` instead (0.1 mrad per scale unit at its largest
+    /// load); joints carrying more keep 1e-6 (the UR5's shoulder and elbow: its published
+    /// numbers are unchanged).
+    pub(crate) fn scale_compliances(
+        &mut self,
+        model: &ferrocal_robot::RobotModel,
+        rows: &[&crate::PoseMeasurement],
+        effects: &[crate::effects::EffectSpec],
+    ) -> Result<()> {
+        for (e, range) in effects.iter().zip(self.effects.clone()) {
+            let crate::effects::EffectSpec::JointCompliance { joint } = e else { continue };
+            let mut peak: f64 = 0.0;
+            for r in rows {
+                let tau = crate::effects::holding_torques(model, &r.q, r.payload_kg.unwrap_or(0.0))?;
+                peak = peak.max(tau.get(joint - 1).copied().unwrap_or(0.0).abs());
+            }
+            if peak > 0.0 && peak < COMPLIANCE_SCALE_TORQUE_NM {
+                self.scales[range.start] = 1e-4 / peak;
+            }
+        }
+        Ok(())
+    }
 }
 
 /// One kept parameter a fixed one trades against.

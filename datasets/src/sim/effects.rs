@@ -472,6 +472,7 @@ fn axis_wobble(
     let RobotModel::Serial(chain) = model else {
         return Err(DatasetError::Config("axis wobble: the model is not a serial chain".into()));
     };
+    chain.require_no_mimic("the simulator's axis wobble").map_err(|e| DatasetError::Config(e.to_string()))?;
     let f = chain.frames(q).map_err(|e| DatasetError::Config(format!("kinematics failed: {e}")))?;
     let link = f.links[joint - 1].rotation;
     // The axis in the moving link's own coordinates, and two normals to it fixed in the link.
@@ -531,6 +532,7 @@ fn link_bend(
     let RobotModel::Serial(chain) = model else {
         return Err(DatasetError::Config("link_compliance: the model is not a serial chain".into()));
     };
+    chain.require_no_mimic("the simulator's link compliance").map_err(|e| DatasetError::Config(e.to_string()))?;
     let n = chain.joints.len();
     if link == 0 || link >= n {
         return Err(DatasetError::Config(format!(

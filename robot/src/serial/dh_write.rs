@@ -146,6 +146,7 @@ impl SerialChain {
     /// readings) as a modified DH table with Hayati's angle for parallel axes (see the module
     /// documentation).
     pub fn to_mdh_table(&self, offsets: &[f64]) -> Result<MdhTable> {
+        self.require_no_mimic("the DH export")?;
         let n = self.joints.len();
         if offsets.len() != n {
             return Err(RobotError::Invalid(format!("{} joint offsets for a chain of {n} joints", offsets.len())));

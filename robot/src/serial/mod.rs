@@ -1,10 +1,19 @@
 //! Serial chains: DH, modified DH and URDF joints behind one type.
+//!
+//! # Coupled joints
+//! A joint may follow another (URDF `<mimic>`, [`Joint::mimic`]): it moves the chain but is not
+//! an actuated coordinate. Everything indexed by joint number (the joint vector `q`, `dof`,
+//! names, limits, Jacobian columns, gravity torques) counts the actuated joints only;
+//! [`SerialChain::joints`] and [`ChainFrames`] list every joint. Details in `mimic.rs`
+//! ([`SerialChain::all_joint_values`], [`SerialChain::coupling_matrix`]).
 
 mod dh_write;
+mod mimic;
 mod urdf;
 mod urdf_write;
 
 pub use dh_write::{MdhRow, MdhTable, PARALLEL_RAD};
+pub use mimic::Mimic;
 pub use urdf::{parse_urdf, parse_urdf_str, UrdfOptions};
 pub use urdf_write::{to_urdf, UrdfFrames};
 
@@ -66,7 +75,8 @@ pub struct Inertial {
     pub inertia_kgm2: [f64; 9],
 }
 
-/// One actuated joint with the link it moves.
+/// One joint with the link it moves: an actuated joint, or a mimic joint that follows one
+/// ([`Joint::mimic`]; see the module documentation's "Coupled joints").
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Joint {
     /// Name used in reports and errors.
@@ -86,6 +96,10 @@ pub struct Joint {
     /// parameters per joint, of which identifiability analysis keeps the independent ones).
     #[serde(default)]
     pub correction: [f64; 6],
+    /// `Some` for a mimic (coupled) joint, `q = multiplier * q_leader + offset`: not an actuated
+    /// coordinate of the chain (see the module documentation's "Coupled joints").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mimic: Option<Mimic>,
 }
 
 impl Joint {
@@ -205,7 +219,8 @@ impl Joint {
 pub const CORRECTION_NAMES: [&str; 6] =
     ["corr_x_m", "corr_y_m", "corr_z_m", "corr_rx_rad", "corr_ry_rad", "corr_rz_rad"];
 
-/// Frames of a serial chain at one joint configuration.
+/// Frames of a serial chain at one joint configuration, one entry per joint of
+/// [`SerialChain::joints`] (mimic joints included).
 #[derive(Clone, Debug)]
 pub struct ChainFrames {
     /// `T_base_frame_i` after each joint's motion (frame i is the link moved by joint i), i = 1..n.
@@ -230,7 +245,7 @@ pub struct SerialChain {
     pub name: String,
     /// `T_world_base`: pose of the robot base (identity unless placed).
     pub base: Pose,
-    /// The actuated joints, base to tip.
+    /// The joints, base to tip: the actuated joints and the mimic joints that follow them.
     pub joints: Vec<Joint>,
     /// `T_flange_tool`: pose of the tool point in the flange (last link) frame.
     pub tool: Pose,
@@ -284,6 +299,7 @@ impl SerialChain {
                 limits: JointLimits::UNBOUNDED,
                 inertial: None,
                 correction: [0.0; 6],
+                mimic: None,
             })
             .collect();
         Self::new(name, joints)
@@ -305,6 +321,7 @@ impl SerialChain {
                 limits: JointLimits::UNBOUNDED,
                 inertial: None,
                 correction: [0.0; 6],
+                mimic: None,
             })
             .collect();
         Self::new(name, joints)
@@ -330,9 +347,10 @@ impl SerialChain {
         Ok(self)
     }
 
-    /// All frames at `q`.
+    /// All frames at actuated joint values `q` (one entry per joint of the chain, mimic joints
+    /// at their coupled values).
     pub fn frames(&self, q: &[f64]) -> Result<ChainFrames> {
-        check_len(q, self.joints.len())?;
+        let q = &self.all_joint_values(q)?;
         let n = self.joints.len();
         let mut links = Vec::with_capacity(n);
         let mut axes = Vec::with_capacity(n);
@@ -352,7 +370,9 @@ impl SerialChain {
     }
 
     /// Geometric Jacobian of an arbitrary point `p_base` rigidly attached to link `link`
-    /// (0-based; joints after it do not move it). 6 x n.
+    /// (0-based; joints after it do not move it). 6 x n, one column per joint of `frames` (every
+    /// joint of the chain, mimic joints included: times [`SerialChain::coupling_matrix`] for the
+    /// actuated joints); `kinds` are those of [`SerialChain::joints`].
     pub fn point_jacobian(
         frames: &ChainFrames,
         kinds: &[JointKind],
@@ -380,8 +400,8 @@ impl SerialChain {
 
     /// Damped-least-squares inverse kinematics with explicit options.
     pub fn inverse_with(&self, target: &Pose, seed: &[f64], opts: &IkOptions) -> Result<Vec<f64>> {
-        check_len(seed, self.joints.len())?;
-        let n = self.joints.len();
+        check_len(seed, self.dof())?;
+        let n = self.dof();
         let w = opts.characteristic_length_m;
         let mut q: Vec<f64> = seed.to_vec();
         let mut lambda = opts.damping;
@@ -456,7 +476,7 @@ impl SerialChain {
 
     fn finish_ik(&self, mut q: Vec<f64>, opts: &IkOptions) -> Result<Vec<f64>> {
         // Bring revolute joints into their limits by whole turns where that helps.
-        for (v, j) in q.iter_mut().zip(&self.joints) {
+        for (v, j) in q.iter_mut().zip(self.joints.iter().filter(|j| j.mimic.is_none())) {
             if j.kind == JointKind::Revolute && !j.limits.contains(*v, 0.0) {
                 let tau = std::f64::consts::TAU;
                 let k = ((j.limits.lower + j.limits.upper) * 0.5 - *v) / tau;
@@ -476,8 +496,21 @@ impl SerialChain {
 
     /// Torques (N m; N for prismatic joints) the actuators must exert to hold the chain still at
     /// `q` against gravity, from the links' inertials (links without an inertial weigh nothing),
-    /// plus an optional payload of `payload_kg` at the tool point.
+    /// plus an optional payload of `payload_kg` at the tool point. One per actuated joint: a
+    /// mimic joint's torque reaches its leader's drive times the multiplier
+    /// (`tau_leader + m tau_mimic`, the generalized force of the actuated coordinate).
     pub fn gravity_torques(&self, q: &[f64], payload_kg: f64) -> Result<Vec<f64>> {
+        let all = nalgebra::DVector::from_vec(self.gravity_torques_all(q, payload_kg)?);
+        if !self.has_mimic_joints() {
+            return Ok(all.iter().copied().collect());
+        }
+        Ok((self.coupling_matrix()?.transpose() * all).iter().copied().collect())
+    }
+
+    /// The gravity torque every joint of the chain carries at actuated values `q` (one per
+    /// [`SerialChain::joints`] entry, mimic joints included): what [`SerialChain::gravity_torques`]
+    /// sums onto the drives.
+    pub fn gravity_torques_all(&self, q: &[f64], payload_kg: f64) -> Result<Vec<f64>> {
         let frames = self.frames(q)?;
         let kinds: Vec<JointKind> = self.joints.iter().map(|j| j.kind).collect();
         let g = Vector3::from(self.gravity_m_s2);
@@ -530,7 +563,11 @@ impl Parameterized for SerialChain {
             out.push(ParamInfo::new(format!("base.{n}"), unit, b[k]));
         }
         for (i, j) in self.joints.iter().enumerate() {
-            j.geometry_params(&format!("joint{}", i + 1), &mut out);
+            let prefix = self.parameter_prefix(i);
+            j.geometry_params(&prefix, &mut out);
+            if let Some(m) = &j.mimic {
+                out.push(ParamInfo::new(format!("{prefix}.coupling"), Unit::Dimensionless, m.multiplier));
+            }
         }
         let t = pose_to_vector(&self.tool);
         for (k, n) in ["x_m", "y_m", "z_m", "rx_rad", "ry_rad", "rz_rad"].iter().enumerate() {
@@ -550,6 +587,10 @@ impl Parameterized for SerialChain {
         let mut k = 6;
         for j in &mut self.joints {
             k += j.set_geometry_params(&values[k..]);
+            if let Some(m) = &mut j.mimic {
+                m.multiplier = values[k];
+                k += 1;
+            }
         }
         self.tool = pose_from_vectors(
             &Vector3::new(values[k], values[k + 1], values[k + 2]),
@@ -561,19 +602,19 @@ impl Parameterized for SerialChain {
 
 impl Kinematics for SerialChain {
     fn dof(&self) -> usize {
-        self.joints.len()
+        self.dof_actuated()
     }
 
     fn joint_names(&self) -> Vec<String> {
-        self.joints.iter().map(|j| j.name.clone()).collect()
+        self.joints.iter().filter(|j| j.mimic.is_none()).map(|j| j.name.clone()).collect()
     }
 
     fn joint_kinds(&self) -> Vec<JointKind> {
-        self.joints.iter().map(|j| j.kind).collect()
+        self.joints.iter().filter(|j| j.mimic.is_none()).map(|j| j.kind).collect()
     }
 
     fn joint_limits(&self) -> Vec<JointLimits> {
-        self.joints.iter().map(|j| j.limits).collect()
+        self.joints.iter().filter(|j| j.mimic.is_none()).map(|j| j.limits).collect()
     }
 
     fn mobility(&self) -> Mobility {
@@ -581,7 +622,14 @@ impl Kinematics for SerialChain {
     }
 
     fn forward(&self, q: &[f64]) -> Result<Pose> {
-        check_len(q, self.joints.len())?;
+        let all;
+        let q = if self.has_mimic_joints() {
+            all = self.all_joint_values(q)?;
+            &all[..]
+        } else {
+            check_len(q, self.joints.len())?;
+            q
+        };
         let mut t = self.base;
         for (j, qi) in self.joints.iter().zip(q) {
             let (pre, axis, post) = j.split_corrected();
@@ -597,6 +645,11 @@ impl Kinematics for SerialChain {
     fn jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
         let frames = self.frames(q)?;
         let p = Point3::from(frames.tool.translation.vector);
-        Ok(Self::point_jacobian(&frames, &self.joint_kinds(), self.joints.len().saturating_sub(1), &p))
+        let kinds: Vec<JointKind> = self.joints.iter().map(|j| j.kind).collect();
+        let jac = Self::point_jacobian(&frames, &kinds, self.joints.len().saturating_sub(1), &p);
+        if !self.has_mimic_joints() {
+            return Ok(jac);
+        }
+        Ok(jac * self.coupling_matrix()?)
     }
 }

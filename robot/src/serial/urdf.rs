@@ -3,6 +3,11 @@
 //! Fixed joints are folded into the next actuated joint's origin (or into the tool frame when
 //! they come after the last actuated joint); the inertials of links hanging on fixed joints are
 //! merged into the moving link that carries them.
+//!
+//! A `<mimic joint="leader" multiplier="m" offset="o"/>` joint becomes a coupled joint of the
+//! chain ([`Mimic`], `q = m q_leader + o`; defaults `m = 1`, `o = 0`). Its leader must be an
+//! actuated (not mimic, not fixed) joint on the same root-to-tip chain; otherwise the file is
+//! refused with the mimic joint named.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -10,7 +15,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Matrix3, Translation3, Vector3};
 use roxmltree::{Document, Node};
 
-use super::{Inertial, Joint, JointGeometry, SerialChain};
+use super::{Inertial, Joint, JointGeometry, Mimic, SerialChain};
 use crate::error::{check_finite, Location, Result, RobotError};
 use crate::geometry::{rpy, Pose};
 use crate::kinematics::{JointKind, JointLimits};
@@ -106,6 +111,8 @@ struct RawJoint<'a, 'i> {
     origin: Pose,
     axis: Vector3<f64>,
     limits: JointLimits,
+    /// `<mimic>`: the element, leader name, multiplier, offset.
+    mimic: Option<(Node<'a, 'i>, String, f64, f64)>,
 }
 
 /// A link's inertial in its own frame: mass, com, inertia about com.
@@ -212,17 +219,24 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
                 ))
             }
         };
-        if let Some(m) = child(j, "mimic") {
-            // A mimic joint follows another joint; taken as independent it would be a silent
-            // extra degree of freedom, so it is refused until it is modelled.
-            let leader = m.attribute("joint").unwrap_or("?");
-            return Err(ctx.err(
-                m,
-                format!(
-                    "joint '{name}' mimics joint '{leader}': mimic joints are not supported (make it fixed, or give its readings as a joint of its own)"
-                ),
-            ));
-        }
+        let mimic = match child(j, "mimic") {
+            None => None,
+            Some(m) => {
+                let what = format!("joint '{name}': <mimic>");
+                let Some(leader) = m.attribute("joint") else {
+                    return Err(ctx.err(m, format!("{what} needs a 'joint' attribute (the leader)")));
+                };
+                if kind.is_none() {
+                    return Err(ctx.err(m, format!("{what}: a fixed joint cannot follow joint '{leader}'")));
+                }
+                if leader == name {
+                    return Err(ctx.err(m, format!("{what}: the joint cannot follow itself")));
+                }
+                let multiplier = ctx.float(m, "multiplier", &what)?.unwrap_or(1.0);
+                let offset = ctx.float(m, "offset", &what)?.unwrap_or(0.0);
+                Some((m, leader.to_string(), multiplier, offset))
+            }
+        };
         let link_attr = |tag: &str| -> Result<String> {
             let n = child(j, tag).ok_or_else(|| ctx.err(j, format!("joint '{name}' has no <{tag}>")))?;
             n.attribute("link")
@@ -278,7 +292,7 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
             });
         }
         child_of.insert(child_link.clone(), joints.len());
-        joints.push(RawJoint { node: j, name, kind, parent, child: child_link, origin, axis, limits });
+        joints.push(RawJoint { node: j, name, kind, parent, child: child_link, origin, axis, limits, mimic });
     }
 
     // Root: the link that is nobody's child.
@@ -360,6 +374,7 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
         cur = joints[k].parent.clone();
     }
     path.reverse();
+    check_mimics(&ctx, &joints, &path, &root_link, &tip)?;
 
     // Fold fixed joints; collect inertials of links carried by each actuated joint.
     let mut out_joints: Vec<Joint> = Vec::new();
@@ -393,6 +408,11 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
                     limits: j.limits,
                     inertial: None,
                     correction: [0.0; 6],
+                    mimic: j.mimic.as_ref().map(|(_, leader, multiplier, offset)| Mimic {
+                        leader: leader.clone(),
+                        multiplier: *multiplier,
+                        offset: *offset,
+                    }),
                 });
                 carried.push(inertials.get(&j.child).copied());
             }
@@ -411,6 +431,36 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
     let mut chain = SerialChain::new(&robot_name, out_joints);
     chain.tool = pending;
     Ok(chain)
+}
+
+/// Every mimic joint on the chain `path` must follow an actuated joint on the same chain.
+fn check_mimics(ctx: &Ctx, joints: &[RawJoint], path: &[usize], root: &str, tip: &str) -> Result<()> {
+    for &k in path {
+        let Some((node, leader, _, _)) = &joints[k].mimic else { continue };
+        let name = &joints[k].name;
+        let Some(l) = joints.iter().position(|j| &j.name == leader) else {
+            return Err(ctx.err(*node, format!("joint '{name}' mimics joint '{leader}', which is not defined")));
+        };
+        let lj = &joints[l];
+        if let Some((_, ll, _, _)) = &lj.mimic {
+            return Err(ctx.err(
+                *node,
+                format!(
+                    "joint '{name}' mimics joint '{leader}', which is itself a mimic joint (of '{ll}'); a mimic joint must follow an actuated joint"
+                ),
+            ));
+        }
+        if lj.kind.is_none() {
+            return Err(ctx.err(*node, format!("joint '{name}' mimics joint '{leader}', which is fixed")));
+        }
+        if !path.contains(&l) {
+            return Err(ctx.err(
+                *node,
+                format!("joint '{name}' mimics joint '{leader}', which is not on the chain from '{root}' to '{tip}'"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -432,9 +482,13 @@ mod tests {
     }
 
     #[test]
-    fn urdf_mimic_joint_is_refused_by_name() {
-        let e = parse_urdf_str(&chain_urdf(3, true), &UrdfOptions::default()).unwrap_err().to_string();
-        assert!(e.contains("'j2' mimics joint 'j1'"), "{e}");
+    fn urdf_mimic_joint_is_a_coupled_joint() {
+        use crate::Kinematics;
+        let c = parse_urdf_str(&chain_urdf(3, true), &UrdfOptions::default()).unwrap();
+        assert_eq!((c.joints.len(), c.dof()), (3, 2));
+        assert_eq!(c.joint_names(), ["j1", "j3"]);
+        let m = c.joints[1].mimic.as_ref().unwrap();
+        assert_eq!((m.leader.as_str(), m.multiplier, m.offset), ("j1", 1.0, 0.0));
         assert_eq!(parse_urdf_str(&chain_urdf(3, false), &UrdfOptions::default()).unwrap().joints.len(), 3);
     }
 

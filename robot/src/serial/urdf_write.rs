@@ -9,29 +9,33 @@
 //! base goes into the first origin and the last joint's tail into the tool. Forward kinematics of
 //! the origin form equal the original's to rounding (tested), and link frames (after each joint's
 //! motion) are the same frames, so the inertials carry over unchanged.
+//!
+//! Mimic joints are written back as `<mimic>` with their multiplier and offset; the zero offsets
+//! are per actuated joint, and a mimic joint's origin takes its leader's offset times the
+//! multiplier (`m (q_leader + offset) + o = (m q_leader + o) + m offset`).
 
 use std::fmt::Write;
 
 use super::{Joint, JointGeometry, SerialChain};
 use crate::error::{Result, RobotError};
 use crate::geometry::Pose;
-use crate::kinematics::JointKind;
+use crate::kinematics::{JointKind, Kinematics};
 
 impl SerialChain {
     /// The same chain with every joint in URDF's origin form, the joint zero `offsets` (added to
-    /// the readings, rad or m per joint) folded into the origins, corrections folded, and the
-    /// base in the first origin (see the module documentation).
+    /// the readings, rad or m per actuated joint) folded into the origins, corrections folded,
+    /// and the base in the first origin (see the module documentation).
     pub fn to_origin_form(&self, offsets: &[f64]) -> Result<SerialChain> {
-        if offsets.len() != self.joints.len() {
-            return Err(RobotError::Invalid(format!(
-                "{} joint offsets for a chain of {} joints",
-                offsets.len(),
-                self.joints.len()
-            )));
+        let n = self.dof();
+        if offsets.len() != n {
+            return Err(RobotError::Invalid(format!("{} joint offsets for a chain of {n} joints", offsets.len())));
         }
+        // The offset of every joint of the chain: a mimic joint moves by its leader's offset
+        // times the multiplier (its own offset stays in its `<mimic>`).
+        let all = self.coupling_matrix()? * nalgebra::DVector::from_column_slice(offsets);
         let mut joints = Vec::with_capacity(self.joints.len());
         let mut carry = self.base;
-        for (j, off) in self.joints.iter().zip(offsets) {
+        for (j, off) in self.joints.iter().zip(all.iter()) {
             let (pre, axis, post) = j.split_corrected();
             let axis = axis.normalize();
             let origin = carry * pre * j.motion(&axis, *off);
@@ -47,6 +51,7 @@ impl SerialChain {
                 limits: j.limits,
                 inertial: j.inertial.clone(),
                 correction: [0.0; 6],
+                mimic: j.mimic.clone(),
             });
             carry = post;
         }
@@ -143,6 +148,15 @@ pub fn to_urdf(chain: &SerialChain, offsets: &[f64], frames: &UrdfFrames, commen
             xyz_m[0], xyz_m[1], xyz_m[2], rpy_rad[0], rpy_rad[1], rpy_rad[2]
         );
         let _ = writeln!(s, "    <axis xyz=\"{} {} {}\"/>", axis[0], axis[1], axis[2]);
+        if let Some(m) = &j.mimic {
+            let _ = writeln!(
+                s,
+                "    <mimic joint=\"{}\" multiplier=\"{}\" offset=\"{}\"/>",
+                escape(&m.leader),
+                m.multiplier,
+                m.offset
+            );
+        }
         if kind != "continuous" {
             let (lo, hi) = (j.limits.lower, j.limits.upper);
             let (lo, hi) = if lo.is_finite() && hi.is_finite() { (lo, hi) } else { (-1e3, 1e3) };
@@ -160,7 +174,6 @@ pub fn to_urdf(chain: &SerialChain, offsets: &[f64], frames: &UrdfFrames, commen
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinematics::Kinematics;
     use crate::serial::{parse_urdf_str, UrdfOptions};
     use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 

@@ -176,6 +176,7 @@ impl VjmModel {
     /// the link's run perpendicular to the axis); the last at the flange with the flange's z
     /// axis. The beam axis is x when the link runs mostly across the next axis, z when along it.
     pub fn auto_springs(chain: &SerialChain) -> Result<Vec<VirtualSpring>> {
+        chain.require_no_mimic("the stiffness model")?;
         let n = chain.joints.len();
         if n == 0 {
             return Err(StiffnessError::Structure("a chain without joints has no links".into()));
@@ -211,6 +212,7 @@ impl VjmModel {
 
     /// Checks sizes, finiteness, spring placement order and the compensator.
     pub fn validate(&self) -> Result<()> {
+        self.chain.require_no_mimic("the stiffness model")?;
         let n = self.chain.joints.len();
         if self.joint_compliance.len() != n {
             return Err(StiffnessError::Structure(format!(
