@@ -6,9 +6,9 @@
 //!
 //! Simulated: the simulator (`ferrocal_datasets::sim`, written apart from `calib::effects`) draws
 //! the geometric errors, the effects and the noise; the sag is computed at the torque equilibrium
-//! of the deflected pose, which the analysis's first-order model does not share. The effects
-//! still belong to the families the analysis fits, so these are checks of the engine's rules, not
-//! of its physics.
+//! of the deflected pose (torques from finite differences of the potential energy), as the
+//! analysis's effect model also does, written apart. The effects belong to the families the
+//! analysis fits: these are checks of the engine's rules, not of its physics.
 
 use crate::diagnose_support;
 

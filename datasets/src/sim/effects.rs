@@ -221,8 +221,8 @@ pub struct TrueRobot {
     pub platform_mass_kg: f64,
     /// Joint compliances deflect under the torques of the deflected pose (the torque
     /// equilibrium `q = q_cmd - C tau(q)` solved by fixed-point iteration) rather than of the
-    /// commanded one: the physics of an arm that sags tens of milliradians, which the
-    /// diagnosis's first-order model does not share.
+    /// commanded one: the physics of an arm that sags tens of milliradians (the calibration's
+    /// effect model solves the same equilibrium, written apart in `calib::effects`).
     pub compliance_equilibrium: bool,
 }
 

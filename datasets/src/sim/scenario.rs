@@ -125,10 +125,17 @@ pub fn simulate(s: &Scenario) -> (RobotModel, Vec<PoseMeasurement>) {
     (m, rows)
 }
 
+/// A simulated recording: the nominal model, the rows, and the effects' displacement of the
+/// measured point per row (metres).
+pub type Recording = (RobotModel, Vec<PoseMeasurement>, Vec<Vector3<f64>>);
+
+/// An effect named by its name and 1-based joints.
+pub type Named = (String, Vec<usize>);
+
 /// As [`simulate`], also returning the effect's displacement of the measured point per row
 /// (panics on a scenario that cannot be simulated: for tests and studies; see
 /// [`try_simulate_with_truth`]).
-pub fn simulate_with_truth(s: &Scenario) -> (RobotModel, Vec<PoseMeasurement>, Vec<Vector3<f64>>) {
+pub fn simulate_with_truth(s: &Scenario) -> Recording {
     match try_simulate_with_truth(s) {
         Ok(v) => v,
         Err(e) => panic!("scenario {} cannot be simulated: {e}", s.robot),
@@ -137,9 +144,7 @@ pub fn simulate_with_truth(s: &Scenario) -> (RobotModel, Vec<PoseMeasurement>, V
 
 /// The recording of `s`: the nominal model, the rows and the effects' displacement of the
 /// measured point per row; an error names what cannot be simulated.
-pub fn try_simulate_with_truth(
-    s: &Scenario,
-) -> Result<(RobotModel, Vec<PoseMeasurement>, Vec<Vector3<f64>>), DatasetError> {
+pub fn try_simulate_with_truth(s: &Scenario) -> Result<Recording, DatasetError> {
     let nominal = RobotModel::load(&s.robot).map_err(|e| DatasetError::Config(format!("robot {}: {e}", s.robot)))?;
     let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
     let errors = GeometricErrors { length_sigma_mm: 0.3, angle_sigma_mrad: 0.3, ..Default::default() };
@@ -215,9 +220,9 @@ pub struct DiagnoseCase {
     /// The true effects in words.
     pub truth: String,
     /// The effects (name, 1-based joints) a right answer names, sorted.
-    pub expected: Vec<(String, Vec<usize>)>,
+    pub expected: Vec<Named>,
     /// What `diagnose` named, sorted.
-    pub found: Vec<(String, Vec<usize>)>,
+    pub found: Vec<Named>,
     /// Whether `found` is exactly `expected`.
     pub correct: bool,
     /// Held-out RMS of the geometric model, mm.
@@ -240,7 +245,7 @@ pub const DEMO_CASES_SEED: u64 = 61;
 pub fn diagnose_cases(seed: u64) -> Result<Vec<DiagnoseCase>, DatasetError> {
     use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions};
     let leading = Effect::Backlash { joint: 3, width_si: -7e-4 };
-    let mut cases: Vec<(String, String, Scenario, Vec<(String, Vec<usize>)>)> = Vec::new();
+    let mut cases: Vec<(String, String, Scenario, Vec<Named>)> = Vec::new();
     let s = Scenario::new("ur5", Some(leading.clone()), seed);
     cases.push((
         "leading direction-dependent error".into(),
@@ -286,8 +291,7 @@ pub fn diagnose_cases(seed: u64) -> Result<Vec<DiagnoseCase>, DatasetError> {
         let (model, rows, _) = try_simulate_with_truth(&scenario)?;
         let rep = diagnose(&model, &rows, &DiagnoseOptions::default())
             .map_err(|e| DatasetError::Input(format!("diagnose of the case '{name}': {e}")))?;
-        let mut found: Vec<(String, Vec<usize>)> =
-            rep.findings.iter().map(|f| (f.effect.clone(), f.joints.clone())).collect();
+        let mut found: Vec<Named> = rep.findings.iter().map(|f| (f.effect.clone(), f.joints.clone())).collect();
         found.sort();
         expected.sort();
         out.push(DiagnoseCase {

@@ -320,7 +320,7 @@ fn evidence_plot(ev: &Evidence) -> String {
 pub fn cases_section(cases: &[ferrocal_datasets::sim::scenario::DiagnoseCase]) -> Section {
     let mut s = Section::new("diagnose-cases", "Diagnose: large and leading effects, found and named");
     s.text(
-        "Simulated recordings (the simulator in datasets/src/sim, written apart from the analysis but in the same model families; the sag is computed at the torque equilibrium of the deflected pose, which the analysis does not iterate). Sizes beyond the typical range of industrial arms are evidence, not vetoes: they are claimed on strong held-out support and marked UNUSUAL; a direction-dependent error of either sign is a finding (docs/diagnose.md).",
+        "Simulated recordings (the simulator in datasets/src/sim, written apart from the analysis but in the same model families; the sag is computed at the torque equilibrium of the deflected pose, as the analysis's effect model does). Sizes beyond the typical range of industrial arms are evidence, not vetoes: they are claimed on strong held-out support and marked UNUSUAL; a direction-dependent error of either sign is a finding (docs/diagnose.md).",
     );
     let words = |v: &[(String, Vec<usize>)]| -> String {
         if v.is_empty() {
