@@ -290,7 +290,11 @@ fn main() {
             let findings =
                 rep.findings.iter().map(|f| format!("{}{:?}", f.effect, f.joints)).collect::<Vec<_>>().join(" ");
             eprintln!(
-                "{short:>14} {kind:>22} j{joint} rho {ratio:<5} n {n_poses} noise x{noise} -> [{findings}] {}{:.2} s",
+                "{short:>14} {kind:>22} j{joint}{} rho {ratio:<5} n {n_poses} noise x{noise} -> [{findings}] {}{:.2} s",
+                match &sc.effect {
+                    Some(Effect::Backlash { width_si, .. }) if *width_si < 0.0 => " (leading)",
+                    _ => "",
+                },
                 if kind == "none" {
                     if rep.findings.is_empty() {
                         "ok "
@@ -299,6 +303,8 @@ fn main() {
                     }
                 } else if first_correct && !wrong {
                     "ok "
+                } else if detected && second.is_some() && !wrong {
+                    "found, the second effect missed "
                 } else if detected {
                     "found, with extra claims "
                 } else if wrong {
