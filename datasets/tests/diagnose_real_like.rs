@@ -12,7 +12,7 @@
 
 use crate::diagnose_support;
 
-use diagnose_support::{simulate, Payload, Scenario};
+use diagnose_support::{sagging_arm, simulate, Scenario};
 use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions, DiagnoseReport};
 use ferrocal_calib::effects::EffectSpec;
 use ferrocal_calib::kinematic::{calibrate, KinematicOptions};
@@ -73,25 +73,9 @@ fn a_leading_error_and_a_compliance_on_another_joint_are_both_named() {
     );
 }
 
-/// A lightweight arm's sag: compliances that deflect joints 2 and 3 by 20-30 mrad at the largest
-/// load (2 to 4 kg payload), at the torque equilibrium, 400 poses, motion-capture noise.
-fn sagging(seed: u64, with_sag: bool) -> Scenario {
-    let mut s = Scenario::new("ur5", None, seed);
-    if with_sag {
-        s.effect = Some(Effect::JointCompliance { joint: 2, compliance_si: 3.0e-4 });
-        s.extra_effects = vec![Effect::JointCompliance { joint: 3, compliance_si: 7.0e-4 }];
-    }
-    s.compliance_equilibrium = true;
-    s.n_poses = 400;
-    s.noise_scale = 35.0;
-    s.with_sigma = false;
-    s.payload = Payload::Varying(2.0, 4.0);
-    s
-}
-
 #[test]
 fn a_sagging_arm_gets_its_compliances_and_its_twin_gets_nothing() {
-    let (rep, model, rows) = run(&sagging(71, true));
+    let (rep, model, rows) = run(&sagging_arm(71, true));
     let comp: Vec<usize> =
         rep.findings.iter().filter(|f| f.effect == "joint_compliance").flat_map(|f| f.joints.clone()).collect();
     assert!(comp.contains(&2) && comp.contains(&3), "compliance on {comp:?}; steps {:#?}", rep.steps);
@@ -121,7 +105,7 @@ fn a_sagging_arm_gets_its_compliances_and_its_twin_gets_nothing() {
     assert!(rep.final_fit.heldout_rms_mm <= 1.15 * truth_mm, "{} against {truth_mm}", rep.final_fit.heldout_rms_mm);
     assert!(rep.final_fit.heldout_rms_mm < 0.7 * rep.nominal.heldout_rms_mm);
 
-    let (twin, _, _) = run(&sagging(71, false));
+    let (twin, _, _) = run(&sagging_arm(71, false));
     assert!(twin.findings.is_empty(), "the compliance-free twin: {:#?}", twin.findings);
     assert!(twin.summary.starts_with("No finding"), "{}", twin.summary);
 }

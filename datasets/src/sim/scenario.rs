@@ -235,6 +235,23 @@ pub struct DiagnoseCase {
     pub statements: Vec<String>,
 }
 
+/// A lightweight arm's sag (UR5 geometry): compliances that deflect joints 2 and 3 by 20-30 mrad
+/// at the largest load (2 to 4 kg payload), at the torque equilibrium, 400 poses, motion-capture
+/// noise (about 0.5 mm + 0.2 mm/m), no sigma column; without `with_sag`, its compliance-free twin.
+pub fn sagging_arm(seed: u64, with_sag: bool) -> Scenario {
+    let mut s = Scenario::new("ur5", None, seed);
+    if with_sag {
+        s.effect = Some(Effect::JointCompliance { joint: 2, compliance_si: 3.0e-4 });
+        s.extra_effects = vec![Effect::JointCompliance { joint: 3, compliance_si: 7.0e-4 }];
+    }
+    s.compliance_equilibrium = true;
+    s.n_poses = 400;
+    s.noise_scale = 35.0;
+    s.with_sigma = false;
+    s.payload = Payload::Varying(2.0, 4.0);
+    s
+}
+
 /// The seed of the demo's diagnose cases (`tests/diagnose_real_like.rs` checks them on it).
 pub const DEMO_CASES_SEED: u64 = 61;
 
@@ -261,19 +278,7 @@ pub fn diagnose_cases(seed: u64) -> Result<Vec<DiagnoseCase>, DatasetError> {
         s,
         vec![("backlash".into(), vec![3]), ("joint_compliance".into(), vec![2])],
     ));
-    let sag = |with: bool| {
-        let mut s = Scenario::new("ur5", None, seed + 2);
-        if with {
-            s.effect = Some(Effect::JointCompliance { joint: 2, compliance_si: 3.0e-4 });
-            s.extra_effects = vec![Effect::JointCompliance { joint: 3, compliance_si: 7.0e-4 }];
-        }
-        s.compliance_equilibrium = true;
-        s.n_poses = 400;
-        s.noise_scale = 35.0;
-        s.with_sigma = false;
-        s.payload = Payload::Varying(2.0, 4.0);
-        s
-    };
+    let sag = |with: bool| sagging_arm(seed + 2, with);
     cases.push((
         "sagging lightweight arm".into(),
         "joints 2 and 3 sag 20-30 mrad at the torque equilibrium; 400 poses, 0.5-1 mm motion-capture noise, no sigma column".into(),
