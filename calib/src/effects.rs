@@ -45,7 +45,7 @@
 //! with the joint as seen from the link, i.e. at twice the joint's rate as seen from the base.
 
 use ferrocal_robot::{JointKind, Kinematics, RobotModel, Unit};
-use nalgebra::{DMatrix, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{CalibError, Result};
@@ -443,6 +443,11 @@ pub fn holding_torques(model: &RobotModel, q: &[f64], payload_kg: f64) -> Result
 /// Largest number of fixed-point iterations of [`compliance_equilibrium`].
 pub const EQUILIBRIUM_MAX_ITERATIONS: usize = 100;
 
+/// The largest deflection (rad or m) an equilibrium of [`compliance_equilibrium`] may have from
+/// the readings: twice the limit beyond which the diagnosis calls a compliance meaningless
+/// (0.25 rad); a solution further away is a joint that fell over, not one that deflected.
+pub const EQUILIBRIUM_MAX_DEFLECTION: f64 = 0.5;
+
 /// Convergence tolerance of [`compliance_equilibrium`]: the largest joint change of the last
 /// iteration (rad or m). Well below the 1e-9 rad that matters for a pose, so that the central
 /// differences of the effect columns (steps of 1e-9 rad/(N m), joint changes of 1e-8 rad) see
@@ -493,8 +498,8 @@ pub fn equilibrium_sensitivity(
 /// stiff joint) and `tau` the [`holding_torques`] with `payload_kg`, by fixed-point iteration
 /// from `q0` to a change below [`EQUILIBRIUM_TOLERANCE`]. The iteration contracts by the largest
 /// `c_j d tau_j / d q_j` (gravity stiffness); when an iteration's change does not shrink, or
-/// after [`EQUILIBRIUM_MAX_ITERATIONS`], it stops with [`CalibError::Equilibrium`] naming the
-/// joint with the largest such factor.
+/// after [`EQUILIBRIUM_MAX_ITERATIONS`], Newton's method takes over from `q0`; when that fails
+/// too, it stops with [`CalibError::Equilibrium`] naming the joint with the largest such factor.
 pub fn compliance_equilibrium(model: &RobotModel, q0: &[f64], compliance: &[f64], payload_kg: f64) -> Result<Vec<f64>> {
     if compliance.len() != q0.len() {
         return Err(CalibError::Data(format!(
@@ -525,7 +530,44 @@ pub fn compliance_equilibrium(model: &RobotModel, q0: &[f64], compliance: &[f64]
         }
         last = d;
     }
-    Err(equilibrium_failure(model, &q, compliance, payload_kg))
+    // The iteration contracts only when every mode of `C K` is below 1 in size; with several
+    // compliant joints coupled through the torques (a torso under two arms) it can stall where
+    // the equilibrium is still well defined. Newton's method on `q - q0 + C tau(q) = 0` solves
+    // those; it fails only when `I + C K` is singular or the steps do not shrink (the structure
+    // would buckle under its own weight).
+    equilibrium_newton(model, q0, compliance, payload_kg)
+        .ok_or_else(|| equilibrium_failure(model, &q, compliance, payload_kg))
+}
+
+/// Newton's method for [`compliance_equilibrium`] from `q0` (the Jacobian `I + C K` by central
+/// differences, as [`equilibrium_sensitivity`]); `None` when it does not converge.
+fn equilibrium_newton(model: &RobotModel, q0: &[f64], compliance: &[f64], payload_kg: f64) -> Option<Vec<f64>> {
+    let n = q0.len();
+    let mut q = q0.to_vec();
+    let mut last = f64::INFINITY;
+    for _ in 0..EQUILIBRIUM_MAX_ITERATIONS {
+        let tau = holding_torques(model, &q, payload_kg).ok()?;
+        let f = DVector::from_fn(n, |j, _| q[j] - q0[j] + compliance[j] * tau[j]);
+        let jac = equilibrium_sensitivity(model, &q, compliance, payload_kg).ok()?;
+        let step = jac * f;
+        let d = step.amax();
+        for (qj, s) in q.iter_mut().zip(step.iter()) {
+            *qj -= s;
+        }
+        let deflection = q.iter().zip(q0).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        if deflection > EQUILIBRIUM_MAX_DEFLECTION {
+            // A joint turned that far has fallen, not deflected: no linear compliance means it.
+            return None;
+        }
+        if d <= EQUILIBRIUM_TOLERANCE {
+            return Some(q);
+        }
+        if !d.is_finite() || (d >= last && d > 1e3 * EQUILIBRIUM_TOLERANCE) {
+            return None;
+        }
+        last = d;
+    }
+    None
 }
 
 /// The error of a diverging equilibrium: the joint with the largest compliance times gravity

@@ -91,3 +91,24 @@ fn compliance_effects_index_the_actuated_joints() {
     let tau = holding_torques(&model, &q, 0.0).unwrap();
     assert!((tau[1] - (all[1] + 0.5 * all[2])).abs() < 1e-12);
 }
+
+#[test]
+fn an_equilibrium_the_plain_iteration_overshoots_is_solved_by_newton() {
+    // Where joint 2's links hang below its axis, gravity stiffens it (K > 0); a compliance with
+    // c K = 1.4 makes `q <- q0 - c tau(q)` overshoot with a growing amplitude, while the
+    // equilibrium exists and is stable (1 + c K > 0: the potential plus the spring is convex).
+    let model = arm();
+    let h = 1e-6;
+    let k22 = |q2: f64| {
+        (holding_torques(&model, &[0.0, q2 + h], 0.0).unwrap()[1]
+            - holding_torques(&model, &[0.0, q2 - h], 0.0).unwrap()[1])
+            / (2.0 * h)
+    };
+    let q2 = [-2.5, -1.2, 1.2, 2.5].into_iter().find(|&q| k22(q) > 1.0).expect("a hanging configuration");
+    let q0 = [0.0, q2];
+    let c = [0.0, 1.4 / k22(q2)];
+    let q = compliance_equilibrium(&model, &q0, &c, 0.0).unwrap();
+    let tau = holding_torques(&model, &q, 0.0).unwrap();
+    assert!((q[1] - (q0[1] - c[1] * tau[1])).abs() < 1e-11, "not at the equilibrium: {q:?}");
+    assert!((q[1] - q0[1]).abs() < EQUILIBRIUM_MAX_DEFLECTION, "{q:?}");
+}

@@ -95,6 +95,70 @@ pub struct EffectValues {
     pub values: Vec<f64>,
 }
 
+/// The largest change of a joint's geometry a calibration may make (rad): 20 degrees, ten times
+/// what a misassembled or worn arm shows; a larger one is a wrong file (degrees in a radian field,
+/// a value edited by hand), not a calibration.
+pub const MAX_JOINT_CHANGE_RAD: f64 = 0.35;
+
+/// The largest change of a joint's geometry a calibration may make (m): 0.25 m.
+pub const MAX_JOINT_CHANGE_M: f64 = 0.25;
+
+/// Refuses a calibration whose joint parameters (`joint<i>.*`, `mimic<k>.*`, not the base or
+/// tool placement) or joint offsets change the nominal model by more than
+/// [`MAX_JOINT_CHANGE_RAD`] / [`MAX_JOINT_CHANGE_M`], naming the parameter and the likely cause.
+fn check_physical(
+    info: &[ferrocal_robot::ParamInfo],
+    values: &[f64],
+    offsets: &[f64],
+    kinds: &[ferrocal_robot::JointKind],
+) -> Result<()> {
+    let hint = |change: f64, unit: ferrocal_robot::Unit| -> String {
+        match unit {
+            ferrocal_robot::Unit::Radian if change.to_radians().abs() <= MAX_JOINT_CHANGE_RAD => {
+                format!(" (read as degrees it would be {:.4} rad: was it written in degrees?)", change.to_radians())
+            }
+            ferrocal_robot::Unit::Metre if (change / 1000.0).abs() <= MAX_JOINT_CHANGE_M => {
+                format!(" (read as millimetres it would be {:.4} m: was it written in millimetres?)", change / 1000.0)
+            }
+            _ => String::new(),
+        }
+    };
+    for (p, v) in info.iter().zip(values) {
+        if !(p.name.starts_with("joint") || p.name.starts_with("mimic")) {
+            continue;
+        }
+        let change = v - p.value;
+        let limit = match p.unit {
+            ferrocal_robot::Unit::Radian => MAX_JOINT_CHANGE_RAD,
+            ferrocal_robot::Unit::Metre => MAX_JOINT_CHANGE_M,
+            _ => continue,
+        };
+        if change.abs() > limit {
+            return Err(CalibError::Data(format!(
+                "parameter '{}' changes the nominal model by {change:.6} {}, beyond the {limit} a calibration can make{}: the file is not a calibration of this robot",
+                p.name,
+                p.unit.symbol(),
+                hint(change, p.unit)
+            )));
+        }
+    }
+    for (k, (o, kind)) in offsets.iter().zip(kinds).enumerate() {
+        let (limit, unit) = match kind {
+            ferrocal_robot::JointKind::Revolute => (MAX_JOINT_CHANGE_RAD, ferrocal_robot::Unit::Radian),
+            ferrocal_robot::JointKind::Prismatic => (MAX_JOINT_CHANGE_M, ferrocal_robot::Unit::Metre),
+        };
+        if o.abs() > limit {
+            return Err(CalibError::Data(format!(
+                "joint offset {} is {o:.6} {}, beyond the {limit} a calibration can make{}: the file is not a calibration of this robot",
+                k + 1,
+                unit.symbol(),
+                hint(*o, unit)
+            )));
+        }
+    }
+    Ok(())
+}
+
 impl CalibrationFile {
     /// From a calibrated model.
     pub fn new(robot_spec: &str, cm: &CalibratedModel) -> Self {
@@ -173,6 +237,7 @@ impl CalibrationFile {
         if let Some((k, _)) = self.joint_offsets.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(CalibError::Data(format!("joint offset {} is not a finite number", k + 1)));
         }
+        check_physical(&info, &values, &self.joint_offsets, &model.joint_kinds())?;
         m.set_parameter_values(&values)?;
         let load_model = match &self.load_model {
             None => model.clone(),
@@ -261,6 +326,40 @@ fn name_list(names: &[&str]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_calibration_beyond_what_a_calibration_can_change_is_refused_with_the_likely_unit() {
+        let ur5 = RobotModel::load("ur5").unwrap();
+        let file = CalibrationFile::new("ur5", &CalibratedModel::nominal(ur5.clone()));
+        let rad =
+            file.parameters.iter().position(|p| p.name.starts_with("joint2") && p.name.ends_with("_rad")).unwrap();
+        let m = file.parameters.iter().position(|p| p.name.starts_with("joint3") && p.name.ends_with("_m")).unwrap();
+        // A change of 5 degrees written as 5 in a radian field.
+        let mut deg = file.clone();
+        deg.parameters[rad].value += 5.0;
+        let e = deg.apply(&ur5).unwrap_err().to_string();
+        assert!(e.contains(&file.parameters[rad].name) && e.contains("written in degrees"), "{e}");
+        // 1e308 rad.
+        let mut huge = file.clone();
+        huge.parameters[rad].value = 1e308;
+        let e = huge.apply(&ur5).unwrap_err().to_string();
+        assert!(e.contains("not a calibration of this robot") && !e.contains("degrees"), "{e}");
+        // 40 mm written as 40 in a metre field.
+        let mut mm = file.clone();
+        mm.parameters[m].value += 40.0;
+        assert!(mm.apply(&ur5).unwrap_err().to_string().contains("written in millimetres"));
+        // A joint offset of 90 (degrees) in radians.
+        let mut off = file.clone();
+        off.joint_offsets[1] = 90.0;
+        let e = off.apply(&ur5).unwrap_err().to_string();
+        assert!(e.contains("joint offset 2") && !e.contains("written in degrees"), "{e}");
+        // Changes a calibration makes pass: 10 mrad and 5 mm.
+        let mut fine = file.clone();
+        fine.parameters[rad].value += 0.01;
+        fine.parameters[m].value += 0.005;
+        fine.joint_offsets[0] = 0.02;
+        assert!(fine.apply(&ur5).is_ok());
+    }
 
     #[test]
     fn calibration_file_missing_repeated_or_for_another_robot_is_refused() {

@@ -190,6 +190,31 @@ pub enum DatasetError {
     /// An error of a camera model (projection, unprojection, parameters).
     #[error(transparent)]
     Camera(#[from] ferrocal_vision::VisionError),
+    /// An error of a calibration (the workflows that run one: `handeye`, `measure`).
+    #[error(transparent)]
+    Calib(#[from] ferrocal_calib::CalibError),
+    /// An error of a robot model (loading a preset, URDF or TOML, kinematics).
+    #[error(transparent)]
+    Robot(#[from] ferrocal_robot::RobotError),
+    /// An error of the least-squares layer (a linear fit).
+    #[error(transparent)]
+    Lsq(#[from] ferrocal_lsq::LsqError),
+    /// What a workflow was doing when `source` went wrong.
+    #[error("{context}")]
+    Context {
+        /// What was being done (e.g. `handeye: 12 usable image(s) of 14`).
+        context: String,
+        /// Why it failed.
+        #[source]
+        source: Box<DatasetError>,
+    },
+}
+
+impl DatasetError {
+    /// This error with `context` before it (shown as `context: error` in a chain of causes).
+    pub fn context(self, context: impl Into<String>) -> Self {
+        Self::Context { context: context.into(), source: Box::new(self) }
+    }
 }
 
 /// Result alias of the datasets crate.

@@ -27,7 +27,9 @@
 #![deny(missing_docs)]
 
 pub mod atomic;
+pub mod calibration;
 pub mod checks;
+pub mod correct;
 pub mod dynsim;
 pub mod error;
 pub mod formats;
@@ -37,6 +39,7 @@ pub mod measure;
 pub mod motion;
 pub mod recording;
 pub mod render;
+pub mod safety;
 pub mod sim;
 pub mod stiffsim;
 

@@ -289,3 +289,43 @@ fn calibrate_from_views(
     let cov = (cal.covariance.nrows() == cal.camera.n_parameters()).then_some(cal.covariance);
     Ok((camera, cov))
 }
+
+/// What a row of a recording's measurement table is for `mount`: the target in the camera's
+/// frame (eye-to-hand) or the camera in the fixed target's frame (eye-in-hand).
+pub fn frame_note(mount: Mount) -> &'static str {
+    match mount {
+        Mount::EyeToHand => "positions and orientations of the target in the camera's frame",
+        Mount::EyeInHand => "positions and orientations of the camera in the fixed target's frame",
+    }
+}
+
+/// The measurement table of `rows` as `ferrocal measure --out` writes it: joints in SI (rad, m)
+/// whatever units the poses table `table` used (the values are SI inside), lengths in mm, with
+/// comments naming the images' table `poses`, the frame of `mount` and the data's source.
+pub fn recording_table_text(
+    rows: &MeasurementSet,
+    table: &PosesTable,
+    mount: Mount,
+    poses: &std::path::Path,
+    source: Option<&str>,
+) -> Result<String> {
+    use crate::import::{measurements_to_string, JointUnit, LengthUnit, WriteOptions};
+    let mut wopts = WriteOptions::revolute(table.joint_units.len());
+    wopts.joint_units = table
+        .joint_units
+        .iter()
+        .map(|u| match u {
+            JointUnit::Rad | JointUnit::Deg => JointUnit::Rad,
+            JointUnit::M | JointUnit::Mm => JointUnit::M,
+        })
+        .collect();
+    wopts.length_unit = LengthUnit::Mm;
+    wopts.comments = vec![
+        format!("measured by ferrocal {} from the images of {}", env!("CARGO_PKG_VERSION"), poses.display()),
+        format!("{}; cov_*: each pose's covariance", frame_note(mount)),
+    ];
+    if let Some(s) = source {
+        wopts.comments.push(format!("source: {s}"));
+    }
+    measurements_to_string(rows, &wopts)
+}

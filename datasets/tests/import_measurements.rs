@@ -357,7 +357,7 @@ fn header_only_and_missing_file() {
     assert!(e.contains("empty.csv: line 1") && e.contains("no header"), "{e}");
     // A semicolon file gets a hint.
     let e = parse_measurements("pose_id;q1_rad;x_m;y_m;z_m\n1;0;0;0;0\n", "semi.csv").unwrap_err().to_string();
-    assert!(e.contains("separated by another character"), "{e}");
+    assert!(e.contains("separated by ';'") && e.contains("decimal point"), "{e}");
 }
 
 /// A measured pose's covariance (`cov_<a>_<b>_<unit>` columns): the 6 x 6 of a camera pose and

@@ -1,6 +1,7 @@
 //! The end-to-end tests' harness: the `ferrocal` binary that `cargo test --workspace` builds,
 //! the shared recordings, and small helpers. The tests themselves live in `tests/`.
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -51,4 +52,36 @@ pub fn import_ur5(dir: &Path) -> PathBuf {
         .arg("--out")
         .arg(&table));
     table
+}
+
+/// `ferrocal calibrate --robot ROBOT --measurements TABLE --out CAL --json JSON`; more arguments
+/// may follow.
+pub fn calibrate_cmd(robot: impl AsRef<OsStr>, table: &Path, cal: &Path, json: &Path) -> Command {
+    let mut c = ferrocal();
+    c.args(["calibrate", "--robot"])
+        .arg(robot)
+        .arg("--measurements")
+        .arg(table)
+        .arg("--out")
+        .arg(cal)
+        .arg("--json")
+        .arg(json);
+    c
+}
+
+/// `ferrocal GLOBAL... evaluate --robot ROBOT --calibration CAL --measurements TABLE --json JSON`
+/// (`global`: the arguments before the command, e.g. `--keep`, `--thresholds FILE`); more
+/// arguments may follow.
+pub fn evaluate_cmd(global: &[&str], robot: impl AsRef<OsStr>, cal: &Path, table: &Path, json: &Path) -> Command {
+    let mut c = ferrocal();
+    c.args(global)
+        .args(["evaluate", "--robot"])
+        .arg(robot)
+        .arg("--calibration")
+        .arg(cal)
+        .arg("--measurements")
+        .arg(table)
+        .arg("--json")
+        .arg(json);
+    c
 }

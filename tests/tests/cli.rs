@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ferrocal_tests::{data, ferrocal, import_ur5, json, run};
+use ferrocal_tests::{calibrate_cmd, data, evaluate_cmd, ferrocal, import_ur5, json, run};
 
 #[test]
 fn ur5_calibrate_and_evaluate_through_the_binary() {
@@ -12,28 +12,14 @@ fn ur5_calibrate_and_evaluate_through_the_binary() {
     let cal = tmp.path().join("cal.json");
     let rep = tmp.path().join("rep.json");
     let html = tmp.path().join("rep.html");
-    let out = run(ferrocal()
-        .args(["calibrate", "--robot", "ur5", "--measurements"])
-        .arg(&table)
-        .arg("--out")
-        .arg(&cal)
-        .arg("--json")
-        .arg(&rep)
-        .arg("--report")
-        .arg(&html));
+    let out = run(calibrate_cmd("ur5", &table, &cal, &rep).arg("--report").arg(&html));
     assert!(out.status.success());
     let r = json(&rep);
     let heldout = r["heldout"]["after"]["mean_mm"].as_f64().unwrap();
     assert!(heldout < 0.12, "held-out mean {heldout} mm (every second grid pose)");
     assert!(std::fs::read_to_string(&html).unwrap().contains("<svg"));
     let ev = tmp.path().join("ev.json");
-    let out = run(ferrocal()
-        .args(["evaluate", "--robot", "ur5", "--calibration"])
-        .arg(&cal)
-        .arg("--measurements")
-        .arg(&table)
-        .arg("--json")
-        .arg(&ev));
+    let out = run(&mut evaluate_cmd(&[], "ur5", &cal, &table, &ev));
     assert!(out.status.success());
     let e = json(&ev);
     assert_eq!(e["n"].as_u64(), Some(1000));

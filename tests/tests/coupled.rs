@@ -382,3 +382,64 @@ fn simulated_coupled_arm_binary_calibrate_and_evaluate() {
     assert!(comp <= 1.15 * floor, "held-out RMS {comp:.4} mm vs the true model's {floor:.4} mm");
     assert!(geo > 1.5 * comp, "geometric {geo:.4} mm vs compliant {comp:.4} mm");
 }
+
+/// The branched humanoid-class robot (`ferrocal_datasets::sim::humanoid`: a torso with a coupled
+/// pitch joint carrying two arms, the left hand measured, the right arm's weight on the torso),
+/// simulated apart from the analysis (`sim::tree`). `ferrocal calibrate --effects` with
+/// `joint_compliance` on every loaded joint (2 to 10; joint 1 is a vertical yaw) through its URDF
+/// against the geometric fit and the true model's held-out error (the noise).
+#[test]
+fn simulated_branched_humanoid_binary_calibrate_with_compliance_on_every_loaded_joint() {
+    let rec = ferrocal_datasets::sim::humanoid::recording(81, 400, true).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let robot = tmp.path().join("humanoid.urdf");
+    std::fs::write(&robot, &rec.urdf).unwrap();
+    let write = |path: &Path, only_test: bool| {
+        let n = rec.rows[0].q.len();
+        let mut s: Vec<String> = (1..=n).map(|k| format!("q{k}_rad")).collect();
+        s.insert(0, "pose_id".into());
+        let mut text = s.join(",") + ",x_m,y_m,z_m,split\n";
+        for r in rec.rows.iter().filter(|r| !only_test || r.split == Some(ferrocal_calib::Split::Test)) {
+            let q: Vec<String> = r.q.iter().map(|v| format!("{v:.17e}")).collect();
+            let split = if r.split == Some(ferrocal_calib::Split::Test) { "test" } else { "train" };
+            let p = r.position_m;
+            text.push_str(&format!("{},{},{:.17e},{:.17e},{:.17e},{split}\n", r.pose_id, q.join(","), p.x, p.y, p.z));
+        }
+        std::fs::write(path, text).unwrap();
+    };
+    let (table, test) = (tmp.path().join("humanoid.csv"), tmp.path().join("humanoid_test.csv"));
+    write(&table, false);
+    write(&test, true);
+    let run = |effects: Option<String>, name: &str| -> f64 {
+        let cal = tmp.path().join(format!("{name}.json"));
+        let mut cmd = ferrocal();
+        cmd.args(["calibrate", "--robot"]).arg(&robot).arg("--measurements").arg(&table);
+        cmd.args(["--sigma-mm", "0.75", "--keep", "--out"]).arg(&cal);
+        if let Some(e) = &effects {
+            cmd.args(["--effects", e]);
+        }
+        ok(&mut cmd);
+        let out = tmp.path().join(format!("{name}_eval.json"));
+        ok(ferrocal()
+            .args(["evaluate", "--robot"])
+            .arg(&robot)
+            .arg("--calibration")
+            .arg(&cal)
+            .arg("--measurements")
+            .arg(&test)
+            .args(["--keep", "--json"])
+            .arg(&out));
+        let e = json(&out);
+        assert_eq!(e["n"].as_u64(), Some(100));
+        e["rms_mm"].as_f64().unwrap()
+    };
+    let geo = run(None, "geo");
+    let all: Vec<String> = (2..=10).map(|j| format!("joint_compliance:{j}")).collect();
+    let comp = run(Some(all.join(",")), "comp");
+    let floor = rec.truth_held_out_mm;
+    eprintln!(
+        "branched humanoid (simulated) through the binary, held-out RMS: true model {floor:.4} mm, geometric {geo:.4} mm, joint_compliance:2-10 {comp:.4} mm"
+    );
+    assert!(comp <= 1.15 * floor, "held-out RMS {comp:.4} mm vs the true model's {floor:.4} mm");
+    assert!(geo > 3.0 * comp, "geometric {geo:.4} mm vs compliant {comp:.4} mm");
+}

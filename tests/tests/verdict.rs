@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::process::Output;
 
-use ferrocal_tests::{data, ferrocal, json, ok, run};
+use ferrocal_tests::{calibrate_cmd, data, evaluate_cmd, ferrocal, json, ok, run};
 
 /// The last stdout line, checked against `^verdict: (pass|warning|fail): .+; next: .+$`; returns
 /// its status.
@@ -55,15 +55,7 @@ fn positioner(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf, std::path:
     assert_eq!(verdict_line(&out), "pass");
     let cal = dir.join("cal.json");
     let rep = dir.join("rep.json");
-    let out = ok(ferrocal()
-        .args(["calibrate", "--robot"])
-        .arg(&robot)
-        .arg("--measurements")
-        .arg(&table)
-        .arg("--out")
-        .arg(&cal)
-        .arg("--json")
-        .arg(&rep));
+    let out = ok(&mut calibrate_cmd(&robot, &table, &cal, &rep));
     // A warning: the calibration gains less than industrial_calibration's 10 % on held-out
     // poses (0.478 -> 0.438 mm RMS, measured).
     assert_eq!(verdict_line(&out), json_verdict(&rep));
@@ -71,17 +63,7 @@ fn positioner(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf, std::path:
 }
 
 fn evaluate(robot: &Path, cal: &Path, table: &Path, json_out: &Path, extra: &[&str]) -> Output {
-    run(ferrocal()
-        .args(extra)
-        .arg("evaluate")
-        .arg("--robot")
-        .arg(robot)
-        .arg("--calibration")
-        .arg(cal)
-        .arg("--measurements")
-        .arg(table)
-        .arg("--json")
-        .arg(json_out))
+    run(&mut evaluate_cmd(extra, robot, cal, table, json_out))
 }
 
 /// `evaluate` on the importer's table scores its 51 test rows: mean 0.42 mm held out (measured
@@ -174,13 +156,7 @@ fn commands_end_with_the_verdict_line_and_write_it_in_their_json() {
         .arg(&table));
     verdict_line(&out);
     let (cal, rep) = (dir.join("cal.json"), dir.join("rep.json"));
-    let out = ok(ferrocal()
-        .args(["calibrate", "--robot", "ur5", "--measurements"])
-        .arg(&table)
-        .arg("--out")
-        .arg(&cal)
-        .arg("--json")
-        .arg(&rep));
+    let out = ok(&mut calibrate_cmd("ur5", &table, &cal, &rep));
     assert_eq!(verdict_line(&out), json_verdict(&rep));
     let names: Vec<String> = json(&rep)["verdict"]["checks"]
         .as_array()
@@ -190,13 +166,7 @@ fn commands_end_with_the_verdict_line_and_write_it_in_their_json() {
         .collect();
     assert!(names.contains(&"calibrate.heldout_vs_nominal".to_string()), "{names:?}");
     let ev = dir.join("ev.json");
-    let out = ok(ferrocal()
-        .args(["evaluate", "--robot", "ur5", "--calibration"])
-        .arg(&cal)
-        .arg("--measurements")
-        .arg(&table)
-        .arg("--json")
-        .arg(&ev));
+    let out = ok(&mut evaluate_cmd(&[], "ur5", &cal, &table, &ev));
     assert_eq!(verdict_line(&out), "pass");
     assert_eq!(json(&ev)["rows_scored"], "all");
     assert_eq!(json(&ev)["n"].as_u64(), Some(1000));

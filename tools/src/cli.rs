@@ -57,7 +57,7 @@ pub enum Command {
     Measure(crate::commands::simulate::MeasureArgs),
     /// Correct a program's joint commands through a calibration, so that the robot reaches the
     /// poses the nominal model meant.
-    Correct(ferrocal_report::compensate::CorrectArgs),
+    Correct(crate::commands::correct::CorrectArgs),
     /// Plan measurement poses: safe and measurable workspace, pose selection (A/D/K/N), predicted
     /// and simulated calibration, a checked path and robot programs (RAPID, CSV, G-code).
     Plan(crate::commands::plan::PlanArgs),
@@ -75,7 +75,7 @@ pub enum Command {
     /// residuals show strong structure (docs/diagnose.md).
     Diagnose(crate::commands::diagnose::DiagnoseArgs),
     /// Hand-eye calibration (camera on the flange or fixed), refined in pixels, with OpenCV beside.
-    Handeye(ferrocal_report::handeye::HandeyeArgs),
+    Handeye(crate::commands::handeye::HandeyeArgs),
     /// Predict a measurement table with a calibrated model and report the position errors.
     Evaluate(crate::commands::calibrate::EvaluateArgs),
     /// Export a calibration for other tools: the calibrated serial robot as a URDF and as a

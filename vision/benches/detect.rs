@@ -1,9 +1,12 @@
 //! Detection speed: this project's detectors against OpenCV and the AprilTag libraries on the
-//! same images (procedural chessboards at 5 MP and 2 MP, ChArUco boards and circle grids on the
+//! same images (real-like renders of large chessboards, procedural chessboards at 5 MP and
+//! 2 MP, ChArUco boards and circle grids on the
 //! ROS-Industrial industrial_calibration example data, Apache-2.0). Run with `cargo bench --workspace --bench detect`; the side-by-side
 //! medians and ratios come from `cargo run --release -p ferrocal-vision --example speed`
 //! (see BENCHMARKS.md).
 
+#[path = "../tests/support/reallike.rs"]
+mod reallike;
 #[path = "../tests/support/synth.rs"]
 mod synth;
 
@@ -67,6 +70,28 @@ fn chessboard_2mp(c: &mut Criterion) {
         b.iter(|| opencv_find_chessboard(&img, 25, 17, Some(5)).unwrap().unwrap())
     });
     g.finish();
+}
+
+/// The real-like set (`tests/support/reallike.rs`: colour sensor with bilinear demosaicing,
+/// defocus varying across the frame, vignetting, uneven light, glare, background clutter,
+/// PNG or JPEG): a 1928 x 1208 PNG of a 28 x 17 board (476 corners, squares 33-40 px) and a
+/// 2448 x 2048 JPEG of a 30 x 19 board (570 corners, rolled 24 degrees); ferrocal's detection
+/// and refinement against `findChessboardCornersSB`, side by side in one group.
+fn chessboard_reallike(c: &mut Criterion) {
+    for name in ["r00_1928x1208_28x17_png", "r03_2448x2048_30x19_jpg"] {
+        let view = reallike::views().into_iter().find(|v| v.name == name).expect("view");
+        let img = reallike::render_gray(&view);
+        let pattern: Pattern = view.pattern().parse().unwrap();
+        let (cols, rows) = (view.cols as u32, view.rows as u32);
+        let mut g = c.benchmark_group(format!("reallike_{name}"));
+        g.sample_size(10);
+        g.bench_function("ferrocal_detect_refine", |b| {
+            b.iter(|| detect(&img, &pattern, &DetectOptions::default(), None).unwrap())
+        });
+        // SB does not find the board in every view of the set (r03): timed all the same.
+        g.bench_function("opencv_sb", |b| b.iter(|| opencv_find_chessboard_sb(&img, cols, rows, false).unwrap()));
+        g.finish();
+    }
 }
 
 fn plate(c: &mut Criterion) {
@@ -134,5 +159,5 @@ fn circle_grid(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, chessboard, chessboard_2mp, plate, apriltag, charuco, circle_grid);
+criterion_group!(benches, chessboard_reallike, chessboard, chessboard_2mp, plate, apriltag, charuco, circle_grid);
 criterion_main!(benches);

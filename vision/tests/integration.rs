@@ -8,9 +8,12 @@ mod calib_simulated;
 mod calib_support;
 mod detect_batch;
 mod detect_real;
+mod detect_reallike;
 mod detect_synthetic;
 mod pose_pnp;
 mod pose_stereo_cell;
+#[path = "support/reallike.rs"]
+mod reallike;
 #[path = "support/synth.rs"]
 mod synth;
 mod targets_real;

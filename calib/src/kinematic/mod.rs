@@ -33,7 +33,10 @@ use crate::lsq::{covariance, solve, LmOptions, LmSummary, Loss};
 use crate::measurement::PoseMeasurement;
 
 pub mod correct;
+mod design;
+mod layout;
 mod model;
+mod outliers;
 mod point_start;
 mod problem;
 mod refit;
@@ -42,8 +45,11 @@ mod split;
 #[cfg(test)]
 mod tests;
 
+pub use design::design_jacobian;
+pub use layout::StateLayout;
 use model::row_error;
 pub use model::{CalibratedModel, ErrorStats};
+pub use outliers::{DroppedRow, OutlierScreen};
 use problem::{whitening_matrices, KinProblem};
 pub use refit::{refit_frame, FrameRefit};
 use select::{analyze_subset, frames_first};
@@ -124,6 +130,11 @@ pub struct KinematicOptions {
     pub cost: Cost,
     /// Solver options.
     pub lm: LmOptions,
+    /// The residual test that names and drops rows far beyond the others ([`OutlierScreen`]);
+    /// `None` (the default of the library, whose studies and diagnosis keep every row) fits all
+    /// rows. `ferrocal calibrate` turns it on.
+    #[serde(default)]
+    pub outliers: Option<OutlierScreen>,
 }
 
 fn default_use_covariance() -> bool {
@@ -148,130 +159,8 @@ impl Default for KinematicOptions {
             effects: Vec::new(),
             cost: Cost::ForwardKinematics,
             lm: LmOptions { max_iterations: 200, ..LmOptions::default() },
+            outliers: None,
         }
-    }
-}
-
-/// Names, units and blocks of the candidate vector.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct StateLayout {
-    /// Device frame increment `f`.
-    pub frame: Range<usize>,
-    /// Tool increment `t` (3 or 6).
-    pub tool: Range<usize>,
-    /// Joint offsets.
-    pub offsets: Range<usize>,
-    /// Selected model parameters.
-    pub model: Range<usize>,
-    /// Index in the model's parameter vector of each selected model parameter.
-    pub model_index: Vec<usize>,
-    /// Effect parameters, one range per effect of the options.
-    pub effects: Vec<Range<usize>>,
-    /// Typical size of a change of every entry (for scaling).
-    pub scales: Vec<f64>,
-    /// Name of every entry.
-    pub names: Vec<String>,
-    /// Unit of every entry.
-    pub units: Vec<Unit>,
-}
-
-impl StateLayout {
-    fn new(model: &RobotModel, tool_dim: usize, selection: &ModelParams, effects: &[EffectSpec]) -> Self {
-        let mut names = Vec::new();
-        let mut units = Vec::new();
-        for (n, u) in [
-            ("frame.x_m", Unit::Metre),
-            ("frame.y_m", Unit::Metre),
-            ("frame.z_m", Unit::Metre),
-            ("frame.rx_rad", Unit::Radian),
-            ("frame.ry_rad", Unit::Radian),
-            ("frame.rz_rad", Unit::Radian),
-        ] {
-            names.push(n.to_string());
-            units.push(u);
-        }
-        for (k, n) in ["tool.x_m", "tool.y_m", "tool.z_m", "tool.rx_rad", "tool.ry_rad", "tool.rz_rad"]
-            .iter()
-            .enumerate()
-            .take(tool_dim)
-        {
-            names.push(format!("target_{n}"));
-            units.push(if k < 3 { Unit::Metre } else { Unit::Radian });
-        }
-        let n_j = model.dof();
-        for (i, k) in model.joint_kinds().iter().enumerate() {
-            match k {
-                JointKind::Revolute => {
-                    names.push(format!("offset.q{}_rad", i + 1));
-                    units.push(Unit::Radian);
-                }
-                JointKind::Prismatic => {
-                    names.push(format!("offset.q{}_m", i + 1));
-                    units.push(Unit::Metre);
-                }
-            }
-        }
-        let params = model.parameters();
-        let serial = matches!(model, RobotModel::Serial(_));
-        let model_index: Vec<usize> = params
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| {
-                let frame_like = serial && (p.name.starts_with("base.") || p.name.starts_with("tool."));
-                if frame_like || p.unit == Unit::Kilogram {
-                    return false;
-                }
-                match selection {
-                    ModelParams::Default => !serial || p.name.contains(".corr_") || p.name.ends_with(".coupling"),
-                    ModelParams::All => true,
-                    ModelParams::None => false,
-                    ModelParams::Prefixes { prefixes } => prefixes.iter().any(|x| p.name.starts_with(x.as_str())),
-                }
-            })
-            .map(|(i, _)| i)
-            .collect();
-        for &i in &model_index {
-            names.push(params[i].name.clone());
-            units.push(params[i].unit);
-        }
-        let frame = 0..6;
-        let tool = 6..6 + tool_dim;
-        let offsets = tool.end..tool.end + n_j;
-        let model_r = offsets.end..offsets.end + model_index.len();
-        let mut scales: Vec<f64> = units.iter().map(|u| u.typical_scale()).collect();
-        let kinds = model.joint_kinds();
-        let mut effect_ranges = Vec::new();
-        for e in effects {
-            let start = names.len();
-            for ((n, u), sc) in e.parameters(&kinds).into_iter().zip(e.scales()) {
-                names.push(n);
-                units.push(u);
-                scales.push(sc);
-            }
-            effect_ranges.push(start..names.len());
-        }
-        Self { frame, tool, offsets, model: model_r, model_index, effects: effect_ranges, scales, names, units }
-    }
-
-    /// Number of candidate parameters.
-    pub fn len(&self) -> usize {
-        self.names.len()
-    }
-
-    /// Whether there are no candidates.
-    pub fn is_empty(&self) -> bool {
-        self.names.is_empty()
-    }
-
-    /// Start values of every candidate: zero increments of frames, tool, offsets and effects,
-    /// and the model's own values of its parameters.
-    pub fn start_values(&self, model: &RobotModel) -> Vec<f64> {
-        let params = model.parameters();
-        let mut start = vec![0.0; self.len()];
-        for (k, &pi) in self.model_index.iter().enumerate() {
-            start[self.model.start + k] = params[pi].value;
-        }
-        start
     }
 }
 
@@ -330,6 +219,11 @@ pub struct KinematicCalibration {
     pub used_orientation: bool,
     /// Advice for parameters the data cannot identify.
     pub advice: Vec<String>,
+    /// Rows the residual test dropped ([`KinematicOptions::outliers`]); the fit above is without
+    /// them.
+    pub dropped_rows: Vec<DroppedRow>,
+    /// Why the residual test dropped nothing although rows were beyond its threshold.
+    pub outlier_note: Option<String>,
 }
 
 impl KinematicCalibration {
@@ -365,6 +259,9 @@ pub fn calibrate(
     rows: &[&PoseMeasurement],
     opts: &KinematicOptions,
 ) -> Result<KinematicCalibration> {
+    if let Some(screen) = &opts.outliers {
+        return outliers::screened(model, rows, opts, screen);
+    }
     let n_j = model.dof();
     if rows.is_empty() {
         return Err(CalibError::TooFew("no measured poses to calibrate from".into()));
@@ -505,6 +402,8 @@ pub fn calibrate(
         train_after,
         used_orientation: use_ori,
         advice,
+        dropped_rows: Vec::new(),
+        outlier_note: None,
     })
 }
 
@@ -754,61 +653,6 @@ fn advise(model: &RobotModel, rows: &[&PoseMeasurement], id: &Identifiability) -
 pub fn frame_mm_deg(t: &Isometry3<f64>) -> ([f64; 3], [f64; 3]) {
     let v = log6(t);
     ([v[0] * 1e3, v[1] * 1e3, v[2] * 1e3], [v[3].to_degrees(), v[4].to_degrees(), v[5].to_degrees()])
-}
-
-/// The whitened, column-scaled Jacobian of the calibration problem at the start values for
-/// joint configurations `poses` (measurements simulated by the nominal model, each with position
-/// standard deviation `sigma_position_m`), over the candidates the options leave free. Rows come
-/// in blocks of 3 per pose (6 with orientations); columns are named in the returned names.
-/// This is what experiment design (pose selection) works on: the Fisher information of a pose
-/// set is `J^T J` over its rows.
-pub fn design_jacobian(
-    model: &RobotModel,
-    poses: &[Vec<f64>],
-    sigma_position_m: f64,
-    with_orientation: bool,
-    opts: &KinematicOptions,
-) -> Result<(DMatrix<f64>, Vec<String>)> {
-    let mut rows = Vec::with_capacity(poses.len());
-    for (k, q) in poses.iter().enumerate() {
-        let t = model.forward(q).map_err(|e| CalibError::Data(format!("pose {}: {e}", k + 1)))?;
-        let mut r = PoseMeasurement::new(format!("{}", k + 1), q.clone(), t.translation.vector);
-        if with_orientation {
-            r.orientation = Some(t.rotation);
-        }
-        r.sigma_m = Some(sigma_position_m);
-        rows.push(r);
-    }
-    let refs: Vec<&PoseMeasurement> = rows.iter().collect();
-    let use_ori = with_orientation && opts.use_orientation;
-    let layout = StateLayout::for_rows(model, if use_ori { 6 } else { 3 }, opts, &refs)?;
-    let start = layout.start_values(model);
-    let problem = KinProblem {
-        base_model: model.clone(),
-        rows: &refs,
-        layout: &layout,
-        f0: opts.fixed_device_frame.unwrap_or_else(Isometry3::identity),
-        tool0: Isometry3::identity(),
-        use_ori,
-        start: start.clone(),
-        free: (0..layout.len()).collect(),
-        sigma_pos: vec![sigma_position_m; rows.len()],
-        sigma_ori: vec![opts.sigma_orientation_rad; rows.len()],
-        whiten: vec![None; rows.len()],
-        effects: opts.effects.clone(),
-        cost: Cost::ForwardKinematics,
-        n_legs: 0,
-    };
-    let j = problem.full_jacobian(&start)?;
-    let allowed: Vec<usize> = (0..layout.len())
-        .filter(|&i| {
-            (opts.estimate_device_frame || !layout.frame.contains(&i))
-                && (opts.estimate_tool || !layout.tool.contains(&i))
-                && (opts.joint_offsets || !layout.offsets.contains(&i))
-        })
-        .collect();
-    let scaled = DMatrix::from_fn(j.nrows(), allowed.len(), |r, c| j[(r, allowed[c])] * layout.scales[allowed[c]]);
-    Ok((scaled, allowed.iter().map(|&i| layout.names[i].clone()).collect()))
 }
 
 /// The device frame and the tool frame from measured poses by the closed form of `AX = ZB`

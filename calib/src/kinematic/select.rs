@@ -165,6 +165,10 @@ pub(super) fn frames_first(
 /// [`StateLayout::scale_compliances`].
 pub(crate) const COMPLIANCE_SCALE_TORQUE_NM: f64 = 10.0;
 
+/// The largest joint torque (N m) that counts as no load at all: rounding of the holding torques
+/// of any arm (tens to thousands of N m times 1e-16) stays orders of magnitude below it.
+pub(crate) const COMPLIANCE_TORQUE_FLOOR_NM: f64 = 1e-6;
+
 impl StateLayout {
     /// [`StateLayout::new`] for `opts`, with the compliance scales of
     /// [`StateLayout::scale_compliances`] for `rows`.
@@ -200,7 +204,10 @@ impl StateLayout {
                 let tau = crate::effects::holding_torques(model, &r.q, r.payload_kg.unwrap_or(0.0))?;
                 peak = peak.max(tau.get(joint - 1).copied().unwrap_or(0.0).abs());
             }
-            if peak > 0.0 && peak < COMPLIANCE_SCALE_TORQUE_NM {
+            // A joint whose torque is zero but for rounding (a roll axis through its links'
+            // centres of mass) keeps 1e-6: its column is empty and the selection fixes it, where
+            // a scale of 1e-4 / 1e-15 would step the compliance by 1e8 in the derivatives.
+            if peak > COMPLIANCE_TORQUE_FLOOR_NM && peak < COMPLIANCE_SCALE_TORQUE_NM {
                 self.scales[range.start] = 1e-4 / peak;
             }
         }

@@ -21,6 +21,7 @@
 //! assert!(v.line().starts_with("verdict: warning: reprojection RMS 0.62 px > 0.5 px"));
 //! ```
 
+pub mod commands;
 mod thresholds;
 
 pub use thresholds::{

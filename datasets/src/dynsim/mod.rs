@@ -31,6 +31,7 @@
 
 pub mod checks;
 mod hexapod;
+pub mod identify;
 mod platform;
 pub mod study;
 pub mod tables;

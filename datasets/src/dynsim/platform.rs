@@ -225,6 +225,13 @@ impl PlatformSim {
         leg_positions(&self.hexapod, flange, t_s)
     }
 
+    /// [`static_record`](Self::static_record) with the noise drawn from a ChaCha8 generator
+    /// seeded with `seed`.
+    pub fn static_record_seeded(&self, poses: &[Pose], samples_per_pose: usize, seed: u64) -> Result<StaticRecord> {
+        use rand::SeedableRng;
+        self.static_record(poses, samples_per_pose, &mut ChaCha8Rng::seed_from_u64(seed))
+    }
+
     /// Quasi-static record: at each pose, `samples_per_pose` noisy readings at rest, averaged.
     pub fn static_record(&self, poses: &[Pose], samples_per_pose: usize, rng: &mut ChaCha8Rng) -> Result<StaticRecord> {
         self.validate()?;

@@ -13,6 +13,7 @@ pub mod poses;
 pub mod positioner;
 pub mod recording;
 pub mod sim;
+pub mod workflow;
 
 pub use ic::{import_ic_handeye, read_ic_set, IcSet};
 pub use ic_kinematic::{ic_positioner_nominal, read_ic_kinematic};
@@ -22,3 +23,4 @@ pub use sim::{
     coverage_study, simulate_hand_eye, write_rendered_recording, CoverageSummary, HandEyeSimConfig, HandEyeTruth,
     RenderedRecording, StudyMode,
 };
+pub use workflow::{HandEyeFit, HandEyeInput, HandEyeRunOptions};

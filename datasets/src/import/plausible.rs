@@ -10,7 +10,7 @@ use ferrocal_robot::{JointKind, JointLimits};
 
 use super::measurements::MeasurementTable;
 use super::table::Table;
-use super::units::JointUnit;
+use super::units::{JointUnit, LengthUnit};
 use crate::error::{DatasetError, Location, Result};
 
 /// Longest cell text an error message repeats; longer cells are cut with an ellipsis and their
@@ -186,6 +186,69 @@ pub(crate) fn check_not_cut(text: &str, t: &Table) -> Result<Vec<String>> {
     )])
 }
 
+/// Distinct poses a table needs before [`unit_warnings`] judges its units by their spread.
+pub const MIN_POSES_FOR_UNIT_CHECK: usize = 5;
+
+/// The largest value (in the column's unit) below which every joint column of a `_deg` table
+/// looks like radians: 2 pi plus rounding. A calibration recording whose joints all stay within
+/// 6.3 degrees cannot calibrate anything; one in radians always does.
+const RADIANS_UNDER_DEG: f64 = std::f64::consts::TAU + 1e-3;
+
+/// Warnings when a table's values do not fit the units its header names, in the direction the
+/// joint-limit check (degrees under `_rad`) does not catch: radians under `_deg` (every joint
+/// within 2 pi), metres under `_mm` (every position, and the joints of `_mm` prismatic axes,
+/// within 10), millimetres under `_m` (a position 100 m or more from the device). Empty when the
+/// table has fewer than [`MIN_POSES_FOR_UNIT_CHECK`] distinct poses.
+pub fn unit_warnings(table: &MeasurementTable) -> Vec<String> {
+    let rows = &table.set.rows;
+    let mut out = Vec::new();
+    if distinct_poses(rows) < MIN_POSES_FOR_UNIT_CHECK {
+        return out;
+    }
+    let file = table.file.display();
+    let span = |values: &mut dyn Iterator<Item = f64>| {
+        values.fold((f64::INFINITY, f64::NEG_INFINITY, 0.0f64), |(lo, hi, a), v| (lo.min(v), hi.max(v), a.max(v.abs())))
+    };
+    for (unit, limit, word, fix) in
+        [(JointUnit::Deg, RADIANS_UNDER_DEG, "radians", "rad"), (JointUnit::Mm, 10.0, "metres", "m")]
+    {
+        let cols: Vec<usize> = (0..table.joint_units.len()).filter(|&i| table.joint_units[i] == unit).collect();
+        if cols.is_empty() {
+            continue;
+        }
+        let stats: Vec<(f64, f64, f64)> =
+            cols.iter().map(|&i| span(&mut rows.iter().map(|r| unit.from_si(r.q[i])))).collect();
+        if stats.iter().all(|(_, _, a)| *a <= limit) && stats.iter().any(|(lo, hi, _)| hi - lo > 1e-3) {
+            let names: Vec<String> = cols.iter().map(|i| format!("q{}_{}", i + 1, unit.suffix())).collect();
+            out.push(format!(
+                "{file}: line {}: every joint column in {} ({}) stays within +-{limit:.1}: the values look like {word}; if so, name the columns q<i>_{fix}",
+                table.header_line,
+                unit.suffix(),
+                names.join(", ")
+            ));
+        }
+    }
+    let pos: Vec<f64> = rows.iter().flat_map(|r| [r.position_m.x, r.position_m.y, r.position_m.z]).collect();
+    if table.position_units.iter().all(|u| *u == LengthUnit::Mm) {
+        let (lo, hi, a) = span(&mut pos.iter().map(|v| v * 1e3));
+        if a <= 10.0 && hi - lo > 1e-6 {
+            out.push(format!(
+                "{file}: line {}: every position (x_mm, y_mm, z_mm) lies within +-{a:.3} mm, a span no robot calibration has: the values look like metres; if so, name the columns x_m, y_m, z_m",
+                table.header_line
+            ));
+        }
+    } else if table.position_units.iter().all(|u| *u == LengthUnit::M) {
+        let (_, _, a) = span(&mut pos.iter().copied());
+        if a >= 100.0 {
+            out.push(format!(
+                "{file}: line {}: a position lies {a:.1} m from the measuring device's origin: the values look like millimetres; if so, name the columns x_mm, y_mm, z_mm",
+                table.header_line
+            ));
+        }
+    }
+    out
+}
+
 /// Rows needed before [`check_not_cut`] judges the last row by the others.
 pub const MIN_ROWS_FOR_CUT_CHECK: usize = 5;
 
@@ -254,5 +317,57 @@ mod tests {
         let c = cut_cell(&long);
         assert!(c.len() < 100 && c.ends_with("(50000000 characters)"), "{c}");
         assert_eq!(cut_cell("12.5"), "12.5");
+    }
+
+    /// A six-joint table of `n` poses written with the given units; joints in radians times
+    /// `q_factor`, positions in metres times `p_factor`.
+    fn unit_table(ju: &str, pu: &str, q_factor: f64, p_factor: f64) -> String {
+        let mut s = format!("pose_id,q1_{ju},q2_{ju},q3_{ju},q4_{ju},q5_{ju},q6_{ju},x_{pu},y_{pu},z_{pu}\n");
+        for k in 0..12 {
+            let q: Vec<String> =
+                (0..6).map(|j| format!("{:.6}", q_factor * (0.1 * k as f64 - 0.5 + 0.2 * j as f64))).collect();
+            let p = [0.4 + 0.05 * k as f64, -0.3 + 0.02 * k as f64, 0.6 - 0.01 * k as f64];
+            s.push_str(&format!(
+                "p{k},{},{:.6},{:.6},{:.6}\n",
+                q.join(","),
+                p[0] * p_factor,
+                p[1] * p_factor,
+                p[2] * p_factor
+            ));
+        }
+        s
+    }
+
+    #[test]
+    fn units_that_do_not_fit_the_header_are_named_in_both_directions() {
+        let warnings = |text: &str| parse_measurements(text, "t.csv").unwrap().warnings;
+        // Right units: no warning.
+        assert!(warnings(&unit_table("rad", "m", 1.0, 1.0)).is_empty());
+        assert!(warnings(&unit_table("deg", "mm", 1f64.to_degrees(), 1e3)).is_empty());
+        // Radians under `_deg`.
+        let w = warnings(&unit_table("deg", "mm", 1.0, 1e3));
+        assert!(w.len() == 1 && w[0].contains("look like radians") && w[0].contains("q<i>_rad"), "{w:?}");
+        // Metres under `_mm`.
+        let w = warnings(&unit_table("rad", "mm", 1.0, 1.0));
+        assert!(w.len() == 1 && w[0].contains("look like metres") && w[0].contains("x_m, y_m, z_m"), "{w:?}");
+        // Millimetres under `_m`.
+        let w = warnings(&unit_table("rad", "m", 1.0, 1e3));
+        assert!(w.len() == 1 && w[0].contains("look like millimetres"), "{w:?}");
+    }
+
+    #[test]
+    fn a_european_spreadsheet_and_classic_mac_line_ends_are_read_or_named() {
+        let csv = unit_table("rad", "m", 1.0, 1.0);
+        // `;` between fields, decimal commas: the header is one column.
+        let german = csv.replace(',', ";").replace('.', ",");
+        let e = parse_measurements(&german, "t.csv").unwrap_err().to_string();
+        assert!(e.contains("t.csv") && e.contains("separated by ';'") && e.contains("decimal"), "{e}");
+        // Tabs.
+        let e = parse_measurements(&csv.replace(',', "\t"), "t.csv").unwrap_err().to_string();
+        assert!(e.contains("separated by tabs"), "{e}");
+        // CR alone ends a line.
+        let mac = parse_measurements(&csv.replace('\n', "\r"), "t.csv").unwrap();
+        assert_eq!(mac.set.rows.len(), 12);
+        assert_eq!(mac.set.rows[3].source_line, Some(5));
     }
 }

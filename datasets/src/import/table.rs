@@ -86,6 +86,14 @@ impl Table {
     /// to recognise a decimal comma that split a number into two cells).
     pub fn parse(text: &str, file: &Path, format: TableFormat, numeric: &dyn Fn(&str) -> bool) -> Result<Table> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        // Classic Mac line ends (CR alone): one line per CR.
+        let unix;
+        let text = if text.contains('\r') && !text.contains('\n') {
+            unix = text.replace('\r', "\n");
+            unix.as_str()
+        } else {
+            text
+        };
         let mut records = split_records(text, file, format)?.into_iter();
         let (header_line, headers) = match records.next() {
             None => {
@@ -96,6 +104,9 @@ impl Table {
             }
             Some(rec) => rec,
         };
+        if let Some(e) = other_separator(&headers, file, header_line, format) {
+            return Err(e);
+        }
         let mut index = HashMap::new();
         for (i, h) in headers.iter().enumerate() {
             if h.is_empty() {
@@ -189,6 +200,27 @@ impl Table {
         }
         parse_number(t, self.decimal, || self.loc(row, col)).map(Some)
     }
+}
+
+/// A header that is one column holding another separator (a spreadsheet saved with European
+/// settings: `;` between fields and decimal commas; or tabs): the error that says so, instead
+/// of a field count that blames the first data row.
+fn other_separator(headers: &[String], file: &Path, line: u64, format: TableFormat) -> Option<DatasetError> {
+    let [only] = headers else { return None };
+    let (sep, name) = [(b';', "';'"), (b'\t', "tabs"), (b'|', "'|'")]
+        .into_iter()
+        .find(|(c, _)| *c != format.delimiter && only.as_bytes().contains(c))?;
+    let expected = if format.delimiter == b',' { "','".to_string() } else { format!("'{}'", format.delimiter as char) };
+    let mut message =
+        format!("the header is a single column: the file is separated by {name}, this table by {expected}");
+    if sep == b';' && format.decimal == Decimal::Point {
+        message.push_str(
+            " (a spreadsheet saved with European settings, which also writes decimal commas): save it as CSV with ',' between fields and '.' as the decimal point",
+        );
+    } else {
+        message.push_str(&format!(": save it with {expected} between fields"));
+    }
+    Some(DatasetError::Invalid { location: Location::new(file, line, "header"), message })
 }
 
 /// Parses one number written with the given decimal separator. Errors: decimal comma or point

@@ -10,11 +10,13 @@
 
 pub mod corrected;
 pub mod effects;
+pub mod humanoid;
 pub mod plan;
 pub mod planning;
 pub mod scenario;
 pub mod temperature;
 pub mod tracker;
+pub mod tree;
 
 use std::path::{Path, PathBuf};
 

@@ -4,6 +4,13 @@
 //! they come after the last actuated joint); the inertials of links hanging on fixed joints are
 //! merged into the moving link that carries them.
 //!
+//! A tree's branches off the chosen chain (the other arm on a torso, a gripper's fingers) are not
+//! joints of the chain, but their weight is: each branch is lumped (mass, centre of mass, inertia
+//! by the parallel-axis theorem) into the chain link it hangs on, with the branch's own joints at
+//! zero (a mimic joint at its offset). A branch that moves between the recorded poses is
+//! therefore carried as if it stood still at zero: its torque on the shared joints is right only
+//! on average.
+//!
 //! A `<mimic joint="leader" multiplier="m" offset="o"/>` joint becomes a coupled joint of the
 //! chain ([`Mimic`], `q = m q_leader + o`; defaults `m = 1`, `o = 0`). Its leader must be an
 //! actuated (not mimic, not fixed) joint on the same root-to-tip chain; otherwise the file is
@@ -129,7 +136,7 @@ impl RawInertial {
         let r = t_f_link.rotation.to_rotation_matrix();
         RawInertial {
             mass: self.mass,
-            com: t_f_link * nalgebra::Point3::from(self.com).coords,
+            com: (t_f_link * nalgebra::Point3::from(self.com)).coords,
             inertia: r.matrix() * self.inertia * r.matrix().transpose(),
         }
     }
@@ -376,6 +383,30 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
     path.reverse();
     check_mimics(&ctx, &joints, &path, &root_link, &tip)?;
 
+    // Each link of the chain carries, besides its own inertial, every branch that hangs on it off
+    // the chain (the other arm of a dual-arm torso, a gripper's fingers), lumped at the branch
+    // joints' zero positions (a mimic joint at its offset).
+    let on_path: std::collections::HashSet<usize> = path.iter().copied().collect();
+    let mut lumped = inertials.clone();
+    for &k in &path {
+        let link = joints[k].child.as_str();
+        for &c in children.get(link).map(|v| v.as_slice()).unwrap_or(&[]) {
+            if on_path.contains(&c) {
+                continue;
+            }
+            if let Some(sub) = subtree_inertial(&joints, &children, &inertials, c) {
+                lumped.insert(
+                    link.to_string(),
+                    match lumped.get(link) {
+                        Some(own) => RawInertial::merged(*own, sub),
+                        None => sub,
+                    },
+                );
+            }
+        }
+    }
+    let inertials = lumped;
+
     // Fold fixed joints; collect inertials of links carried by each actuated joint.
     let mut out_joints: Vec<Joint> = Vec::new();
     let mut pending = Isometry3::identity(); // fixed transform since the last actuated frame
@@ -431,6 +462,37 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
     let mut chain = SerialChain::new(&robot_name, out_joints);
     chain.tool = pending;
     Ok(chain)
+}
+
+/// The inertial of the branch that joint `k` starts (its child link and everything below it),
+/// in the frame of joint `k`'s parent link, with the branch's joints at zero (a mimic joint at its
+/// offset); `None` when nothing in it has mass.
+fn subtree_inertial(
+    joints: &[RawJoint],
+    children: &HashMap<&str, Vec<usize>>,
+    inertials: &HashMap<String, RawInertial>,
+    k: usize,
+) -> Option<RawInertial> {
+    let j = &joints[k];
+    let q = j.mimic.as_ref().map_or(0.0, |(_, _, _, offset)| *offset);
+    let motion = match j.kind {
+        Some(JointKind::Revolute) => {
+            Isometry3::from_parts(Translation3::identity(), nalgebra::UnitQuaternion::from_scaled_axis(j.axis * q))
+        }
+        Some(JointKind::Prismatic) => Isometry3::translation(j.axis.x * q, j.axis.y * q, j.axis.z * q),
+        None => Isometry3::identity(),
+    };
+    let t_parent_child = j.origin * motion;
+    let mut acc = inertials.get(&j.child).copied();
+    for &c in children.get(j.child.as_str()).map(|v| v.as_slice()).unwrap_or(&[]) {
+        if let Some(sub) = subtree_inertial(joints, children, inertials, c) {
+            acc = Some(match acc {
+                Some(a) => RawInertial::merged(a, sub),
+                None => sub,
+            });
+        }
+    }
+    acc.filter(|a| a.mass > 0.0).map(|a| a.transformed(&t_parent_child))
 }
 
 /// Every mimic joint on the chain `path` must follow an actuated joint on the same chain.
@@ -490,6 +552,45 @@ mod tests {
         let m = c.joints[1].mimic.as_ref().unwrap();
         assert_eq!((m.leader.as_str(), m.multiplier, m.offset), ("j1", 1.0, 0.0));
         assert_eq!(parse_urdf_str(&chain_urdf(3, false), &UrdfOptions::default()).unwrap().joints.len(), 3);
+    }
+
+    #[test]
+    fn a_branch_off_the_chain_weighs_on_the_link_it_hangs_on() {
+        // A torso pitch joint carrying two one-joint arms; the chain runs to the left hand, the
+        // right arm (3 kg at 0.2 m and 1 kg on a fixed hand at 0.3 m, both 0.1 m behind) hangs
+        // on the torso. At q = 0 every lever is along x.
+        let inertial = |m: f64, x: f64| {
+            format!("<inertial><origin xyz=\"{x} 0 0\"/><mass value=\"{m}\"/><inertia ixx=\"0.01\" iyy=\"0.01\" izz=\"0.01\"/></inertial>")
+        };
+        let joint = |name: &str, kind: &str, parent: &str, child: &str, xyz: &str| {
+            format!(
+                "<joint name=\"{name}\" type=\"{kind}\"><parent link=\"{parent}\"/><child link=\"{child}\"/>\
+                 <origin xyz=\"{xyz}\"/><axis xyz=\"0 1 0\"/><limit lower=\"-3\" upper=\"3\"/></joint>"
+            )
+        };
+        let text = format!(
+            "<robot name=\"torso\"><link name=\"base\"/><link name=\"torso\">{}</link><link name=\"left\">{}</link>\
+             <link name=\"right\">{}</link><link name=\"right_hand\">{}</link>{}{}{}{}</robot>",
+            inertial(10.0, 0.05),
+            inertial(2.0, 0.15),
+            inertial(3.0, 0.2),
+            inertial(1.0, 0.0),
+            joint("pitch", "revolute", "base", "torso", "0 0 0.5"),
+            joint("left1", "revolute", "torso", "left", "0 0.2 0.4"),
+            joint("right1", "revolute", "torso", "right", "-0.1 -0.2 0.4"),
+            joint("right_fix", "fixed", "right", "right_hand", "0.3 0 0"),
+        );
+        let opts = UrdfOptions { tip_link: Some("left".into()) };
+        let chain = parse_urdf_str(&text, &opts).unwrap();
+        assert_eq!(chain.joints.len(), 2);
+        assert!((chain.total_mass_kg() - 16.0).abs() < 1e-12, "{}", chain.total_mass_kg());
+        let g = -chain.gravity_m_s2[2];
+        let tau = chain.gravity_torques(&[0.0, 0.0], 0.0).unwrap();
+        // Actuators hold gravity: tau_y = -sum(m g x) about each axis (x of the axis is 0 for
+        // the torso; the left arm's axis is at x = 0).
+        let torso = -(10.0 * 0.05 + 2.0 * 0.15 + 3.0 * (0.2 - 0.1) + 1.0 * (0.3 - 0.1)) * g;
+        assert!((tau[0] - torso).abs() < 1e-9, "torso {} vs {torso}", tau[0]);
+        assert!((tau[1] + 2.0 * 0.15 * g).abs() < 1e-9, "left arm {}", tau[1]);
     }
 
     #[test]

@@ -1,20 +1,16 @@
 //! Report sections and the JSON summary of a kinematic calibration (`ferrocal calibrate`, the
 //! demo).
 
-use anyhow::{Context, Result};
-use ferrocal_calib::kinematic::{
-    calibrate, split_rows, split_rows_by_plane, CalibratedModel, ErrorStats, KinematicCalibration, KinematicOptions,
-    ModelParams,
-};
+use ferrocal_calib::kinematic::{CalibratedModel, ErrorStats, KinematicCalibration};
 use ferrocal_calib::PoseMeasurement;
-use ferrocal_robot::RobotModel;
+use ferrocal_datasets::calibration::SpatialCheck;
 use serde_json::json;
 
+use crate::error::Result;
 use crate::plot::{self, Series};
 use crate::report::Section;
 
-/// A calibration on the training rows with the nominal and calibrated held-out errors.
-pub type Validation = Option<(KinematicCalibration, ErrorStats, ErrorStats)>;
+pub use ferrocal_datasets::calibration::Validation;
 
 /// The JSON summary of `ferrocal calibrate --json` (keys per `shared/spec/cli.md`).
 pub fn report_json(
@@ -161,74 +157,12 @@ pub fn calibration_sections(
     out
 }
 
-/// A calibration as `ferrocal calibrate` delivers it: the fit on all rows (or on the training
-/// rows when the table fixes the split) with the validation fit on the training rows.
-pub struct CalibrationRun<'a> {
-    /// The delivered calibration.
-    pub cal: KinematicCalibration,
-    /// The validation fit with the nominal and calibrated held-out errors, when rows are held out.
-    pub validation: Validation,
-    /// The rows of the delivered fit.
-    pub final_rows: Vec<&'a PoseMeasurement>,
-    /// True when the table's `split` column fixed the split.
-    pub fixed_split: bool,
-    /// The spatially separated check (`heldout_spatial` of the report JSON): rows beyond the
-    /// median plane normal to the positions' first principal axis held out; with every-second-pose
-    /// validation only.
-    pub heldout_spatial: Option<serde_json::Value>,
-}
-
-/// Calibrates `model` from `rows`: a validation fit on the training rows (every second pose, or
-/// the table's split; none when `validate` is false and the table has no split), then the
-/// delivered fit on all rows unless the table fixes the split. `step` is called after each fit.
-pub fn calibrate_table<'a>(
-    model: &RobotModel,
-    rows: &'a [PoseMeasurement],
-    opts: &KinematicOptions,
-    validate: bool,
-    step: &dyn Fn(),
-) -> Result<CalibrationRun<'a>> {
-    let fixed_split = rows.iter().any(|r| r.split.is_some());
-    let (train, test) = split_rows(rows, validate);
-    // Validation: fit on the training rows, evaluate on the held-out rows.
-    let validation = if test.is_empty() {
-        None
-    } else {
-        let cal = calibrate(model, &train, opts).context("calibration on the training rows")?;
-        let before = nominal_stats(model, &train, &test)?;
-        let after = cal.calibrated.evaluate(&test)?;
-        Some((cal, before, after))
-    };
-    step();
-    // The delivered calibration: all rows, unless the table fixes the split.
-    let final_rows: Vec<&PoseMeasurement> = if fixed_split { train.clone() } else { rows.iter().collect() };
-    let cal = match (&validation, fixed_split) {
-        (Some((c, _, _)), true) => c.clone(),
-        _ => calibrate(model, &final_rows, opts).context("calibration")?,
-    };
-    // A spatially separated check beside the default one: training poses are not neighbours of
-    // the held-out ones.
-    let mut heldout_spatial = None;
-    if validation.is_some() && !fixed_split {
-        if let Some((tr, te, plane)) = split_rows_by_plane(rows) {
-            let c = calibrate(model, &tr, opts).context("calibration on the spatial training rows")?;
-            let (before, after) = (nominal_stats(model, &tr, &te)?, c.calibrated.evaluate(&te)?);
-            heldout_spatial = Some(json!({
-                "split": "rows beyond the median plane normal to the positions' first principal axis held out",
-                "plane": plane, "n_train": tr.len(), "before": before, "after": after,
-            }));
-        }
-    }
-    step();
-    Ok(CalibrationRun { cal, validation, final_rows, fixed_split, heldout_spatial })
-}
-
-/// Errors of the nominal model on `test` with frames registered on `train`.
-pub fn nominal_stats(model: &RobotModel, train: &[&PoseMeasurement], test: &[&PoseMeasurement]) -> Result<ErrorStats> {
-    let opts =
-        KinematicOptions { model_params: ModelParams::None, joint_offsets: false, ..KinematicOptions::default() };
-    let cal = calibrate(model, train, &opts).context("registering the nominal model")?;
-    Ok(cal.calibrated.evaluate(test)?)
+/// The `heldout_spatial` object of the report JSON.
+pub fn spatial_json(c: &SpatialCheck) -> serde_json::Value {
+    json!({
+        "split": "rows beyond the median plane normal to the positions' first principal axis held out",
+        "plane": c.plane, "n_train": c.n_train, "before": c.before, "after": c.after,
+    })
 }
 
 /// The JSON of `ferrocal evaluate` (`n`, `mean_mm`, `rms_mm`, `max_mm`, per-axis RMS,

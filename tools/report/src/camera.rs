@@ -1,5 +1,5 @@
 //! The JSON of `ferrocal camera calibrate` and `ferrocal camera stereo` (keys per
-//! `shared/spec/cli.md`, plus extras).
+//! `shared/spec/cli.md`, plus extras) and their terminal summary.
 
 use ferrocal_vision::calib::corners::SkippedImage;
 use ferrocal_vision::calib::{CameraCalibration, StereoCalibration};
@@ -98,5 +98,61 @@ pub fn stereo_json(
         "fix_aspect": fix_aspect,
         "skipped": skipped_json(skipped),
         "solver_report": st.calibration.solver_report,
+    })
+}
+
+/// Prints one camera's calibration on stdout (`label`: `camera`, `left`, `right`) and its
+/// warnings on stderr.
+pub fn print_camera(label: &str, cal: &CameraCalibration) {
+    let k = cal.camera.intrinsics;
+    println!(
+        "{label}: fx {:.3} +- {:.3}, fy {:.3} +- {:.3}, cx {:.3} +- {:.3}, cy {:.3} +- {:.3} px; distortion {:?}; RMS {:.4} px over {} views",
+        k.fx_px,
+        cal.std[0],
+        k.fy_px,
+        cal.std[1],
+        k.cx_px,
+        cal.std[2],
+        k.cy_px,
+        cal.std[3],
+        cal.camera.distortion.coefficients(),
+        cal.rms_px,
+        cal.views.iter().filter(|v| v.used).count()
+    );
+    if cal.summary.covariance_method != ferrocal_vision::calib::CovarianceMethod::Independent {
+        let s = &cal.summary.std_independent;
+        println!(
+            "{label}: standard deviations by {} covariance; with corners independent: fx {:.3}, fy {:.3}, cx {:.3}, cy {:.3} px",
+            cal.summary.covariance_method.name(),
+            s[0],
+            s[1],
+            s[2],
+            s[3]
+        );
+    }
+    for w in &cal.summary.warnings {
+        eprintln!("ferrocal: warning: {w}");
+    }
+}
+
+/// The rectification in the stereo JSON: OpenCV's matrices row by row (T, P2 and Q in
+/// metres), the common focal length, the baseline and the rectified row check.
+pub fn rectification_json(pair: &ferrocal_vision::camera::io::StereoPair, row_rms_px: f64, n_corners: usize) -> Value {
+    let rc = &pair.rectification;
+    let rows = |m: &dyn Fn(usize, usize) -> f64, r: usize, c: usize| -> Vec<Vec<f64>> {
+        (0..r).map(|i| (0..c).map(|j| m(i, j)).collect()).collect()
+    };
+    json!({
+        "R1": rows(&|i, j| rc.r1[(i, j)], 3, 3),
+        "R2": rows(&|i, j| rc.r2[(i, j)], 3, 3),
+        "P1": rows(&|i, j| rc.p1[(i, j)], 3, 4),
+        "P2": rows(&|i, j| rc.p2[(i, j)], 3, 4),
+        "Q": rows(&|i, j| rc.q[(i, j)], 4, 4),
+        "focal_px": rc.focal_px(),
+        "baseline_mm": rc.baseline() * 1e3,
+        "vertical": rc.vertical(),
+        "row_rms_px": row_rms_px,
+        "n_corner_pairs": n_corners,
+        "method": "Bouguet (OpenCV stereoRectify, alpha = -1, CALIB_ZERO_DISPARITY); T, P2 and Q in metres",
     })
 }

@@ -8,20 +8,20 @@
 
 use std::path::Path;
 
-use anyhow::Result;
+use crate::error::Result;
 use ferrocal_calib::check::Check;
 use ferrocal_datasets::checks::{self, OPENCV_LEFT_PUBLISHED, OPENCV_RIGHT_RECOMPUTED};
 use ferrocal_robot::check::{self_check, SelfCheck};
 use ferrocal_robot::presets;
-use ferrocal_robot::safety::{ObstacleBox, SafetyChecker, SafetyConfig};
 use ferrocal_robot::serial::{parse_urdf_str, UrdfOptions};
 use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
 use crate::plot::{self, Series};
 use crate::report::{inline_png, Block, Section};
+
+mod camera;
+pub use camera::{camera_diagnose, camera_own_corners, camera_real, camera_real_skipped};
 
 /// Progress of a long step: `(label, position, length)`.
 pub type Tick<'a> = &'a dyn Fn(&str, u64, u64);
@@ -135,62 +135,15 @@ pub fn models(samples: usize, seed: u64, tick: Tick) -> Result<Section> {
 }
 
 /// The example cell: a UR5 on a table, with a wall, a fixture and a carried plate.
-pub fn example_safety() -> SafetyConfig {
-    SafetyConfig {
-        joint_margin: 0.05,
-        plate_radius_m: 0.08,
-        link_radius_m: 0.05,
-        workspace_edge_margin_m: 0.05,
-        obstacles: vec![
-            ObstacleBox { name: "table".into(), min_m: [-1.5, -1.5, -0.8], max_m: [1.5, 1.5, -0.02], margin_m: 0.03 },
-            ObstacleBox { name: "wall".into(), min_m: [-1.5, 0.55, -0.8], max_m: [1.5, 0.7, 1.5], margin_m: 0.05 },
-            ObstacleBox { name: "fixture".into(), min_m: [0.35, -0.2, -0.02], max_m: [0.6, 0.2, 0.25], margin_m: 0.03 },
-        ],
-        ..SafetyConfig::default()
-    }
-}
+pub use ferrocal_datasets::safety::example_safety;
 
 /// Random UR5 configurations against the example cell's safety zones.
 pub fn safety(samples: usize, seed: u64, tick: Tick) -> Result<Section> {
     let mut s = Section::new("safety", "Safety zones: a UR5 on a table, beside a wall and a fixture");
-    let robot = presets::ur5();
-    let cfg = example_safety();
-    let checker = SafetyChecker::new(&robot, cfg.clone())?;
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let n = samples.min(3000);
-    let (mut safe_pts, mut unsafe_pts) = (Vec::new(), Vec::new());
-    let mut counts = std::collections::BTreeMap::<String, usize>::new();
-    let mut safe_q = Vec::new();
-    for k in 0..n {
-        tick("safety: random poses", k as u64 + 1, n as u64);
-        let q: Vec<f64> = (0..6).map(|_| rng.random_range(-3.0..3.0)).collect();
-        let p = robot.forward(&q)?.translation.vector;
-        let v = checker.violations(&q, 0.0);
-        if v.is_empty() {
-            safe_pts.push((p.x, p.y));
-            safe_q.push(q);
-        } else {
-            unsafe_pts.push((p.x, p.y));
-            for x in &v {
-                let key = match x {
-                    ferrocal_robot::safety::Violation::Obstacle { obstacle, .. } => format!("obstacle '{obstacle}'"),
-                    ferrocal_robot::safety::Violation::JointLimit { .. } => "joint limit".into(),
-                    ferrocal_robot::safety::Violation::WorkspaceEdge { .. } => "workspace edge".into(),
-                    ferrocal_robot::safety::Violation::SphericalJoint { .. } => "spherical joint".into(),
-                    ferrocal_robot::safety::Violation::Kinematics { .. } => "kinematics".into(),
-                };
-                *counts.entry(key).or_default() += 1;
-            }
-        }
-    }
-    // Moves between consecutive safe poses.
-    let (mut moves_ok, mut moves_bad) = (0, 0);
-    for w in safe_q.windows(2).take(200) {
-        match checker.check_move(&w[0], &w[1]) {
-            Ok(()) => moves_ok += 1,
-            Err(_) => moves_bad += 1,
-        }
-    }
+    let study = ferrocal_datasets::safety::safety_study(samples, seed, &|k, n| tick("safety: random poses", k, n))?;
+    let (n, cfg, counts) = (study.n, &study.config, &study.refused_by);
+    let (safe_pts, unsafe_pts) = (&study.safe_xy_m, &study.refused_xy_m);
+    let (moves_ok, moves_bad) = (study.moves_safe, study.moves_refused);
     s.text(format!(
         "{n} random joint configurations: {} safe ({:.1} %). A configuration is safe when every joint keeps {:.2} rad from its limits, the carried plate (bounding radius {:.0} mm) and every link (radius {:.0} mm) keep each obstacle's margin, and the tool is {:.0} mm inside the reachable workspace. Of {} straight joint-space moves between consecutive safe poses, {moves_ok} are safe all the way and {moves_bad} would pass through a zone.",
         safe_pts.len(),
@@ -200,7 +153,7 @@ pub fn safety(samples: usize, seed: u64, tick: Tick) -> Result<Section> {
     ));
     s.pre(format!(
         "# the example cell's safety zones (ferrocal robot check --safety FILE reads this format)\n{}",
-        toml::to_string(&cfg).unwrap_or_default()
+        toml::to_string(cfg).unwrap_or_default()
     ));
     s.table(
         "Why configurations were refused (a configuration may violate several zones)",
@@ -214,19 +167,13 @@ pub fn safety(samples: usize, seed: u64, tick: Tick) -> Result<Section> {
             "x [m]",
             "y [m]",
             &[
-                Series { name: "safe", points: &safe_pts, line: false },
-                Series { name: "refused", points: &unsafe_pts, line: false },
+                Series { name: "safe", points: safe_pts, line: false },
+                Series { name: "refused", points: unsafe_pts, line: false },
             ],
         ),
     );
     s.data = json!({"configurations": n, "safe": safe_pts.len(), "refused_by": counts, "moves_safe": moves_ok, "moves_refused": moves_bad, "config": cfg});
-    // A configuration planted in the table: the upper arm turned 1.2 rad below the horizontal
-    // puts the elbow about 0.3 m under the table's top; the zones must refuse it for the table.
-    let planted = [0.0, 1.2, 0.0, 0.0, 0.0, 0.0];
-    let refused_by_table = checker
-        .violations(&planted, 0.0)
-        .iter()
-        .any(|v| matches!(v, ferrocal_robot::safety::Violation::Obstacle { obstacle, .. } if obstacle == "table"));
+    let refused_by_table = study.planted_refused_by_table;
     s.check(checks::safety(safe_pts.len(), n, refused_by_table.then_some("table")));
     Ok(s)
 }
@@ -537,7 +484,7 @@ pub fn force_diagnose(seed: u64) -> Result<Section> {
     let reg = sim.sensor_regressor()?;
     let home = home_coordinates(&sim.hexapod.home);
     let poses = candidate_poses(&sim.hexapod, 120, &home, &STATIC_HALF_RANGE, 0.005)?;
-    let rec = sim.static_record(&poses, 20, &mut ChaCha8Rng::seed_from_u64(seed))?;
+    let rec = sim.static_record_seeded(&poses, 20, seed)?;
     let rep = diagnose_force_sensor(&reg, &rec.poses, &rec.forces_n, &ForceDiagnoseOptions::default())?;
     let truth = sim.truth();
     s.text(format!(
@@ -595,131 +542,6 @@ pub fn ur5_targets(csv_path: &Path) -> Result<Section> {
     s.data = json!({"rows": r.rows, "mean_mm": r.mean_mm, "max_mm": r.max_mm, "tool_offset_mm": t, "tool_offset": "fitted from these data", "fit_rows": r.fit_rows, "checked_rows": r.errors_mm.len()});
     s.check(checks::ur5_targets(&r));
     Ok(s)
-}
-
-/// The real-camera section from `ferrocal camera calibrate --json` of each camera and `ferrocal
-/// camera stereo --json`: the left camera against its published calibration, the right against
-/// OpenCV's recomputation with the same recipe (no published calibration exists for it).
-pub fn camera_real(left: &Value, right: &Value, stereo: &Value) -> Section {
-    let mut s = Section::new("camera-real", "Real images: the OpenCV stereo sample calibrated");
-    s.attribution(OPENCV_ATTRIBUTION);
-    let f = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
-    let mut rows = Vec::new();
-    let mut verdicts = Vec::new();
-    for (v, reference) in [(left, &OPENCV_LEFT_PUBLISHED), (right, &OPENCV_RIGHT_RECOMPUTED)] {
-        let p = reference.values;
-        let ours = [f(v, "fx"), f(v, "cx"), f(v, "cy"), f(v, "rms_px")];
-        let rel = (ours[0] - p[0]).abs() / p[0];
-        verdicts.push(checks::intrinsics(ours, reference));
-        rows.push(vec![
-            reference.camera.to_string(),
-            reference.source.to_string(),
-            format!("{:.3} ({:.3})", ours[0], p[0]),
-            format!("{:.3} ({:.3})", ours[1], p[1]),
-            format!("{:.3} ({:.3})", ours[2], p[2]),
-            format!("{:.4} ({:.4})", ours[3], p[3]),
-            format!("{:.3} %", rel * 100.0),
-        ]);
-    }
-    s.text("`ferrocal camera calibrate --fix-aspect --corners opencv` (OpenCV's corner recipe, our bundle adjustment) on the 13 views of each camera; the reference values in brackets. Only the left camera has a published calibration (OpenCV samples/data/left_intrinsics.yml, fx 535.9157 px); the right camera's reference is OpenCV's own result with the same recipe, recomputed for shared/data/opencv_stereo/README.md: a check against OpenCV, not against a published number.");
-    s.table(
-        "Intrinsics against the reference values",
-        &["camera", "reference", "fx [px]", "cx [px]", "cy [px]", "RMS [px]", "fx difference"],
-        rows,
-    );
-    let baseline = f(stereo, "baseline_mm");
-    let baseline_std = f(stereo, "baseline_std_mm");
-    s.text(format!(
-        "Stereo (`ferrocal camera stereo`, own corners, the default; OpenCV's recipe gives 83.44 +- 0.09 mm): baseline {baseline:.2} +- {baseline_std:.2} mm with 25 mm squares. OpenCV's own stereo sample reports about 83 mm; the Caltech toolbox's 99.8 mm corresponds to 30 mm squares (83.4 x 30 / 25 = 100.1 mm): an open check, not a truth."
-    ));
-    s.data = json!({"left": left, "right": right, "stereo": stereo, "references": [OPENCV_LEFT_PUBLISHED, OPENCV_RIGHT_RECOMPUTED]});
-    s.check(Check::all("OpenCV stereo sample", &verdicts));
-    s
-}
-
-/// The default corners (the project's detector) against OpenCV's recipe on the OpenCV sample,
-/// every second image held out (`ferrocal camera calibrate --test-every 2 --corners own|opencv`
-/// per camera, `(side, own, opencv)`): the held-out reprojection error, which free parameters
-/// cannot lower, judges the corners.
-pub fn camera_own_corners(runs: &[(&str, Value, Value)]) -> Section {
-    let mut s = Section::new("camera-own-corners", "Real images: own corners against OpenCV's recipe, held out");
-    s.attribution(OPENCV_ATTRIBUTION);
-    let f = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
-    let held = |v: &Value| v["held_out"]["rms_px"].as_f64().unwrap_or(f64::NAN);
-    let mut rows = Vec::new();
-    let mut verdicts = Vec::new();
-    for (side, own, cv) in runs {
-        for (name, v) in [("own (default)", own), ("OpenCV recipe", cv)] {
-            rows.push(vec![
-                side.to_string(),
-                name.to_string(),
-                format!("{:.3} +- {:.3}", f(v, "fx"), v["std"]["fx"].as_f64().unwrap_or(f64::NAN)),
-                format!("{:.4}", f(v, "rms_px")),
-                format!("{:.4}", held(v)),
-            ]);
-        }
-        verdicts.push(checks::held_out_corners(side, held(own), held(cv)));
-    }
-    s.text("Every second image of each camera is held out of the calibration; each held-out view's pose is fitted with the camera fixed and its reprojection error reported. The project's corners (X-corners and the edge-model refinement) against OpenCV's findChessboardCorners + cornerSubPix recipe (11 x 11 window), same images, same bundle adjustment. On left02 the recipe's 23 px window reaches the neighbouring corners of the 20 px squares (docs/targets.md).");
-    s.table(
-        "Held-out reprojection error",
-        &["camera", "corners", "fx [px]", "fit RMS [px]", "held-out RMS [px]"],
-        rows,
-    );
-    s.data = json!({"runs": runs.iter().map(|(side, own, cv)| json!({"camera": side, "own": own, "opencv": cv})).collect::<Vec<_>>()});
-    s.check(Check::all("own corners on held-out views", &verdicts));
-    s
-}
-
-/// The real-camera section when the images under `dir` are absent.
-pub fn camera_real_skipped(dir: &Path) -> Section {
-    let mut s = Section::new("camera-real", "Real images: the OpenCV stereo sample calibrated");
-    s.attribution(OPENCV_ATTRIBUTION);
-    s.skipped(format!("{} is not present", dir.display()));
-    s
-}
-
-/// What the default camera model leaves out, from `ferrocal diagnose --images --json` of each
-/// camera (`(side, report)`); numbers without a pass/fail criterion.
-pub fn camera_diagnose(reports: &[(&str, Value)]) -> Section {
-    let mut d = Section::new("camera-diagnose", "Real images: what the default camera model leaves out");
-    d.attribution(OPENCV_ATTRIBUTION);
-    let f = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
-    let mut rows = Vec::new();
-    let mut data = serde_json::Map::new();
-    for (side, rep) in reports {
-        let findings: Vec<String> = rep["findings"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .filter_map(|f| f["statement"].as_str().map(String::from))
-            .collect();
-        let best_bend = rep["candidates"][0]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .find(|c| c["candidate"].as_str().is_some_and(|n| n.starts_with("target_nonflatness")))
-            .map(|c| format!("{:.4} px (p = {:.1e})", f(c, "heldout_rms_px"), f(c, "p_value")))
-            .unwrap_or_else(|| "-".into());
-        rows.push(vec![
-            side.to_string(),
-            format!("{:.4}", f(&rep["nominal"], "heldout_rms_px")),
-            best_bend,
-            format!("{:.4}", f(&rep["final"], "heldout_rms_px")),
-            if findings.is_empty() { "none".into() } else { findings.join("; ") },
-            if rep["unexplained"]["structure_found"].as_bool() == Some(true) { "yes".into() } else { "no".into() },
-        ]);
-        data.insert(side.to_string(), rep.clone());
-    }
-    d.text("`ferrocal diagnose --images ... --pattern chessboard:9x6:25mm`, our sub-pixel detector, each view held out once (5 folds): the lens candidates (rational radial, Kannala-Brandt) and a bent target (bowl, saddle, twist, one shape for all views) are refitted and kept only when the held-out reprojection improves significantly. Both cameras see the same board at the same instants, so a bent board must show in both.");
-    d.table(
-        "Held-out reprojection RMS",
-        &["camera", "default model [px]", "with a bent target [px]", "final [px]", "findings", "unexplained structure"],
-        rows,
-    );
-    d.data = Value::Object(data);
-    d.reported("findings shown; no pass/fail criterion");
-    d
 }
 
 /// The planning section from the plan's `report.json` (`rep`), whether the plan passed its

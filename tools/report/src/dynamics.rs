@@ -3,7 +3,7 @@
 //! (Abdellatif & Heimann 2009), the sources' experiments on the simulator tabulated beside the
 //! sources' numbers; the checks are `ferrocal_datasets::dynsim::checks`.
 
-use anyhow::Result;
+use crate::error::Result;
 use ferrocal_calib::check::Check;
 use ferrocal_calib::design::criteria::Criterion;
 use ferrocal_calib::dynamics::force_sensor::SensorModel;
@@ -422,6 +422,15 @@ pub fn demo_section(seed: u64, quick: bool) -> Result<Section> {
     }
     sec.text("Full study (pose reduction, excitation designs, filtering, hexapod friction): `ferrocal dynamics study --out DIR`.");
     Ok(sec)
+}
+
+/// Prints a linear fit's parameters with their standard deviations, and its figures.
+pub fn print_fit(f: &ferrocal_lsq::linear::LinearFit) {
+    println!("{:<18} {:>14} {:>12}", "parameter", "estimate", "std");
+    for i in 0..f.values.len() {
+        println!("{:<18} {:>14.6} {:>12.6}", f.names[i], f.values[i], f.std[i]);
+    }
+    println!("s0 = {:.4}, {} equations, redundancy {}, cond = {:.3e}", f.s0, f.n_rows, f.dof, f.condition_number);
 }
 
 #[cfg(test)]

@@ -23,6 +23,7 @@ pub mod corner_study;
 pub mod demo;
 pub mod diagnose;
 pub mod dynamics;
+pub mod error;
 pub mod handeye;
 pub mod motion;
 pub mod motion_cell;

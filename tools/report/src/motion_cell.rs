@@ -5,7 +5,7 @@
 //! and tool measurements. Simulation only; the experiments are
 //! `ferrocal_datasets::motion::{cell, cell_study, cell_ilc}`.
 
-use anyhow::Result;
+use crate::error::Result;
 use ferrocal_calib::check::Check;
 use ferrocal_datasets::motion::cell::CompliantCell;
 use ferrocal_datasets::motion::cell_ilc::{cell_ilc, CellIlcCase, CellIlcResult};

@@ -6,7 +6,8 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
+use crate::bail;
+use crate::error::{Context, Result};
 use ferrocal_calib::check;
 use ferrocal_calib::design::criteria::Criterion;
 use ferrocal_calib::design::flow::{plan_design, PlanDesign};

@@ -1,177 +1,78 @@
-//! `ferrocal measure --images ... --poses P.csv --pattern P`: a user's own recording (a folder of
-//! images and the poses table of `handeye`, no session manifest, no truth) measured by one camera
-//! into a measurement table with each pose's covariance (`ferrocal_datasets::recording`).
+//! `ferrocal measure --images ... --poses P.csv --pattern P`'s presentation: a user's own
+//! recording (a folder of images and the poses table of `handeye`, no session manifest, no
+//! truth) measured by one camera (`ferrocal_datasets::recording`) into its JSON, its verdict and
+//! its summary; and the demo's section on the real recordings.
 
-use std::path::{Path, PathBuf};
-use std::process::ExitCode;
+use std::path::Path;
 
-use anyhow::{bail, Context, Result};
-use clap::Args;
-use ferrocal_datasets::handeye::{read_camera_file, read_handeye_poses};
+use ferrocal_calib::handeye::Mount;
+use ferrocal_datasets::handeye::read_handeye_poses;
 use ferrocal_datasets::import::images::expand_image_specs;
-use ferrocal_datasets::import::{self, JointUnit, LengthUnit, WriteOptions};
-use ferrocal_datasets::recording::{measure_recording, RecordingMeasurement, RecordingOptions};
+use ferrocal_datasets::recording::{frame_note, measure_recording, RecordingMeasurement, RecordingOptions};
+use ferrocal_vision::calib::corners::SkippedImage;
 use ferrocal_vision::calib::CalibrationOptions;
 use serde_json::json;
 
-use crate::handeye::MountArg;
-use crate::report::write_all_atomic;
+use crate::error::{Context, Result};
 
-/// The recording half of `ferrocal measure` (without `--session`).
-#[derive(Debug, Args)]
-pub struct RecordingArgs {
-    /// Images of a recording: files, directories or quoted globs (instead of --session).
-    #[arg(long, num_args = 1.., conflicts_with = "session", requires_all = ["poses", "pattern"])]
-    pub images: Vec<PathBuf>,
-    /// The poses table naming the images (the `handeye` format: `image`, joints `q1_<unit>...` or
-    /// a flange pose, optional `split`). A measurement table needs joints.
-    #[arg(long)]
-    pub poses: Option<PathBuf>,
-    /// The target: chessboard, ChArUco, circle grid, AprilTag board (docs/targets.md).
-    #[arg(long)]
-    pub pattern: Option<String>,
-    /// Where the camera is: fixed, measuring the target on the flange (eye-to-hand, the
-    /// default), or on the flange, looking at a fixed target (eye-in-hand: rows are the camera's
-    /// pose in the target's frame).
-    #[arg(long, value_enum, default_value = "eye-to-hand")]
-    pub mount: MountArg,
-    /// The camera (camera calibrate JSON, OpenCV or ROS YAML); without it the camera is
-    /// calibrated from the recording's own views, which then need varied orientations.
-    #[arg(long)]
-    pub intrinsics: Option<PathBuf>,
+/// The JSON of `ferrocal measure --images ... --json` (without its verdict): the recording
+/// `m` of the poses table `poses`, with every image left out (`skipped_images`: named by the
+/// specifications but not found; `m.skipped`: not usable).
+pub fn recording_json(
+    m: &RecordingMeasurement,
+    poses: &Path,
+    pattern_text: &str,
+    mount: Mount,
+    skipped_images: &[SkippedImage],
+) -> serde_json::Value {
+    let mut skipped: Vec<serde_json::Value> =
+        skipped_images.iter().map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason})).collect();
+    skipped.extend(m.skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
+    json!({
+        "poses_table": poses.display().to_string(),
+        "pattern": pattern_text,
+        "mount": mount.name(),
+        "frame": frame_note(mount),
+        "source": m.source,
+        "camera": m.camera,
+        "n_measured": m.poses.len(),
+        "skipped": skipped,
+        "poses": m.poses.iter().map(|p| json!({
+            "image": p.image,
+            "split": p.split,
+            "rms_px": p.estimate.rms_px,
+            "s0": p.estimate.s0,
+            "n_corners": p.estimate.n_corners,
+            "t_cam_target": crate::handeye::json::transform_json(&p.estimate.t_cam_target),
+            "measured": crate::handeye::json::transform_json(&p.measured),
+            "sigma_position_mm": p.sigma_position_mm(),
+            "sigma_rotation_deg": p.sigma_rotation_deg(),
+        })).collect::<Vec<_>>(),
+    })
 }
 
-/// Runs the recording measurement: every image that cannot be used is named on stderr and in
-/// the JSON, and the batch goes on; the table is written only when at least one pose was
-/// measured, never onto an input.
-pub fn run(
-    a: &RecordingArgs,
-    out: Option<&PathBuf>,
-    json_out: Option<&PathBuf>,
-    corner_sigma_px: f64,
-    vs: &crate::verdict::VerdictSettings,
-) -> Result<ExitCode> {
-    let (Some(poses), Some(pattern_text)) = (&a.poses, &a.pattern) else {
-        bail!("measure: --images needs --poses and --pattern (or give --session)");
-    };
-    let pattern: ferrocal_vision::detect::Pattern = pattern_text.parse()?;
-    let table = read_handeye_poses(poses)?;
-    if out.is_some() && table.joint_units.is_empty() {
-        bail!(
-            "measure: {} gives flange poses, but a measurement table needs joint readings (q1_<unit>, ...); \
-             leave out --out to get the per-image poses in --json, or use `ferrocal handeye` for the hand-eye transform",
-            poses.display()
-        );
-    }
-    let mut skipped_images = Vec::new();
-    let paths = expand_image_specs(&a.images, &mut skipped_images);
-    for o in out.iter().chain(json_out.iter()) {
-        if let Ok(o) = o.canonicalize() {
-            if paths.iter().chain(std::iter::once(poses)).any(|p| p.canonicalize().is_ok_and(|p| p == o)) {
-                bail!("measure: refusing to overwrite {}, an input", o.display());
-            }
+/// The verdict of `ferrocal measure --images`: how many of the `total` images were measured,
+/// and the camera's calibration RMS (or, with a given camera, the poses' median reprojection
+/// RMS); `out`: the table written, if any.
+pub fn recording_verdict(
+    t: &ferrocal_calib::verdict::Thresholds,
+    m: &RecordingMeasurement,
+    total: usize,
+    out: Option<&Path>,
+) -> ferrocal_calib::verdict::Verdict {
+    let (label, rms) = match m.camera.calibration_rms_px {
+        Some(r) => ("camera calibration RMS", r),
+        None => {
+            let mut r: Vec<f64> = m.poses.iter().map(|p| p.estimate.rms_px).collect();
+            r.sort_by(f64::total_cmp);
+            ("median reprojection RMS of the poses", r.get(r.len() / 2).copied().unwrap_or(f64::NAN))
         }
-    }
-    let outputs: Vec<&Path> = out.iter().chain(json_out.iter()).map(|p| p.as_path()).collect();
-    let inputs: Vec<&Path> = paths.iter().map(PathBuf::as_path).chain([poses.as_path()]).collect();
-    crate::report::check_outputs(&outputs, &inputs)?;
-    // The table and the JSON are composed first and written together at the end.
-    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
-    let opts = RecordingOptions {
-        mount: crate::handeye::mount_of(a.mount),
-        camera: a.intrinsics.as_deref().map(read_camera_file).transpose()?,
-        calibration: CalibrationOptions::default(),
-        corner_sigma_px,
     };
-    eprintln!("measuring {} image(s) of {} ...", paths.len(), poses.display());
-    let m =
-        measure_recording(&paths, &table, &pattern, &opts).with_context(|| format!("measure: {}", poses.display()))?;
-    for s in &skipped_images {
-        eprintln!("ferrocal measure: skipped {s}");
-    }
-    for s in &m.skipped {
-        eprintln!("ferrocal measure: skipped {}: {}", s.what, s.reason);
-    }
-    print_summary(&m);
-    if let (Some(out), Some(rows)) = (out, &m.rows) {
-        // Joints in SI (rad, m) whatever the poses table used: the values are SI inside.
-        let mut wopts = WriteOptions::revolute(table.joint_units.len());
-        wopts.joint_units = table
-            .joint_units
-            .iter()
-            .map(|u| match u {
-                JointUnit::Rad | JointUnit::Deg => JointUnit::Rad,
-                JointUnit::M | JointUnit::Mm => JointUnit::M,
-            })
-            .collect();
-        wopts.length_unit = LengthUnit::Mm;
-        wopts.comments = vec![
-            format!("measured by ferrocal {} from the images of {}", env!("CARGO_PKG_VERSION"), poses.display()),
-            format!("{}; cov_*: each pose's covariance", frame_note(a.mount)),
-        ];
-        if let Some(s) = &m.source {
-            wopts.comments.push(format!("source: {s}"));
-        }
-        let text =
-            import::measurements_to_string(rows, &wopts).with_context(|| format!("writing {}", out.display()))?;
-        files.push((out.as_path(), text.into_bytes()));
-        println!("table {} ({} rows)", out.display(), rows.rows.len());
-    }
-    let verdict = {
-        let total = m.poses.len() + m.skipped.len() + skipped_images.len();
-        let (label, rms) = match m.camera.calibration_rms_px {
-            Some(r) => ("camera calibration RMS", r),
-            None => {
-                let mut r: Vec<f64> = m.poses.iter().map(|p| p.estimate.rms_px).collect();
-                r.sort_by(f64::total_cmp);
-                ("median reprojection RMS of the poses", r.get(r.len() / 2).copied().unwrap_or(f64::NAN))
-            }
-        };
-        crate::verdict::measure_verdict(&vs.thresholds, m.poses.len(), total, label, rms, out.map(PathBuf::as_path))
-    };
-    if let Some(j) = json_out {
-        let mut skipped: Vec<serde_json::Value> = skipped_images
-            .iter()
-            .map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason}))
-            .collect();
-        skipped.extend(m.skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
-        let v = json!({
-            "poses_table": poses.display().to_string(),
-            "pattern": pattern_text,
-            "mount": crate::handeye::mount_of(a.mount).name(),
-            "frame": frame_note(a.mount),
-            "source": m.source,
-            "camera": m.camera,
-            "n_measured": m.poses.len(),
-            "skipped": skipped,
-            "poses": m.poses.iter().map(|p| json!({
-                "image": p.image,
-                "split": p.split,
-                "rms_px": p.estimate.rms_px,
-                "s0": p.estimate.s0,
-                "n_corners": p.estimate.n_corners,
-                "t_cam_target": crate::handeye::json::transform_json(&p.estimate.t_cam_target),
-                "measured": crate::handeye::json::transform_json(&p.measured),
-                "sigma_position_mm": p.sigma_position_mm(),
-                "sigma_rotation_deg": p.sigma_rotation_deg(),
-            })).collect::<Vec<_>>(),
-        });
-        let mut v = v;
-        crate::verdict::add_verdict(&mut v, &verdict);
-        files.push((j.as_path(), serde_json::to_string_pretty(&v)?.into_bytes()));
-    }
-    write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
-    Ok(vs.conclude(&verdict))
+    crate::verdict::measure_verdict(t, m.poses.len(), total, label, rms, out)
 }
 
-fn frame_note(mount: MountArg) -> &'static str {
-    match mount {
-        MountArg::EyeToHand => "positions and orientations of the target in the camera's frame",
-        MountArg::EyeInHand => "positions and orientations of the camera in the fixed target's frame",
-    }
-}
-
-fn print_summary(m: &RecordingMeasurement) {
+/// Prints the summary of a recording's measurement: the camera and the poses' precision.
+pub fn print_summary(m: &RecordingMeasurement) {
     let c = &m.camera;
     match (c.calibration_rms_px, &c.std) {
         (Some(rms), Some(std)) => println!(

@@ -3,7 +3,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use ferrocal_calib::check::{Check, CheckCounts, CheckStatus};
 use serde::Serialize;
 use serde_json::Value;
@@ -333,6 +333,11 @@ impl Report {
     }
 }
 
+/// The current time as RFC 3339 (UTC), as reports and written programs state it.
+pub fn now_rfc3339() -> String {
+    chrono::Utc::now().to_rfc3339()
+}
+
 /// Whether two paths name the same existing file (after resolving links and `..`); false when
 /// either does not exist yet.
 pub fn same_file(a: &Path, b: &Path) -> bool {
@@ -350,10 +355,10 @@ pub fn check_regular_target(path: &Path) -> Result<()> {
 pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> Result<()> {
     for (k, out) in outputs.iter().enumerate() {
         if let Some(i) = inputs.iter().find(|i| same_file(out, i) || out == *i) {
-            anyhow::bail!("{} would overwrite the input {}; choose another output", out.display(), i.display());
+            crate::bail!("{} would overwrite the input {}; choose another output", out.display(), i.display());
         }
         if outputs[..k].iter().any(|o| same_file(out, o) || o == out) {
-            anyhow::bail!("{} is named as two outputs", out.display());
+            crate::bail!("{} is named as two outputs", out.display());
         }
         check_regular_target(out)?;
     }
@@ -393,11 +398,11 @@ impl StagedFolder {
     pub fn check(target: &Path, force: bool) -> Result<()> {
         match std::fs::symlink_metadata(target) {
             Err(_) => Ok(()),
-            Ok(m) if m.file_type().is_symlink() => anyhow::bail!(
+            Ok(m) if m.file_type().is_symlink() => crate::bail!(
                 "{} is a symbolic link; refusing to replace it (name the folder it points to, or another path)",
                 target.display()
             ),
-            Ok(m) if !m.is_dir() => anyhow::bail!("{} exists and is not a folder", target.display()),
+            Ok(m) if !m.is_dir() => crate::bail!("{} exists and is not a folder", target.display()),
             Ok(_) => {
                 let empty = std::fs::read_dir(target)
                     .with_context(|| format!("cannot read {}", target.display()))?
@@ -406,7 +411,7 @@ impl StagedFolder {
                 if empty || force {
                     Ok(())
                 } else {
-                    anyhow::bail!(
+                    crate::bail!(
                         "{} exists and is not empty; choose another folder or pass --force to replace it",
                         target.display()
                     )

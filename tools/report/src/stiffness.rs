@@ -3,7 +3,7 @@
 //! 6-DOF studies on the simulator beside the source's numbers, and the identification report.
 //! The checks are `ferrocal_datasets::stiffsim::checks`.
 
-use anyhow::Result;
+use crate::error::Result;
 use ferrocal_calib::check::Check;
 use ferrocal_calib::stiffness::onelink::SOURCE_NU;
 use ferrocal_calib::stiffness::reduce::Reduction;
@@ -284,7 +284,7 @@ pub fn sections_arm(s: &ArmStudy) -> Vec<Section> {
 /// when `quick`).
 pub fn study_report(seed: u64, trials: usize, quick: bool) -> Result<Report> {
     if trials == 0 {
-        anyhow::bail!("--trials must be at least 1");
+        crate::bail!("--trials must be at least 1");
     }
     let one = one_link_study(trials, seed)?;
     let settings = if quick { ArmStudySettings::quick(seed) } else { ArmStudySettings::full(seed) };

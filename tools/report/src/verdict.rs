@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use ferrocal_calib::verdict::{Check, Thresholds, Verdict};
 use serde_json::Value;
 

@@ -7,13 +7,13 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use ferrocal_calib::file::CalibrationFile;
-use ferrocal_calib::kinematic::{KinematicOptions, ModelParams};
-use ferrocal_calib::lsq::Loss;
+use ferrocal_calib::kinematic::KinematicOptions;
 use ferrocal_calib::PoseMeasurement;
-use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
+use ferrocal_robot::RobotModel;
 use serde_json::json;
 
-use ferrocal_report::calibrate::{calibrate_table, calibration_sections, evaluate_json, report_json, CalibrationRun};
+use ferrocal_datasets::calibration::{calibrate_table, CalibrationRun};
+use ferrocal_report::calibrate::{calibration_sections, evaluate_json, report_json, spatial_json};
 use ferrocal_report::verdict::{add_verdict, VerdictSettings};
 use ferrocal_report::{check_outputs, write_all_atomic, write_atomic, Provenance, Report};
 
@@ -103,100 +103,18 @@ pub struct EvaluateArgs {
     pub sigma_mm: f64,
 }
 
-/// Loads a model and a measurement table and checks that they agree.
+pub use ferrocal_datasets::calibration::{check_distinct_poses, check_params};
+
+/// Loads a model and a measurement table and checks that they agree; the table's warnings go
+/// to stderr.
 pub fn load_model_and_rows(robot: &str, measurements: &Path) -> Result<(RobotModel, Vec<PoseMeasurement>)> {
-    let model = RobotModel::load(robot).with_context(|| format!("cannot load robot model '{robot}'"))?;
-    let table = ferrocal_datasets::import::read_measurements(measurements)?;
-    let n = model.dof();
-    if table.joint_units.len() != n {
-        bail!(
-            "{}: the table has {} joint columns but the robot model '{}' has {n} joints",
-            measurements.display(),
-            table.joint_units.len(),
-            model.name()
-        );
-    }
-    table.check_joint_kinds(&model.joint_kinds()).with_context(|| {
-        format!("{}: joint units do not match the joint kinds of '{}'", measurements.display(), model.name())
-    })?;
-    table.check_joint_values(&model.joint_limits(), model.name())?;
-    for w in &table.warnings {
+    let (model, rows, warnings) = ferrocal_datasets::calibration::load_model_and_rows(robot, measurements)?;
+    for w in &warnings {
         eprintln!("warning: {w}");
     }
-    Ok((model, table.set.rows))
+    Ok((model, rows))
 }
-
-/// Fewest distinct joint configurations a calibration or diagnosis accepts (a rigid registration
-/// of the device frame alone needs three).
-pub const MIN_DISTINCT_POSES: usize = 3;
-
-/// Refuses a pose set with fewer than [`MIN_DISTINCT_POSES`] distinct joint configurations
-/// (a table of one pose repeated 200 times calibrates nothing).
-pub fn check_distinct_poses(rows: &[PoseMeasurement], measurements: &Path) -> Result<usize> {
-    let distinct = ferrocal_datasets::import::plausible::distinct_poses(rows);
-    if distinct < MIN_DISTINCT_POSES {
-        bail!(
-            "{}: the {} rows hold {distinct} independent pose(s) (rows with the same joint readings are one pose); a calibration needs many distinct poses: measure more poses",
-            measurements.display(),
-            rows.len()
-        );
-    }
-    Ok(distinct)
-}
-
-fn parse_loss(s: &str) -> Result<Loss> {
-    let (kind, val) = s.split_once(':').unwrap_or((s, ""));
-    let delta = || -> Result<f64> {
-        let d: f64 = val.parse().with_context(|| format!("--loss {s}: '{val}' is not a number"))?;
-        if !(d.is_finite() && d > 0.0) {
-            bail!("--loss {s}: the scale must be positive");
-        }
-        Ok(d)
-    };
-    Ok(match kind {
-        "none" | "squared" => Loss::Squared,
-        "huber" => Loss::Huber { delta: delta()? },
-        "cauchy" => Loss::Cauchy { delta: delta()? },
-        _ => bail!("--loss {s}: use none, huber:<sigmas> or cauchy:<sigmas>"),
-    })
-}
-
-fn parse_params(s: &str) -> Result<ModelParams> {
-    Ok(match s {
-        "default" => ModelParams::Default,
-        "all" => ModelParams::All,
-        "none" => ModelParams::None,
-        list => {
-            let prefixes: Vec<String> =
-                list.split(',').map(|p| p.trim().to_string()).filter(|p| !p.is_empty()).collect();
-            if prefixes.is_empty() {
-                bail!("--params '{list}' names no parameter: use default, all, none or comma-separated name prefixes");
-            }
-            ModelParams::Prefixes { prefixes }
-        }
-    })
-}
-
-/// Refuses `--params` prefixes that match none of the model's parameters (a misspelt list
-/// would otherwise calibrate the frames alone and report success).
-pub fn check_params(params: &ModelParams, model: &RobotModel) -> Result<()> {
-    if let ModelParams::Prefixes { prefixes } = params {
-        let names: Vec<String> = model.parameters().into_iter().map(|p| p.name).collect();
-        let unmatched: Vec<&String> =
-            prefixes.iter().filter(|x| !names.iter().any(|n| n.starts_with(x.as_str()))).collect();
-        if !unmatched.is_empty() {
-            let examples: Vec<&str> = names.iter().take(4).map(String::as_str).collect();
-            bail!(
-                "--params: {} match(es) no parameter of '{}' (its names look like {}, ...; `ferrocal robot info --robot {}` lists them)",
-                unmatched.iter().map(|u| format!("'{u}'")).collect::<Vec<_>>().join(", "),
-                model.name(),
-                examples.join(", "),
-                model.name()
-            );
-        }
-    }
-    Ok(())
-}
+use ferrocal_datasets::calibration::{parse_loss, parse_params};
 
 /// The options from the arguments.
 pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
@@ -224,6 +142,8 @@ pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
             other => bail!("--cost {other}: use fk or closure"),
         },
         lm: ferrocal_calib::lsq::LmOptions { max_iterations: args.max_iterations, ..KinematicOptions::default().lm },
+        // A row far beyond the others (a typo) is named and dropped, not fitted.
+        outliers: Some(ferrocal_calib::kinematic::OutlierScreen::default()),
         ..KinematicOptions::default()
     })
 }
@@ -265,14 +185,22 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
     if let Some(w) = cal.noise_warning() {
         eprintln!("note: {w}");
     }
+    for d in &cal.dropped_rows {
+        eprintln!("warning: {}: {}", args.measurements.display(), d.describe());
+    }
+    if let Some(n) = &cal.outlier_note {
+        eprintln!("warning: {}: {n}", args.measurements.display());
+    }
     // Everything is composed first, then written together: a failing report leaves no
     // calibration file behind, and no output is half-set.
     let file = CalibrationFile::new(&args.robot, &cal.calibrated);
     let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.out, serde_json::to_string_pretty(&file)?.into_bytes())];
     let mut summary = report_json(cal, validation, final_rows.len(), *fixed_split);
     if let Some(spatial) = heldout_spatial {
-        summary["heldout_spatial"] = spatial.clone();
+        summary["heldout_spatial"] = spatial_json(spatial);
     }
+    summary["dropped_rows"] = json!(cal.dropped_rows);
+    summary["outlier_note"] = json!(cal.outlier_note);
     let verdict = super::verdicts::calibrate(
         &vs.thresholds,
         cal,

@@ -10,7 +10,6 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use ferrocal_calib::verdict::{CameraLimits, Check, Thresholds, Verdict};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
 use ferrocal_report::camera_report::{camera_report, stereo_report, CameraReportInput, StereoReportInput};
@@ -22,7 +21,7 @@ use ferrocal_vision::calib::corners::{
 use ferrocal_vision::calib::heldout::held_out_reprojection;
 use ferrocal_vision::calib::{
     calibrate_pattern, calibrate_stereo, compare::compare_with_opencv, rectified_row_rms_px, CalibrationOptions,
-    CalibrationPattern, CameraCalibration, CovarianceMethod, PlanarTarget, RobustLoss, MIN_VIEWS,
+    CalibrationPattern, CovarianceMethod, PlanarTarget, RobustLoss, MIN_VIEWS,
 };
 use ferrocal_vision::camera::{io, DistortionKind};
 use serde_json::{json, Value};
@@ -262,33 +261,6 @@ pub fn run(cmd: CameraCommand, vs: &VerdictSettings) -> Result<ExitCode> {
     }
 }
 
-/// The verdict of one camera's calibration: fit RMS, views used, held-out over fit RMS.
-fn camera_verdict(l: &CameraLimits, rms_px: f64, views: usize, heldout_px: Option<f64>) -> Verdict {
-    let mut checks = vec![
-        Check::at_most("camera.rms_px", "reprojection RMS", "px", rms_px, l.rms_px_warn, l.rms_px_fail),
-        Check::at_least("camera.views", "views used", "", views as f64, l.views_warn, l.views_fail),
-    ];
-    if let Some(h) = heldout_px {
-        checks.push(Check::at_most(
-            "camera.heldout_ratio",
-            "held-out over fit RMS",
-            "",
-            h / rms_px,
-            l.heldout_ratio_warn,
-            l.heldout_ratio_fail,
-        ));
-    }
-    Verdict::with_next(checks, |c| {
-        match c.map(|c| c.name.as_str()) {
-            None => "use the camera model (the JSON, or --opencv-yaml / --ros-yaml), e.g. as --intrinsics of ferrocal handeye",
-            Some("camera.views") => "record more views (10 or more), with the pattern tilted and covering the whole image, and calibrate again",
-            Some("camera.heldout_ratio") => "the model does not predict views it did not see: record more views reaching the image corners, or try --model rational8",
-            _ => "look at the per-view RMS (the JSON's per_view, or --report) and retake or drop the worst views; try --reject-outliers",
-        }
-        .to_string()
-    })
-}
-
 fn report_skipped(skipped: &[SkippedImage]) {
     for s in skipped {
         eprintln!("ferrocal: skipped {s}");
@@ -319,39 +291,8 @@ impl Outputs {
     }
 
     fn write(&self) -> Result<()> {
-        write_all_atomic(&self.0.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect::<Vec<_>>())
-    }
-}
-
-fn print_camera(label: &str, cal: &CameraCalibration) {
-    let k = cal.camera.intrinsics;
-    println!(
-        "{label}: fx {:.3} +- {:.3}, fy {:.3} +- {:.3}, cx {:.3} +- {:.3}, cy {:.3} +- {:.3} px; distortion {:?}; RMS {:.4} px over {} views",
-        k.fx_px,
-        cal.std[0],
-        k.fy_px,
-        cal.std[1],
-        k.cx_px,
-        cal.std[2],
-        k.cy_px,
-        cal.std[3],
-        cal.camera.distortion.coefficients(),
-        cal.rms_px,
-        cal.views.iter().filter(|v| v.used).count()
-    );
-    if cal.summary.covariance_method != CovarianceMethod::Independent {
-        let s = &cal.summary.std_independent;
-        println!(
-            "{label}: standard deviations by {} covariance; with corners independent: fx {:.3}, fy {:.3}, cx {:.3}, cy {:.3} px",
-            cal.summary.covariance_method.name(),
-            s[0],
-            s[1],
-            s[2],
-            s[3]
-        );
-    }
-    for w in &cal.summary.warnings {
-        eprintln!("ferrocal: warning: {w}");
+        write_all_atomic(&self.0.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect::<Vec<_>>())?;
+        Ok(())
     }
 }
 
@@ -386,7 +327,7 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         anyhow::anyhow!("camera calibrate: {e} ({} usable views of {} images)", views.len(), paths.len())
     })?;
     let cal = &pc.calibration;
-    print_camera("camera", cal);
+    ferrocal_report::camera::print_camera("camera", cal);
     if let Some(b) = &pc.circle_bias {
         println!("{b}");
     }
@@ -408,7 +349,12 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         println!("{}", compare_with_opencv(&paths, &pattern, &options)?);
     }
     let n_used = cal.views.iter().filter(|v| v.used).count();
-    let verdict = camera_verdict(&vs.thresholds.camera, cal.rms_px, n_used, held_out.as_ref().and_then(|h| h.rms_px));
+    let verdict = ferrocal_calib::verdict::commands::camera(
+        &vs.thresholds.camera,
+        cal.rms_px,
+        n_used,
+        held_out.as_ref().and_then(|h| h.rms_px),
+    );
     if let Some(p) = &a.json {
         let mut v = camera_json(cal);
         add_verdict(&mut v, &verdict);
@@ -492,8 +438,8 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         bail!("camera stereo: the pattern was never found in both images of a pair");
     }
     let st = calibrate_stereo(&left, &right, &target, &options).map_err(|e| anyhow::anyhow!("camera stereo: {e}"))?;
-    print_camera("left", st.left());
-    print_camera("right", st.right());
+    ferrocal_report::camera::print_camera("left", st.left());
+    ferrocal_report::camera::print_camera("right", st.right());
     println!(
         "T_right_left: rotation {:.4?} deg (std {:.4?}), translation {:.3?} mm (std {:.3?}), baseline {:.3} +- {:.3} mm; RMS {:.4} px ({n_pairs} pairs)",
         st.rotation_deg.as_slice(),
@@ -533,12 +479,18 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         }
         None => (Vec::new(), f64::NAN),
     };
-    let verdict = stereo_verdict(&vs.thresholds, st.calibration.rms_px, n_pairs, pair.as_ref().map(|_| row_rms_px));
+    let verdict = ferrocal_calib::verdict::commands::stereo(
+        &vs.thresholds,
+        st.calibration.rms_px,
+        n_pairs,
+        pair.as_ref().map(|_| row_rms_px),
+    );
     if let Some(p) = &a.json {
         let mut v = stereo_json(&st, n_pairs, &pattern.pattern(), a.solve.fix_aspect, &skipped);
         add_verdict(&mut v, &verdict);
-        v["rectification"] =
-            pair.as_ref().map_or(Value::Null, |pair| rectification_json(pair, row_rms_px, corners.len()));
+        v["rectification"] = pair
+            .as_ref()
+            .map_or(Value::Null, |pair| ferrocal_report::camera::rectification_json(pair, row_rms_px, corners.len()));
         out.json(p, &v)?;
     }
     for (cal, path) in [(st.left(), &a.left_opencv_yaml), (st.right(), &a.right_opencv_yaml)] {
@@ -578,54 +530,4 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     }
     out.write()?;
     Ok(vs.conclude(&verdict))
-}
-
-/// The verdict of a stereo pair: the pair's RMS, the pairs used, the rectified row difference.
-fn stereo_verdict(t: &Thresholds, rms_px: f64, pairs: usize, row_rms_px: Option<f64>) -> Verdict {
-    let (l, c) = (&t.stereo, &t.camera);
-    let mut checks = vec![
-        Check::at_most("stereo.rms_px", "reprojection RMS", "px", rms_px, l.rms_px_warn, l.rms_px_fail),
-        Check::at_least("camera.views", "pairs used", "", pairs as f64, c.views_warn, c.views_fail),
-    ];
-    if let Some(r) = row_rms_px {
-        checks.push(Check::at_most(
-            "stereo.row_rms_px",
-            "rectified row difference RMS",
-            "px",
-            r,
-            l.row_rms_px_warn,
-            l.row_rms_px_fail,
-        ));
-    }
-    Verdict::with_next(checks, |c| {
-        match c.map(|c| c.name.as_str()) {
-            None => "use the pair (--opencv-stereo-yaml or --left-ros-yaml / --right-ros-yaml for rectification)",
-            Some("camera.views") => "record more pairs (10 or more) with the pattern seen by both cameras across the image",
-            Some("stereo.row_rms_px") => "the pair does not rectify well: check that the images are synchronous and the rig rigid, then calibrate again",
-            _ => "look at the per-view RMS of both cameras in the JSON and retake or drop the worst pairs",
-        }
-        .to_string()
-    })
-}
-
-/// The rectification in the stereo JSON: OpenCV's matrices row by row (T, P2 and Q in
-/// metres), the common focal length, the baseline and the rectified row check.
-fn rectification_json(pair: &io::StereoPair, row_rms_px: f64, n_corners: usize) -> Value {
-    let rc = &pair.rectification;
-    let rows = |m: &dyn Fn(usize, usize) -> f64, r: usize, c: usize| -> Vec<Vec<f64>> {
-        (0..r).map(|i| (0..c).map(|j| m(i, j)).collect()).collect()
-    };
-    json!({
-        "R1": rows(&|i, j| rc.r1[(i, j)], 3, 3),
-        "R2": rows(&|i, j| rc.r2[(i, j)], 3, 3),
-        "P1": rows(&|i, j| rc.p1[(i, j)], 3, 4),
-        "P2": rows(&|i, j| rc.p2[(i, j)], 3, 4),
-        "Q": rows(&|i, j| rc.q[(i, j)], 4, 4),
-        "focal_px": rc.focal_px(),
-        "baseline_mm": rc.baseline() * 1e3,
-        "vertical": rc.vertical(),
-        "row_rms_px": row_rms_px,
-        "n_corner_pairs": n_corners,
-        "method": "Bouguet (OpenCV stereoRectify, alpha = -1, CALIB_ZERO_DISPARITY); T, P2 and Q in metres",
-    })
 }

@@ -86,7 +86,7 @@ pub fn run(args: &DemoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         n.skipped,
         n.reported
     );
-    ferrocal_report::verdict::conclude_report(vs, &args.out, "demo")
+    Ok(ferrocal_report::verdict::conclude_report(vs, &args.out, "demo")?)
 }
 
 /// Runs a `ferrocal` command in-process, as a user would call it.
@@ -209,8 +209,12 @@ fn sections_diagnose(args: &DemoArgs) -> Result<Vec<Section>> {
         s.title = format!("UR5 diagnose: {}", s.title.to_lowercase());
     }
     // Recordings shaped like the real ones the fixed vetoes missed (the seed the tests check).
+    // The humanoid torso (two more diagnoses of 400 poses, about two minutes) only in the full demo.
     let pb = progress::bar(1, "diagnosing the large and leading cases");
-    let cases = ferrocal_datasets::sim::scenario::diagnose_cases(ferrocal_datasets::sim::scenario::DEMO_CASES_SEED)?;
+    let cases = ferrocal_datasets::sim::scenario::diagnose_cases(
+        ferrocal_datasets::sim::scenario::DEMO_CASES_SEED,
+        !args.quick,
+    )?;
     pb.finish_and_clear();
     out.push(ferrocal_report::diagnose::cases_section(&cases));
     Ok(out)

@@ -11,19 +11,14 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{anyhow, bail, Context, Result};
-use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
-use ferrocal_calib::dynamics::identify::{identify_from_streams, RowModel};
-use ferrocal_calib::dynamics::{Differentiation, NoiseModel, SensorRows};
-use ferrocal_datasets::dynsim::study::static_problem;
+use anyhow::{Context, Result};
+use ferrocal_calib::dynamics::force_sensor::SensorRegressor;
+use ferrocal_datasets::dynsim::identify::{identify_static, identify_streams, StreamIdentifyOptions};
 use ferrocal_datasets::dynsim::tables::{simulated_tables, Rig, TableSettings};
-use ferrocal_datasets::dynsim::PlatformSim;
-use ferrocal_datasets::formats::dynamics_tables::{self, FORCE_COLUMNS, LEG_COLUMNS};
-use ferrocal_lsq::linear::{fit, LinearFit, LinearOptions, Weighting};
-use ferrocal_report::dynamics::{fit_json, study_report};
+use ferrocal_datasets::formats::dynamics_tables;
+use ferrocal_report::dynamics::{fit_json, print_fit, study_report};
 use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::write_atomic;
-use ferrocal_robot::dynamics::HexapodDynamics;
 use ferrocal_robot::Pose;
 use nalgebra::DMatrix;
 use serde_json::json;
@@ -169,45 +164,15 @@ pub fn run(args: &DynamicsArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     }
 }
 
-fn print_fit(f: &LinearFit) {
-    println!("{:<18} {:>14} {:>12}", "parameter", "estimate", "std");
-    for i in 0..f.values.len() {
-        println!("{:<18} {:>14.6} {:>12.6}", f.names[i], f.values[i], f.std[i]);
-    }
-    println!("s0 = {:.4}, {} equations, redundancy {}, cond = {:.3e}", f.s0, f.n_rows, f.dof, f.condition_number);
-}
-
 fn run_identify(a: &IdentifyArgs) -> Result<ExitCode> {
-    let hexapod = PlatformSim::preset().hexapod;
-    let is_hexapod = a.model.trim().eq_ignore_ascii_case("hexapod");
-    let d = if a.time_domain {
-        Differentiation::TimeDomain { cutoff_hz: a.cutoff_hz, order: 4 }
-    } else {
-        Differentiation::Frequency { cutoff_hz: a.cutoff_hz }
-    };
-    let noise =
-        a.period_samples.map_or(NoiseModel::Unit, |samples_per_period| NoiseModel::Periods { samples_per_period });
-    let reg;
-    let dynm;
-    let model: &dyn RowModel = if is_hexapod {
-        dynm = HexapodDynamics::new(&hexapod)?;
-        &dynm
-    } else {
-        let m: SensorModel = a.model.parse()?;
-        if !m.is_dynamic() {
-            bail!("{m} is quasi-static: use `ferrocal dynamics identify-static` with averaged forces at poses, or a dynamic model 6 to 9");
-        }
-        reg = rig_sensor_regressor()?;
-        &SensorRows { regressor: &reg, model: m }
-    };
-    let legs = dynamics_tables::read_stream(&a.legs, "leg positions", &LEG_COLUMNS)?;
-    let forces = dynamics_tables::read_stream(
-        &a.forces,
-        if is_hexapod { "actuator forces" } else { "sensor forces" },
-        &FORCE_COLUMNS,
-    )?;
-    let f = identify_from_streams(&hexapod, model, &legs, &forces, &d, &noise)
-        .with_context(|| format!("identifying from {} and {}", a.legs.display(), a.forces.display()))?;
+    let (f, d) = identify_streams(&StreamIdentifyOptions {
+        model: a.model.clone(),
+        legs: a.legs.clone(),
+        forces: a.forces.clone(),
+        time_domain: a.time_domain,
+        cutoff_hz: a.cutoff_hz,
+        period_samples: a.period_samples,
+    })?;
     println!("{} samples, {}", f.samples, d.label());
     print_fit(&f.fit);
     if let Some(p) = &a.json {
@@ -218,19 +183,11 @@ fn run_identify(a: &IdentifyArgs) -> Result<ExitCode> {
 }
 
 fn run_identify_static(a: &IdentifyStaticArgs) -> Result<ExitCode> {
-    let m = SensorModel::new(a.model)?;
-    if m.is_dynamic() {
-        bail!("{m} is dynamic: use `ferrocal dynamics identify` with leg and force streams");
-    }
-    let (poses, forces) = read_static_table(&a.poses)?;
-    let reg = rig_sensor_regressor()?;
-    let (am, y) = static_problem(&reg, m, &poses, &forces).map_err(|e| anyhow!("{}: {e}", a.poses.display()))?;
-    let f = fit(&am, &y, &m.names(), &Weighting::Unit, &LinearOptions::default())
-        .with_context(|| format!("{m} from {} poses of {}", poses.len(), a.poses.display()))?;
-    println!("{m}: {} from {} poses", m.description(), poses.len());
+    let (m, n_poses, f) = identify_static(a.model, &a.poses)?;
+    println!("{m}: {} from {n_poses} poses", m.description());
     print_fit(&f);
     if let Some(p) = &a.json {
-        let v = fit_json(&f, json!({"model": a.model, "poses": poses.len()}));
+        let v = fit_json(&f, json!({"model": a.model, "poses": n_poses}));
         write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())?;
     }
     Ok(ExitCode::SUCCESS)
@@ -244,7 +201,7 @@ pub(crate) fn read_static_table(path: &Path) -> Result<(Vec<Pose>, DMatrix<f64>)
 
 /// The sensor framework of the rig (`PlatformSim::preset`), for the diagnosis.
 pub(crate) fn rig_sensor_regressor() -> Result<SensorRegressor> {
-    Ok(PlatformSim::preset().sensor_regressor()?)
+    Ok(ferrocal_datasets::dynsim::identify::rig_sensor_regressor()?)
 }
 
 fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
@@ -278,5 +235,5 @@ fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     })?;
     let html = report.write(&a.out)?;
     println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    ferrocal_report::verdict::conclude_report(vs, &a.out, "study")
+    Ok(ferrocal_report::verdict::conclude_report(vs, &a.out, "study")?)
 }

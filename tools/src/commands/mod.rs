@@ -3,13 +3,16 @@
 pub mod calibrate;
 pub mod camera;
 pub mod corner_study;
+pub mod correct;
 mod demo;
 pub mod detect;
 pub mod diagnose;
 mod doctor;
 pub mod dynamics;
+pub mod handeye;
 pub mod motion;
 pub mod plan;
+pub mod recording;
 mod robot;
 pub mod simulate;
 pub mod stiffness;
@@ -37,11 +40,11 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Simulate(a) => simulate::run_simulate(&a),
         Command::Import(a) => simulate::run_import(&a, vs),
         Command::Measure(a) => simulate::run_measure(&a, vs),
-        Command::Correct(a) => ferrocal_report::compensate::run_correct(&a, vs),
+        Command::Correct(a) => correct::run(&a, vs),
         Command::Plan(a) => plan::run(&a, vs),
         Command::Calibrate(a) => calibrate::run_calibrate(&a, vs),
         Command::Diagnose(a) => diagnose::run(&a, vs),
-        Command::Handeye(a) => ferrocal_report::handeye::run(&a, vs),
+        Command::Handeye(a) => handeye::run(&a, vs),
         Command::Evaluate(a) => calibrate::run_evaluate(&a, vs),
         Command::Export(a) => calibrate::run_export(&a, vs),
         Command::Dynamics(a) => dynamics::run(&a, vs),

@@ -212,5 +212,5 @@ fn lead_settings(a: &LeadthroughArgs) -> Result<LeadSettings> {
 fn write(report: &Report, common: &CommonArgs, t0: std::time::Instant, vs: &VerdictSettings) -> Result<ExitCode> {
     let html = report.write(&common.out)?;
     println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    ferrocal_report::verdict::conclude_report(vs, &common.out, "study")
+    Ok(ferrocal_report::verdict::conclude_report(vs, &common.out, "study")?)
 }

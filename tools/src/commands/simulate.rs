@@ -118,7 +118,8 @@ pub fn run_import(args: &ImportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (set, kinds) = match args.kind {
         ImportKind::IcHandeye => {
             let cam = args.intrinsics_out.as_deref();
-            return ferrocal_report::handeye::run_import_ic(&args.input, &args.out, args.test_every, cam, vs);
+            let set = ferrocal_datasets::handeye::import_ic_handeye(&args.input, &args.out, args.test_every, cam)?;
+            return Ok(ferrocal_report::handeye::import_ic_summary(&set, &args.input, &args.out, vs));
         }
         ImportKind::IcKinematic => {
             let s = ferrocal_datasets::handeye::read_ic_kinematic(&args.input, args.test_every)?;
@@ -174,7 +175,7 @@ pub struct MeasureArgs {
     pub session: Option<PathBuf>,
     /// A recording of images and a poses table instead of a session.
     #[command(flatten)]
-    pub recording: ferrocal_report::recording::RecordingArgs,
+    pub recording: super::recording::RecordingArgs,
     /// The measurement table to write (shared/spec/measurements.md with the `cov_*` columns of
     /// docs/session-format.md), lengths in mm; required with --session.
     #[arg(long, required_unless_present = "images")]
@@ -202,13 +203,7 @@ pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode>
         anyhow::bail!("measure: --corner-sigma-px must be positive, got {}", args.corner_sigma_px);
     }
     let (Some(session), Some(out)) = (&args.session, &args.out) else {
-        return ferrocal_report::recording::run(
-            &args.recording,
-            args.out.as_ref(),
-            args.json.as_ref(),
-            args.corner_sigma_px,
-            vs,
-        );
+        return super::recording::run(&args.recording, args.out.as_ref(), args.json.as_ref(), args.corner_sigma_px, vs);
     };
     let opts = MeasureOptions {
         corners: CornerSource::Detector,

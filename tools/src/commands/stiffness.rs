@@ -117,7 +117,7 @@ fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let report = study_report(a.seed, a.trials, a.quick)?;
     let html = report.write(&a.out)?;
     println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    ferrocal_report::verdict::conclude_report(vs, &a.out, "study")
+    Ok(ferrocal_report::verdict::conclude_report(vs, &a.out, "study")?)
 }
 
 fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {

@@ -65,6 +65,12 @@ use crate::error::{Result, VisionError};
 use crate::pose::{homography, plane_frame, LocalPose};
 use bundle::{Bundle, CameraLayout, Obs};
 
+mod views;
+pub(crate) use views::{check_views, median, view_homography};
+
+mod outliers;
+pub(crate) use outliers::flag_outliers;
+
 /// Fewest views a calibration accepts.
 pub const MIN_VIEWS: usize = 3;
 
@@ -330,83 +336,6 @@ pub struct CameraCalibration {
     pub outlier_corners: Vec<CornerOutlier>,
     /// Conditioning, solver, outliers.
     pub summary: CalibrationSummary,
-}
-
-/// Median of a non-empty list (0 for an empty one).
-pub(crate) fn median(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
-}
-
-/// Checks the views' shapes against the target; all views must share one image size.
-pub(crate) fn check_views(views: &[&View], target: &PlanarTarget) -> Result<ImageSize> {
-    for v in views {
-        if v.point_ids.len() != v.corners_px.len() {
-            return Err(VisionError::InvalidInput {
-                detail: format!("{}: {} point ids for {} corners", v.name, v.point_ids.len(), v.corners_px.len()),
-            });
-        }
-        if let Some(&bad) = v.point_ids.iter().find(|&&i| i >= target.points_m.len()) {
-            return Err(VisionError::InvalidInput {
-                detail: format!("{}: point id {bad}, but the target has {} points", v.name, target.points_m.len()),
-            });
-        }
-        if v.corners_px.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
-            return Err(VisionError::InvalidInput { detail: format!("{}: a corner is not finite", v.name) });
-        }
-    }
-    let Some(first) = views.first() else {
-        return Err(VisionError::TooFewViews { usable: 0, needed: MIN_VIEWS, detail: "no views were given".into() });
-    };
-    let mut sizes: Vec<(ImageSize, Vec<&str>)> = Vec::new();
-    for v in views {
-        match sizes.iter_mut().find(|(s, _)| *s == v.image_size) {
-            Some((_, names)) => names.push(&v.name),
-            None => sizes.push((v.image_size, vec![&v.name])),
-        }
-    }
-    if sizes.len() > 1 {
-        sizes.sort_by_key(|(_, n)| std::cmp::Reverse(n.len()));
-        let detail = sizes
-            .iter()
-            .map(|(s, names)| format!("{}x{}: {}", s.width_px, s.height_px, names.join(", ")))
-            .collect::<Vec<_>>()
-            .join("; ");
-        return Err(VisionError::ImageSizeMismatch {
-            detail: format!("{detail} (calibrate each camera and resolution separately)"),
-        });
-    }
-    Ok(first.image_size)
-}
-
-/// The homography of a view (pixels from target-plane coordinates, metres), or why it has none.
-pub(crate) fn view_homography(
-    view: &View,
-    target: &PlanarTarget,
-    t_plane_target: &Isometry3<f64>,
-) -> std::result::Result<nalgebra::Matrix3<f64>, String> {
-    if view.corners_px.len() < 4 {
-        return Err(format!("{} corners, a view needs at least 4", view.corners_px.len()));
-    }
-    let src: Vec<Point2<f64>> = view
-        .point_ids
-        .iter()
-        .map(|&i| {
-            let q = t_plane_target * target.points_m[i];
-            Point2::new(q.x, q.y)
-        })
-        .collect();
-    homography::homography_dlt(&src, &view.corners_px)
-        .ok_or_else(|| "the corners are collinear or coincide (no homography)".to_string())
 }
 
 /// Calibrates one camera from views of a planar target (see the module documentation).
@@ -764,84 +693,4 @@ pub fn calibrate_pattern(
             Ok(PatternCalibration { calibration, circle_bias: None })
         }
     }
-}
-
-/// An outlier corner found in a bundle's residuals.
-pub(crate) struct FlaggedCorner {
-    /// Index into the list of observations that was checked.
-    pub obs: usize,
-    /// The bundle's view index.
-    pub view: usize,
-    pub point_id: usize,
-    pub residual_px: f64,
-}
-
-/// Per-view RMS and outlier flags.
-pub(crate) struct Flags {
-    pub view_rms: Vec<f64>,
-    pub view_outlier: Vec<bool>,
-    pub median_rms: f64,
-    pub corners: Vec<FlaggedCorner>,
-    pub removed_obs: std::collections::HashSet<usize>,
-    pub dropped_views: bool,
-}
-
-impl Flags {
-    fn any_view(&self) -> bool {
-        self.view_outlier.iter().any(|o| *o)
-    }
-}
-
-/// Per-view RMS over `all_obs` (evaluated with the bundle's current state, whether or not an
-/// observation is still in the bundle), outlier views (RMS above the factor times the median)
-/// and outlier corners (beyond the given number of robust sigmas).
-pub(crate) fn flag_outliers(bundle: &Bundle, all_obs: &[Obs], options: &CalibrationOptions) -> Result<Flags> {
-    let res = bundle.residuals_of(all_obs)?;
-    let nv = bundle.views.len();
-    let mut sq = vec![0.0; nv];
-    let mut cnt = vec![0usize; nv];
-    let mut comps = Vec::new();
-    for (o, r) in all_obs.iter().zip(&res) {
-        if let Some(r) = r {
-            sq[o.view] += r.norm_squared();
-            cnt[o.view] += 1;
-            comps.push(r.x.abs());
-            comps.push(r.y.abs());
-        }
-    }
-    let view_rms: Vec<f64> =
-        (0..nv).map(|k| if cnt[k] > 0 { (sq[k] / cnt[k] as f64).sqrt() } else { f64::NAN }).collect();
-    // A view is an outlier when most of its corners are off, not when one corner is: compare
-    // the views' median corner errors (one bad corner is an outlier corner instead).
-    let mut lens: Vec<Vec<f64>> = vec![Vec::new(); nv];
-    for (o, r) in all_obs.iter().zip(&res) {
-        if let Some(r) = r {
-            lens[o.view].push(r.norm());
-        }
-    }
-    let view_median: Vec<f64> = lens.iter().map(|l| if l.is_empty() { f64::NAN } else { median(l) }).collect();
-    let finite: Vec<f64> = view_median.iter().copied().filter(|x| x.is_finite()).collect();
-    let median_all = median(&finite);
-    let finite_rms: Vec<f64> = view_rms.iter().copied().filter(|x| x.is_finite()).collect();
-    let median_rms = median(&finite_rms);
-    let view_outlier: Vec<bool> = view_median
-        .iter()
-        .zip(&view_rms)
-        .map(|(m, r)| {
-            m.is_finite()
-                && *m > options.outlier_view_factor * median_all
-                && *r > options.outlier_view_factor * median_rms
-        })
-        .collect();
-    let sigma = 1.4826 * median(&comps);
-    let mut corners = Vec::new();
-    for (oi, (o, r)) in all_obs.iter().zip(&res).enumerate() {
-        if let Some(r) = r {
-            let len = r.norm();
-            if sigma > 0.0 && len > options.outlier_corner_sigmas * sigma {
-                corners.push(FlaggedCorner { obs: oi, view: o.view, point_id: o.point_id, residual_px: len });
-            }
-        }
-    }
-    Ok(Flags { view_rms, view_outlier, median_rms, corners, removed_obs: Default::default(), dropped_views: false })
 }

@@ -1,7 +1,7 @@
 //! Tests of the camera models: round trips, Jacobians against finite differences, OpenCV parity.
 
 use super::*;
-use nalgebra::{Point2, Point3};
+use nalgebra::{Point2, Point3, Vector3};
 
 /// OpenCV's stereo sample, left camera (as in the brief).
 pub(crate) fn opencv_sample_left() -> CameraModel {

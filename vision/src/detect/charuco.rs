@@ -37,10 +37,11 @@ use serde::{Deserialize, Serialize};
 
 use super::aruco::{detect_markers, ArucoDictionary, Marker, MarkerParams};
 use super::image::GrayF32;
-use super::{Corner, DetectOptions, Detection};
+use super::{Corner, DetectOptions, Detection, StageTimings};
 use crate::error::{Result, VisionError};
 use crate::pose::homography::homography_dlt;
-use crate::subpix::{refine_grid, CheckerGrid};
+use crate::subpix::{refine_grid_timed, CheckerGrid};
+use std::time::Instant;
 
 /// A ChArUco board (see the module documentation for its layout and frame).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -186,11 +187,18 @@ pub(crate) fn detect_charuco(
     board: &CharucoBoard,
     options: &DetectOptions,
     pattern_text: &str,
+    mut timings: Option<&mut StageTimings>,
 ) -> Result<Detection> {
     let not_found = |reason: String| VisionError::PatternNotFound { pattern: pattern_text.to_string(), reason };
     let squares = board.marker_squares();
+    let t0 = Instant::now();
     let mut markers = detect_markers(img, board.dictionary, options.charuco.markers)?;
     let decoded = markers.len();
+    let t1 = Instant::now();
+    if let Some(t) = timings.as_deref_mut() {
+        StageTimings::add_since(&mut t.candidates_ms, t0);
+        t.candidates = decoded;
+    }
     markers.retain(|m| m.id < board.n_markers());
     let mut by_id: std::collections::HashMap<u32, Vec<Marker>> = std::collections::HashMap::new();
     for m in markers {
@@ -297,9 +305,16 @@ pub(crate) fn detect_charuco(
             })
             .fold(f64::INFINITY, f64::min)
     };
+    if let Some(t) = timings.as_deref_mut() {
+        StageTimings::add_since(&mut t.grid_ms, t1);
+    }
     let mut corners = Vec::with_capacity(wanted.len());
     if options.refine {
+        let t2 = Instant::now();
         let imgf = GrayF32::from_gray8(img)?;
+        if let Some(t) = timings.as_deref_mut() {
+            StageTimings::add_since(&mut t.convert_ms, t2);
+        }
         let mut fields_dark = Vec::with_capacity((rows * cols) as usize);
         for ti in 0..rows {
             for c in 0..cols {
@@ -315,8 +330,18 @@ pub(crate) fn detect_charuco(
             points_px: points.clone(),
             light_uniform_fraction: (board.square_mm - board.marker_mm) / (2.0 * board.square_mm),
         };
+        // Start every corner at the saddle near its prediction (the predictions through the
+        // markers are off by a pixel or more, which would cost the edge model a second pass).
+        let mut grid = grid;
+        for &w in &wanted {
+            let k = index(grid_of(w));
+            let (Some(p), spacing) = (points[k], spacing_at(&points, grid_of(w))) else { continue };
+            if let Some(q) = saddle_start(&imgf, p, (0.2 * spacing).clamp(3.0, 25.0)) {
+                grid.points_px[k] = Some(q);
+            }
+        }
         let targets: Vec<(usize, usize)> = wanted.iter().map(|&w| grid_of(w)).collect();
-        let (refined, _) = refine_grid(&imgf, &grid, &targets, &options.refine_options)?;
+        let (refined, _) = refine_grid_timed(&imgf, &grid, &targets, &options.refine_options, timings)?;
         for (&(i, j), rc) in wanted.iter().zip(refined) {
             let Some(rc) = rc else { continue };
             let (gi, gj) = grid_of((i, j));
@@ -339,6 +364,59 @@ pub(crate) fn detect_charuco(
     }
     let complete = corners.len() == board.n_corners() as usize;
     Ok(Detection { id: None, corners, complete, anchored: true, circle_radii_m: None })
+}
+
+/// The X-corner near `p`: the point to which the image gradients in a window of half-width
+/// `half_px` around it are orthogonal (every gradient on the two edge lines through a corner is
+/// orthogonal to the ray from the corner), iterated from `p`, Gaussian-weighted. `None` when
+/// the window holds no corner (the gradients do not fix a point) or the point leaves the
+/// window.
+fn saddle_start(img: &GrayF32, p: Point2<f64>, half_px: f64) -> Option<Point2<f64>> {
+    let (w, h) = (img.width as isize, img.height as isize);
+    let r = half_px.ceil() as isize;
+    let inv_2s2 = 1.0 / (2.0 * (0.5 * half_px).powi(2));
+    let mut q = p;
+    for _ in 0..6 {
+        let (cx, cy) = (q.x.round() as isize, q.y.round() as isize);
+        if cx - r < 1 || cy - r < 1 || cx + r >= w - 1 || cy + r >= h - 1 {
+            return None;
+        }
+        let (mut a, mut b, mut c, mut bx, mut by) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for y in cy - r..=cy + r {
+            for x in cx - r..=cx + r {
+                let (dx, dy) = (x as f64 - q.x, y as f64 - q.y);
+                let d2 = dx * dx + dy * dy;
+                if d2 > half_px * half_px {
+                    continue;
+                }
+                let (xu, yu) = (x as usize, y as usize);
+                let gx = 0.5 * f64::from(img.get(xu + 1, yu) - img.get(xu - 1, yu));
+                let gy = 0.5 * f64::from(img.get(xu, yu + 1) - img.get(xu, yu - 1));
+                let wgt = (-d2 * inv_2s2).exp();
+                let (gxx, gxy, gyy) = (wgt * gx * gx, wgt * gx * gy, wgt * gy * gy);
+                a += gxx;
+                b += gxy;
+                c += gyy;
+                bx += gxx * x as f64 + gxy * y as f64;
+                by += gxy * x as f64 + gyy * y as f64;
+            }
+        }
+        let det = a * c - b * b;
+        // Both gradient directions must be present (a corner, not an edge).
+        if det.is_nan() || det <= 1e-3 * (a + c) * (a + c) {
+            return None;
+        }
+        let next = Point2::new((c * bx - b * by) / det, (a * by - b * bx) / det);
+        if (next - p).norm() > half_px {
+            return None;
+        }
+        let step = (next - q).norm();
+        q = next;
+        if step < 0.02 {
+            break;
+        }
+    }
+    Some(q)
 }
 
 fn corner(

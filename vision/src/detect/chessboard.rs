@@ -15,9 +15,10 @@
 //!    right of the image (and row axis most downwards) is taken.
 //! 3. *Partial views*: an axis along which fewer corners are seen than the board has is
 //!    anchored by a visible board edge: beyond the last row of corners the board has one row
-//!    of squares and then the margin, so the "cells" two steps out are uniform, whereas a
-//!    board cut by the image border or by occlusion continues (the next row would be outside
-//!    the image or alternating). An axis without a visible edge keeps relative indices (from 0,
+//!    of squares and then the margin, so the "cells" two steps out are uniform and light (above
+//!    the mean of the border squares between), whereas a board cut by the image border or by
+//!    occlusion continues (the next row would be outside the image or alternating) or is hidden
+//!    by something that is not the board's light margin. An axis without a visible edge keeps relative indices (from 0,
 //!    or 1 where the colours need it) and the detection says `anchored = false`.
 //!
 //! Corners are then refined by [`crate::subpix::refine_grid`] (the board is a checkerboard of
@@ -28,9 +29,10 @@ use nalgebra::{Matrix2, Point2, Point3, Vector2};
 use super::grid::{cell_mean, cell_parity, grow_grids, Grid, Pos};
 use super::image::GrayF32;
 use super::xcorner::{find_xcorners, XCorner};
-use super::{Corner, DetectOptions, Detection};
+use super::{Corner, DetectOptions, Detection, StageTimings};
 use crate::error::{Result, VisionError};
-use crate::subpix::{refine_grid, CheckerGrid};
+use crate::subpix::{refine_grid_timed, CheckerGrid};
+use std::time::Instant;
 
 /// A labelled grid: board index `(row, col)` and coarse position of every corner.
 #[derive(Clone, Debug)]
@@ -49,7 +51,8 @@ struct Sides {
 }
 
 /// Whether the board visibly ends beyond the side of the grid reached by stepping `step`
-/// from the grid line `(line fixed)`: the cells two steps out do not alternate.
+/// from the grid line `(line fixed)`: the cells two steps out do not alternate and are
+/// lighter than the local mid level (the board's light margin).
 fn side_closed(img: &GrayF32, cands: &[XCorner], g: &Grid, outward: Pos, contrast: f64) -> bool {
     // Corners on the outermost line of that side, with their inner neighbours.
     let mut edge: Vec<(i32, Vector2<f64>, Vector2<f64>)> = Vec::new();
@@ -68,6 +71,7 @@ fn side_closed(img: &GrayF32, cands: &[XCorner], g: &Grid, outward: Pos, contras
     edge.sort_by_key(|e| e.0);
     let (w, h) = (img.width as f64, img.height as f64);
     let mut vals: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    let mut border = Vec::new();
     for pair in edge.windows(2) {
         let (a, b) = (&pair[0], &pair[1]);
         if b.0 != a.0 + 1 {
@@ -86,12 +90,16 @@ fn side_closed(img: &GrayF32, cands: &[XCorner], g: &Grid, outward: Pos, contras
         let m =
             cell_mean(img, a1 * 0.75 + a2 * 0.25, b1 * 0.75 + b2 * 0.25, a1 * 0.25 + a2 * 0.75, b1 * 0.25 + b2 * 0.75);
         vals[(a.0.rem_euclid(2)) as usize].push(m);
+        // The row of border squares between: alternating, its mean is the local mid level.
+        border.push(cell_mean(img, a.1, b.1, a1, b1));
     }
     if vals[0].is_empty() || vals[1].is_empty() {
         return false;
     }
     let mean = |v: &Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
-    (mean(&vals[0]) - mean(&vals[1])).abs() < 0.3 * contrast
+    // Uniform, and light like a printed board's margin: a dark or grey object hiding the
+    // board (or the background beyond the image of a cut board) does not end it.
+    (mean(&vals[0]) - mean(&vals[1])).abs() < 0.3 * contrast && 0.5 * (mean(&vals[0]) + mean(&vals[1])) > mean(&border)
 }
 
 /// Labels a grid with board indices, or `None` when it cannot be this board.
@@ -240,8 +248,15 @@ pub(crate) fn detect_chessboard(
     square_mm: f64,
     options: &DetectOptions,
     pattern_text: &str,
+    mut timings: Option<&mut StageTimings>,
 ) -> Result<Detection> {
+    let t0 = Instant::now();
     let cands = find_xcorners(img, &options.xcorner(), None)?;
+    let t1 = Instant::now();
+    if let Some(t) = timings.as_deref_mut() {
+        StageTimings::add_since(&mut t.candidates_ms, t0);
+        t.candidates = cands.len();
+    }
     let grids = grow_grids(&cands, 4, 12, 300, (img.width as f64, img.height as f64), Some((cols * rows) as usize));
     let mut best: Option<Labelled> = None;
     let mut largest = 0usize;
@@ -259,6 +274,9 @@ pub(crate) fn detect_chessboard(
             break;
         }
     }
+    if let Some(t) = timings.as_deref_mut() {
+        StageTimings::add_since(&mut t.grid_ms, t1);
+    }
     let not_found = |reason: String| VisionError::PatternNotFound { pattern: pattern_text.to_string(), reason };
     let Some(lab) = best else {
         return Err(not_found(if grids.is_empty() {
@@ -274,8 +292,11 @@ pub(crate) fn detect_chessboard(
             rows * cols
         )));
     }
-    let refined =
-        if options.refine { refine_chessboard(img, &lab, cols, rows, options)? } else { vec![None; lab.corners.len()] };
+    let refined = if options.refine {
+        refine_chessboard(img, &lab, cols, rows, options, timings)?
+    } else {
+        vec![None; lab.corners.len()]
+    };
     let corners = lab
         .corners
         .iter()
@@ -319,6 +340,7 @@ pub(crate) fn refine_chessboard(
     cols: u32,
     rows: u32,
     options: &DetectOptions,
+    timings: Option<&mut StageTimings>,
 ) -> Result<Vec<Refined>> {
     let (fr, fc) = (rows as usize + 1, cols as usize + 1);
     let mut points = vec![None; (fr + 1) * (fc + 1)];
@@ -328,7 +350,7 @@ pub(crate) fn refine_chessboard(
     let grid = CheckerGrid::checkerboard(fr, fc, true, None, points);
     let wanted: Vec<(usize, usize)> =
         lab.corners.iter().map(|((r, c), _)| (*r as usize + 1, *c as usize + 1)).collect();
-    let (out, _) = refine_grid(img, &grid, &wanted, &options.refine_options)?;
+    let (out, _) = refine_grid_timed(img, &grid, &wanted, &options.refine_options, timings)?;
     Ok(out
         .into_iter()
         .zip(&lab.corners)

@@ -154,6 +154,62 @@ pub fn detect(
     detect_with(img, pattern, options, background, &mut tags)
 }
 
+/// Wall time of each stage of one detection, milliseconds, with the work counts that make
+/// the cost per corner and per pixel visible ([`detect_timed`]). Chessboards and ChArUco
+/// boards fill every stage; other patterns only [`StageTimings::total_ms`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageTimings {
+    /// Conversion of the 8-bit image to floating point.
+    pub convert_ms: f64,
+    /// Candidate search: X-corners (chessboards) or ArUco marker decoding (ChArUco).
+    pub candidates_ms: f64,
+    /// Grid growth and labelling (chessboards) or corner prediction from the markers (ChArUco).
+    pub grid_ms: f64,
+    /// Edge-model refinement: band selection and unweighted line fits, every pass.
+    pub refine_ms: f64,
+    /// Noise estimate, weighted refit, intersections and covariances, every pass.
+    pub covariance_ms: f64,
+    /// Everything, from the 8-bit image to the detections.
+    pub total_ms: f64,
+    /// Candidates found (X-corners or markers).
+    pub candidates: usize,
+    /// Corners returned.
+    pub corners: usize,
+    /// Line fits (per pass, summed over the passes).
+    pub lines: usize,
+    /// Pixels in the line fits' bands (summed over the passes).
+    pub band_pixels: usize,
+    /// Refinement passes (a corner that moves more than 0.5 px starts another).
+    pub refine_passes: usize,
+    /// Pixels of the image.
+    pub image_px: usize,
+}
+
+impl StageTimings {
+    pub(crate) fn add_since(slot: &mut f64, t0: std::time::Instant) {
+        *slot += t0.elapsed().as_secs_f64() * 1e3;
+    }
+}
+
+/// [`detect`] with the wall time of each stage ([`StageTimings`]); the detections are the
+/// same as [`detect`]'s.
+pub fn detect_timed(
+    img: &GrayImage,
+    pattern: &Pattern,
+    options: &DetectOptions,
+    background: Option<&GrayImage>,
+) -> (Result<Vec<Detection>>, StageTimings) {
+    let mut t = StageTimings { image_px: img.width() as usize * img.height() as usize, ..Default::default() };
+    let t0 = std::time::Instant::now();
+    let mut tags = None;
+    let out = detect_inner(img, pattern, options, background, &mut tags, Some(&mut t));
+    StageTimings::add_since(&mut t.total_ms, t0);
+    if let Ok(d) = &out {
+        t.corners = d.iter().map(|d| d.corners.len()).sum();
+    }
+    (out, t)
+}
+
 fn detect_with(
     img: &GrayImage,
     pattern: &Pattern,
@@ -161,12 +217,28 @@ fn detect_with(
     background: Option<&GrayImage>,
     tags: &mut Option<AprilTagDetector>,
 ) -> Result<Vec<Detection>> {
+    detect_inner(img, pattern, options, background, tags, None)
+}
+
+fn detect_inner(
+    img: &GrayImage,
+    pattern: &Pattern,
+    options: &DetectOptions,
+    background: Option<&GrayImage>,
+    tags: &mut Option<AprilTagDetector>,
+    timings: Option<&mut StageTimings>,
+) -> Result<Vec<Detection>> {
     options.refine_options.validate()?;
     let text = pattern.to_string();
     match pattern {
         Pattern::Chessboard { cols, rows, square_mm } => {
+            let t0 = std::time::Instant::now();
             let f = GrayF32::from_gray8(img)?;
-            Ok(vec![chessboard::detect_chessboard(&f, *cols, *rows, *square_mm, options, &text)?])
+            let mut timings = timings;
+            if let Some(t) = timings.as_deref_mut() {
+                StageTimings::add_since(&mut t.convert_ms, t0);
+            }
+            Ok(vec![chessboard::detect_chessboard(&f, *cols, *rows, *square_mm, options, &text, timings)?])
         }
         Pattern::Plate { square_mm } => {
             let f = GrayF32::from_gray8(img)?;
@@ -192,7 +264,7 @@ fn detect_with(
             }
             Ok(apriltag::to_detections(&found, target))
         }
-        Pattern::Charuco(board) => Ok(vec![charuco::detect_charuco(img, board, options, &text)?]),
+        Pattern::Charuco(board) => Ok(vec![charuco::detect_charuco(img, board, options, &text, timings)?]),
         Pattern::CircleGrid(grid) => Ok(vec![circles::detect_circle_grid(img, grid, options, &text)?]),
     }
 }

@@ -1,6 +1,6 @@
 //! X-corner (saddle) candidates: the points where two dark and two light fields meet.
 //!
-//! 1. Smooth with a Gaussian of `sigma` (kornia-rs kernel); on images above 2.5 MP work on a 2 x 2
+//! 1. Smooth with a Gaussian of `sigma` (kornia-rs kernel); on images above 2 MP work on a 2 x 2
 //!    average first.
 //! 2. Saddle response from the second derivatives, `R = Ixy^2 - Ixx Iyy` (positive at saddles,
 //!    near zero on straight edges, negative on blobs). An ideal X-corner of step `b` and total
@@ -46,7 +46,7 @@ pub(crate) struct XCornerOptions {
 
 impl Default for XCornerOptions {
     fn default() -> Self {
-        Self { sigma_px: 1.5, min_contrast_dn: 12.0, downsample_above_px: 2_500_000, max_candidates: 4000 }
+        Self { sigma_px: 1.5, min_contrast_dn: 12.0, downsample_above_px: 2_000_000, max_candidates: 4000 }
     }
 }
 

@@ -4,11 +4,21 @@
 use nalgebra::{Matrix2, Point2, Vector2};
 use rayon::prelude::*;
 
-use super::line::{LineFit, LineState, Sample, Segment};
+use super::line::{LineFit, LineState, Sample, Segment, LOOSE, TIGHT};
 use super::{CheckerGrid, LineSupport, NoiseModel, NoiseSpec, RefineOptions, RefineSummary, RefinedCorner};
 use crate::camera::CameraModel;
-use crate::detect::GrayF32;
+use crate::detect::{GrayF32, StageTimings};
 use crate::error::{Result, VisionError};
+use std::time::Instant;
+
+mod light;
+pub(super) use light::estimate_noise;
+use light::IlluminationField;
+
+mod points;
+#[cfg(test)]
+use points::extrapolate_projective;
+use points::{segment_job, Points};
 
 /// Maps between image pixels and the coordinates in which lines are straight.
 enum Coords<'a> {
@@ -78,6 +88,28 @@ struct LineJob {
     /// Fit a parabola with its vertex at the origin instead of a straight line (the two
     /// segments on either side of a corner, [`LineSupport::Local`]).
     curved: bool,
+}
+
+/// A line job's identity: the bits of everything its fit depends on.
+type JobKey = Vec<u64>;
+
+/// Unweighted fits of the previous pass by job ([`refine_grid`]).
+type FitCache = std::collections::HashMap<JobKey, Option<FittedLine>>;
+
+impl LineJob {
+    fn key(&self) -> JobKey {
+        let mut k = Vec::with_capacity(6 + 9 * self.segments.len());
+        k.extend([self.origin.x, self.origin.y, self.tangent.x, self.tangent.y].map(f64::to_bits));
+        k.push(self.t_limit.map_or(u64::MAX, f64::to_bits));
+        k.push(u64::from(self.curved));
+        for s in &self.segments {
+            k.extend(
+                [s.a.x, s.a.y, s.b.x, s.b.y, s.cross_a.x, s.cross_a.y, s.cross_b.x, s.cross_b.y, s.room_px]
+                    .map(f64::to_bits),
+            );
+        }
+        k
+    }
 }
 
 /// A fitted line in fit coordinates.
@@ -331,7 +363,7 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
         if round == 0 {
             state.init_intensities();
         }
-        let mut fit = state.solve(options.max_iterations)?;
+        let mut fit = state.solve_to(options.max_iterations, LOOSE)?;
         // Drop segments without a clear step and refit.
         let max_b = state.segments.iter().map(|s| s.b.abs()).fold(0.0, f64::max);
         let thresh = options.min_contrast_dn.max(0.25 * max_b);
@@ -350,7 +382,7 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
                 return None;
             }
             set_curved(&mut state, job);
-            fit = state.solve(options.max_iterations)?;
+            fit = state.solve_to(options.max_iterations, LOOSE)?;
         }
         let new_blur = state.segments.iter().map(|s| s.ln_s.exp()).fold(0.0, f64::max);
         let reach = job.t_limit.unwrap_or(200.0);
@@ -419,137 +451,6 @@ fn intersect(l1: &FittedLine, l2: &FittedLine) -> Option<(Vector2<f64>, [nalgebr
     Some((p, blocks))
 }
 
-/// Grid point lookup with extrapolation along a direction.
-struct Points<'a> {
-    grid: &'a CheckerGrid,
-    fit: Vec<Option<Vector2<f64>>>,
-}
-
-impl Points<'_> {
-    fn get(&self, i: isize, j: isize) -> Option<Vector2<f64>> {
-        let (r, c) = (self.grid.field_rows as isize + 1, self.grid.field_cols as isize + 1);
-        if i < 0 || j < 0 || i >= r || j >= c {
-            return None;
-        }
-        self.fit[(i * c + j) as usize]
-    }
-
-    /// The point, or its extrapolation from the next ones along `(di, dj)` (either
-    /// direction): projective from three ([`extrapolate_projective`]), linear from two.
-    fn get_or_extrapolate(&self, i: isize, j: isize, di: isize, dj: isize) -> Option<Vector2<f64>> {
-        if let Some(p) = self.get(i, j) {
-            return Some(p);
-        }
-        for s in [1, -1] {
-            if let (Some(p1), Some(p2)) = (self.get(i + s * di, j + s * dj), self.get(i + 2 * s * di, j + 2 * s * dj)) {
-                let p3 = self.get(i + 3 * s * di, j + 3 * s * dj);
-                return Some(p3.and_then(|p3| extrapolate_projective(p1, p2, p3)).unwrap_or(p1 * 2.0 - p2));
-            }
-        }
-        None
-    }
-
-    /// Unit direction of the grid line crossing point `(i, j)` along `(di, dj)`.
-    fn direction(&self, i: isize, j: isize, di: isize, dj: isize) -> Option<Vector2<f64>> {
-        let c = self.get_or_extrapolate(i, j, di, dj)?;
-        let fwd = self.get_or_extrapolate(i + di, j + dj, di, dj);
-        let back = self.get_or_extrapolate(i - di, j - dj, di, dj);
-        let v = match (fwd, back) {
-            (Some(f), Some(b)) => f - b,
-            (Some(f), None) => f - c,
-            (None, Some(b)) => c - b,
-            (None, None) => return None,
-        };
-        let n = v.norm();
-        (n > 1e-9).then(|| v / n)
-    }
-
-    /// Distance between neighbouring parallel lines at point `(i, j)` across direction
-    /// `(di, dj)` (i.e. to the points one step along the crossing direction), both sides.
-    fn room(
-        &self,
-        i: isize,
-        j: isize,
-        seg_dir: (isize, isize),
-        field_a: (isize, isize),
-        field_b: (isize, isize),
-    ) -> f64 {
-        let (di, dj) = (seg_dir.1, seg_dir.0); // crossing direction
-        let c = self.get_or_extrapolate(i, j, di, dj);
-        let mut room = f64::INFINITY;
-        let g = self.grid;
-        for (s, f) in [(-1isize, field_a), (1, field_b)] {
-            let along = self.get_or_extrapolate(i + s * di, j + s * dj, di, dj);
-            let dist = match (c, along) {
-                (Some(c), Some(a)) => (a - c).norm(),
-                _ => f64::INFINITY,
-            };
-            let width = if g.inside(f.0, f.1) {
-                if g.dark(f.0, f.1) == Some(false) {
-                    dist * g.light_uniform_fraction.min(1.0)
-                } else {
-                    dist
-                }
-            } else {
-                // Beyond the fields: the outside band's width relative to the neighbouring field.
-                let other = self.get_or_extrapolate(i - s * di, j - s * dj, di, dj);
-                match (c, other) {
-                    (Some(c), Some(o)) => g.outside_width_fraction * (o - c).norm(),
-                    _ => f64::INFINITY,
-                }
-            };
-            room = room.min(width);
-        }
-        room
-    }
-}
-
-/// The point one step before `p1` on a line of equally spaced points `p1, p2, p3` seen in
-/// perspective: along the line the 1D homography `x(k) = (a k + b) / (c k + 1)` through the
-/// three (a board's squares shrink or grow from one to the next in a tilted view, so the
-/// linear extrapolation `2 p1 - p2` misplaces the board's outer grid points by up to several
-/// pixels), on the line through `p1` and `p2`. `None` when the three do not determine a plausible point (the
-/// caller extrapolates linearly).
-fn extrapolate_projective(p1: Vector2<f64>, p2: Vector2<f64>, p3: Vector2<f64>) -> Option<Vector2<f64>> {
-    let d = p2 - p1;
-    let len = d.norm();
-    if len < 1e-9 {
-        return None;
-    }
-    let u = d / len;
-    let x = [0.0, len, u.dot(&(p3 - p1))];
-    // a k + b - c k x_k = x_k for k = 1, 2, 3.
-    let m = nalgebra::Matrix3::from_fn(|r, c| {
-        let k = (r + 1) as f64;
-        [k, 1.0, -k * x[r]][c]
-    });
-    let sol = m.lu().solve(&nalgebra::Vector3::new(x[0], x[1], x[2]))?;
-    let b = sol[1]; // x(0), relative to p1
-                    // The linear step is -len; a plausible perspective step lies within a factor of 2 of it.
-    if !(b.is_finite() && b < -0.5 * len && b > -2.0 * len) {
-        return None;
-    }
-    Some(p1 + u * b)
-}
-
-fn segment_job(pts: &Points, i: isize, j: isize, dir: usize) -> Option<SegJob> {
-    // Segment from (i, j) to (i, j+1) (dir 0) or (i+1, j) (dir 1).
-    let (di, dj) = if dir == 0 { (0, 1) } else { (1, 0) };
-    let a = pts.get_or_extrapolate(i, j, di, dj)?;
-    let b = pts.get_or_extrapolate(i + di, j + dj, di, dj)?;
-    let (ci, cj) = (dj, di);
-    let cross_a = pts.direction(i, j, ci, cj).unwrap_or_else(|| perp(b - a));
-    let cross_b = pts.direction(i + di, j + dj, ci, cj).unwrap_or_else(|| perp(b - a));
-    let (fa, fb) = if dir == 0 { ((i - 1, j), (i, j)) } else { ((i, j - 1), (i, j)) };
-    let room = pts.room(i, j, (di, dj), fa, fb).min(pts.room(i + di, j + dj, (di, dj), fa, fb));
-    Some(SegJob { a, b, cross_a, cross_b, room_px: room })
-}
-
-fn perp(v: Vector2<f64>) -> Vector2<f64> {
-    let n = v.norm().max(1e-12);
-    Vector2::new(-v.y / n, v.x / n)
-}
-
 /// Refines grid points of a [`CheckerGrid`] from the edges that meet there.
 ///
 /// `wanted` lists the grid points `(row, col)` to return (in that order); each needs an
@@ -561,12 +462,24 @@ pub fn refine_grid(
     wanted: &[(usize, usize)],
     options: &RefineOptions,
 ) -> Result<(Vec<Option<RefinedCorner>>, RefineSummary)> {
+    refine_grid_timed(image, grid, wanted, options, None)
+}
+
+/// [`refine_grid`] adding the time of its stages to `timings`.
+pub(crate) fn refine_grid_timed(
+    image: &GrayF32,
+    grid: &CheckerGrid,
+    wanted: &[(usize, usize)],
+    options: &RefineOptions,
+    mut timings: Option<&mut StageTimings>,
+) -> Result<(Vec<Option<RefinedCorner>>, RefineSummary)> {
     grid.check()?;
     options.validate()?;
     // The bands and the excluded corner neighbourhoods are placed from the grid points: when a
     // corner moves by more than 0.5 px, refine again from the refined points (at most twice).
     let mut current = grid.clone();
-    let mut result = refine_grid_once(image, &current, wanted, options)?;
+    let mut cache = FitCache::new();
+    let mut result = refine_grid_once(image, &current, wanted, options, &mut cache, timings.as_deref_mut())?;
     for _ in 0..2 {
         let mut moved = false;
         for (&(i, j), c) in wanted.iter().zip(&result.0) {
@@ -581,7 +494,7 @@ pub fn refine_grid(
         if !moved {
             break;
         }
-        result = refine_grid_once(image, &current, wanted, options)?;
+        result = refine_grid_once(image, &current, wanted, options, &mut cache, timings.as_deref_mut())?;
     }
     Ok(result)
 }
@@ -591,7 +504,10 @@ fn refine_grid_once(
     grid: &CheckerGrid,
     wanted: &[(usize, usize)],
     options: &RefineOptions,
+    cache: &mut FitCache,
+    mut timings: Option<&mut StageTimings>,
 ) -> Result<(Vec<Option<RefinedCorner>>, RefineSummary)> {
+    let t0 = Instant::now();
     let coords = match &options.camera {
         Some(c) => Coords::Undistorted(c),
         None => Coords::Pixel,
@@ -688,9 +604,24 @@ fn refine_grid_once(
     }
     // Pass 1: unweighted. The lines are independent: fitted in parallel, collected in order
     // (every sum over lines below runs in the same order as on one thread).
-    let mut fitted: Vec<Option<FittedLine>> = jobs.par_iter().map(|j| fit_job(image, &coords, j, options)).collect();
+    // A line whose job is the same as in the previous pass (its grid points did not move) has
+    // the same unweighted fit: taken from the cache, bit for bit.
+    let keys: Vec<JobKey> = jobs.iter().map(LineJob::key).collect();
+    let mut fitted: Vec<Option<FittedLine>> = jobs
+        .par_iter()
+        .zip(&keys)
+        .map(|(j, k)| match cache.get(k) {
+            Some(f) => f.clone(),
+            None => fit_job(image, &coords, j, options),
+        })
+        .collect();
+    cache.clear();
+    cache.extend(keys.into_iter().zip(fitted.iter().cloned()));
     // Illumination (vignetting, uneven light): a smooth field fitted to the segments' light
-    // levels gives each segment its fixed gradient across the edge; refit.
+    // levels gives each segment its fixed gradient across the edge, used from here on (the
+    // noise statistics at the unweighted fit, then the final fit below: the gradient moves
+    // a line by far less than its uncertainty, so the noise estimate does not need a refit
+    // in between).
     if let Some(field) = IlluminationField::fit(&fitted, options.min_contrast_dn) {
         fitted.par_iter_mut().for_each(|f| {
             let Some(line) = f.as_mut() else { return };
@@ -699,11 +630,14 @@ fn refine_grid_once(
             for seg in &mut line.state.segments {
                 seg.g = field.gradient(origin + seg.centre()).dot(&n);
             }
-            match line.state.solve(options.max_iterations) {
-                Some(fit) => line.fit = fit,
-                None => *f = None,
-            }
         });
+    }
+    let t1 = Instant::now();
+    if let Some(t) = timings.as_deref_mut() {
+        StageTimings::add_since(&mut t.refine_ms, t0);
+        t.refine_passes += 1;
+        t.lines += jobs.len();
+        t.band_pixels += fitted.iter().flatten().map(|f| f.pixels).sum::<usize>();
     }
     // Noise model.
     let noise = match options.noise {
@@ -722,17 +656,18 @@ fn refine_grid_once(
             estimate_noise(&s)
         }
     };
-    // Pass 2: weighted.
-    if let Some(nm) = &noise {
-        fitted.par_iter_mut().for_each(|f| {
-            let Some(line) = f.as_mut() else { return };
+    // Pass 2: weighted (or, without a noise model, the unweighted fits to the tight
+    // tolerance: the fits above only place bands and start this one).
+    fitted.par_iter_mut().for_each(|f| {
+        let Some(line) = f.as_mut() else { return };
+        if let Some(nm) = &noise {
             line.state.set_weights(Some(nm));
-            match line.state.solve(options.max_iterations) {
-                Some(fit) => line.fit = fit,
-                None => *f = None,
-            }
-        });
-    }
+        }
+        match line.state.solve_to(options.max_iterations, TIGHT) {
+            Some(fit) => line.fit = fit,
+            None => *f = None,
+        }
+    });
     let lines_fitted = fitted.iter().filter(|f| f.is_some()).count();
     let (mut chi_sum, mut chi_n) = (0.0, 0.0);
     for f in fitted.iter().flatten() {
@@ -774,6 +709,9 @@ fn refine_grid_once(
             })
         })
         .collect();
+    if let Some(t) = timings {
+        StageTimings::add_since(&mut t.covariance_ms, t1);
+    }
     Ok((corners, summary))
 }
 
@@ -781,97 +719,6 @@ impl FittedLine {
     fn state_h_inv(&self) -> Matrix2<f64> {
         self.fit.h_inv_line
     }
-}
-
-/// A smooth illumination field: `ln L(x, y)` as a polynomial (quadratic with at least 12
-/// segments, linear with at least 4) fitted to the light levels of the segments.
-struct IlluminationField {
-    centre: Vector2<f64>,
-    scale: f64,
-    coef: Vec<f64>,
-}
-
-impl IlluminationField {
-    fn terms(&self, p: Vector2<f64>) -> (Vec<f64>, Vec<Vector2<f64>>) {
-        let x = (p.x - self.centre.x) / self.scale;
-        let y = (p.y - self.centre.y) / self.scale;
-        let k = 1.0 / self.scale;
-        let all = [
-            (1.0, Vector2::zeros()),
-            (x, Vector2::new(k, 0.0)),
-            (y, Vector2::new(0.0, k)),
-            (x * x, Vector2::new(2.0 * x * k, 0.0)),
-            (x * y, Vector2::new(y * k, x * k)),
-            (y * y, Vector2::new(0.0, 2.0 * y * k)),
-        ];
-        let n = self.coef.len();
-        (all[..n].iter().map(|t| t.0).collect(), all[..n].iter().map(|t| t.1).collect())
-    }
-
-    fn fit(lines: &[Option<FittedLine>], min_contrast: f64) -> Option<Self> {
-        let mut pts: Vec<(Vector2<f64>, f64)> = Vec::new();
-        for l in lines.iter().flatten() {
-            for seg in &l.state.segments {
-                let level = seg.light_level();
-                if seg.b.abs() >= min_contrast && level > 1.0 {
-                    pts.push((l.origin + seg.centre(), level.ln()));
-                }
-            }
-        }
-        let nterms = if pts.len() >= 12 {
-            6
-        } else if pts.len() >= 4 {
-            3
-        } else {
-            return None;
-        };
-        let centre = pts.iter().fold(Vector2::zeros(), |a, p| a + p.0) / pts.len() as f64;
-        let scale = pts.iter().map(|p| (p.0 - centre).norm()).fold(0.0, f64::max).max(1.0);
-        let mut field = Self { centre, scale, coef: vec![0.0; nterms] };
-        let mut ata = nalgebra::DMatrix::<f64>::zeros(nterms, nterms);
-        let mut atb = nalgebra::DVector::<f64>::zeros(nterms);
-        for (p, v) in &pts {
-            let (t, _) = field.terms(*p);
-            for i in 0..nterms {
-                atb[i] += t[i] * v;
-                for j in 0..nterms {
-                    ata[(i, j)] += t[i] * t[j];
-                }
-            }
-        }
-        let sol = ata.cholesky()?.solve(&atb);
-        field.coef = sol.iter().copied().collect();
-        Some(field)
-    }
-
-    /// Gradient of `ln L` at `p`.
-    fn gradient(&self, p: Vector2<f64>) -> Vector2<f64> {
-        let (_, d) = self.terms(p);
-        d.iter().zip(&self.coef).fold(Vector2::zeros(), |a, (di, c)| a + di * *c)
-    }
-}
-
-/// Least squares `r^2 = offset + slope m` from pooled sums `(1, m, m^2, r^2, m r^2)`.
-pub(super) fn estimate_noise(s: &[f64; 5]) -> Option<NoiseModel> {
-    if s[0] < 10.0 {
-        return None;
-    }
-    let det = s[0] * s[2] - s[1] * s[1];
-    let (mut offset, mut slope) = if det > 1e-9 * s[0] * s[2] {
-        ((s[2] * s[3] - s[1] * s[4]) / det, (s[0] * s[4] - s[1] * s[3]) / det)
-    } else {
-        (s[3] / s[0], 0.0)
-    };
-    if slope < 0.0 {
-        slope = 0.0;
-        offset = s[3] / s[0];
-    }
-    // The variance at the darkest level must stay positive.
-    let min_var = 0.02;
-    if offset < min_var {
-        offset = min_var;
-    }
-    Some(NoiseModel { offset_dn2: offset, slope_dn: slope })
 }
 
 #[cfg(test)]

@@ -48,6 +48,13 @@ type NormalEquations = (DMatrix<f64>, DVector<f64>);
 /// Parameters per segment.
 const PS: usize = 3;
 
+/// Relative tolerance of a fit whose result is reported ([`LineState::solve_to`]).
+pub(crate) const TIGHT: f64 = 1e-10;
+
+/// Relative tolerance of an intermediate fit (its line places a band or starts the next fit):
+/// a step of about 1e-4 px, far below the corners' uncertainty.
+pub(crate) const LOOSE: f64 = 1e-6;
+
 /// A line `n . x = d`, `n = (cos phi, sin phi)`, `x` relative to the origin, with its segments;
 /// when `curved`, bent by `kappa` (see the module documentation).
 #[derive(Clone, Debug)]
@@ -133,45 +140,16 @@ impl LineState {
     /// Weighted cost, normal matrix and gradient (one pass over the pixels).
     fn evaluate(&self) -> (f64, NormalEquations) {
         let np = self.n_params();
-        let table = NormalTable::get();
         let mut h = DMatrix::<f64>::zeros(np, np);
         let mut g = DVector::<f64>::zeros(np);
-        let (c, s) = (self.phi.cos(), self.phi.sin());
         let l = self.line_params();
-        // Per-segment parameters: the line's, then a, b, ln_s.
-        let m = l + 3;
         let mut cost = 0.0;
         for (k, seg) in self.segments.iter().enumerate() {
-            let sig = seg.ln_s.exp();
-            let inv_sig = 1.0 / sig;
-            // Per-segment accumulation ((phi, d[, kappa], a, b, ln_s)), folded into h afterwards.
-            let mut hs = [[0.0f64; 6]; 6];
-            let mut gs = [0.0f64; 6];
-            for p in &seg.samples {
-                let (u, t) = self.u_t((c, s), p.x, p.y);
-                let z = u * inv_sig;
-                let (cdf, pdf) = table.cdf_pdf(z);
-                let q = 1.0 + seg.g * u;
-                let base = seg.a + seg.b * cdf;
-                let r = p.v - base * q;
-                cost += p.w * r * r;
-                let gu = seg.b * pdf * inv_sig * q + base * seg.g;
-                // du/dphi = t + kappa t (n . x), du/dd = -1, du/dkappa = -t^2 / 2.
-                let du_dphi = t + self.kappa * t * (c * p.x + s * p.y);
-                let (ja, jb, js) = (q, cdf * q, -seg.b * pdf * z * q);
-                let j = if self.curved {
-                    [gu * du_dphi, -gu, -0.5 * gu * t * t, ja, jb, js]
-                } else {
-                    [gu * du_dphi, -gu, ja, jb, js, 0.0]
-                };
-                for a in 0..m {
-                    let wa = p.w * j[a];
-                    gs[a] += wa * r;
-                    for b in a..m {
-                        hs[a][b] += wa * j[b];
-                    }
-                }
-            }
+            // Per-segment accumulation ((phi, d[, kappa], a, b, ln_s)), folded into h afterwards;
+            // the number of parameters is a constant of each loop, which the compiler unrolls.
+            let (c, hs, gs) = if self.curved { self.segment_sums::<6>(seg) } else { self.segment_sums::<5>(seg) };
+            cost += c;
+            let m = l + 3;
             let idx = if self.curved {
                 [0, 1, 2, l + PS * k, l + 1 + PS * k, l + 2 + PS * k]
             } else {
@@ -188,6 +166,55 @@ impl LineState {
             }
         }
         (cost, (h, g))
+    }
+
+    /// One segment's weighted cost, normal matrix (upper triangle) and gradient over its
+    /// `M` parameters: `phi, d, [kappa,] a, b, ln_s` (`M` = 6 when curved, else 5).
+    #[inline(always)]
+    fn segment_sums<const M: usize>(&self, seg: &Segment) -> (f64, [[f64; 6]; 6], [f64; 6]) {
+        let table = NormalTable::get();
+        let (c, s) = (self.phi.cos(), self.phi.sin());
+        let sig = seg.ln_s.exp();
+        let inv_sig = 1.0 / sig;
+        let mut hs = [[0.0f64; M]; M];
+        let mut gs = [0.0f64; M];
+        let mut cost = 0.0;
+        for p in &seg.samples {
+            let (u, t) = self.u_t((c, s), p.x, p.y);
+            let z = u * inv_sig;
+            let (cdf, pdf) = table.cdf_pdf(z);
+            let q = 1.0 + seg.g * u;
+            let base = seg.a + seg.b * cdf;
+            let r = p.v - base * q;
+            cost += p.w * r * r;
+            let gu = seg.b * pdf * inv_sig * q + base * seg.g;
+            // du/dphi = t + kappa t (n . x), du/dd = -1, du/dkappa = -t^2 / 2.
+            let du_dphi = t + self.kappa * t * (c * p.x + s * p.y);
+            let (ja, jb, js) = (q, cdf * q, -seg.b * pdf * z * q);
+            let mut j = [0.0f64; M];
+            j[0] = gu * du_dphi;
+            j[1] = -gu;
+            if M == 6 {
+                j[2] = -0.5 * gu * t * t;
+            }
+            j[M - 3] = ja;
+            j[M - 2] = jb;
+            j[M - 1] = js;
+            for a in 0..M {
+                let wa = p.w * j[a];
+                gs[a] += wa * r;
+                for b in a..M {
+                    hs[a][b] += wa * j[b];
+                }
+            }
+        }
+        let mut h6 = [[0.0f64; 6]; 6];
+        let mut g6 = [0.0f64; 6];
+        for a in 0..M {
+            g6[a] = gs[a];
+            h6[a][..M].copy_from_slice(&hs[a]);
+        }
+        (cost, h6, g6)
     }
 
     /// Least-squares intensities `a`, `b` of every segment for the current line and blur.
@@ -247,9 +274,19 @@ impl LineState {
     /// an accepted step already holds the next iteration's system and, at the end, the one the
     /// covariance comes from. The fit stops when a step is negligible (below 1e-7 px in `d`
     /// and 1e-9 rad in `phi` with no real decrease), when the decrease the linear model predicts
-    /// for the next step is below 1e-12 of the cost (a step of about 1e-7 px: rounding would
+    /// for the next step is below [`TIGHT`] of the cost (a step of about 1e-6 px: rounding would
     /// decide whether it is taken), or when no damping gives a decrease.
+    #[cfg(test)]
     pub fn solve(&mut self, max_iterations: usize) -> Option<LineFit> {
+        self.solve_to(max_iterations, TIGHT)
+    }
+
+    /// [`Self::solve`] stopping when the predicted decrease is below `rel_tol` of the cost
+    /// (and a step below `1e-7 sqrt(rel_tol / 1e-12)` px is negligible): [`TIGHT`] for a
+    /// result, [`LOOSE`] (a step of about 1e-4 px) for a fit that only places the next band
+    /// or starts another fit.
+    pub fn solve_to(&mut self, max_iterations: usize, rel_tol: f64) -> Option<LineFit> {
+        let step_scale = (rel_tol / 1e-12).sqrt();
         let n: usize = self.segments.iter().map(|s| s.samples.len()).sum();
         let np = self.n_params();
         if n <= np + 2 {
@@ -288,7 +325,7 @@ impl LineState {
                 }
                 // Decrease of the cost the linear model predicts: 2 g.delta - delta' H delta.
                 let predicted = 2.0 * g.dot(&delta) - (&h * &delta).dot(&delta);
-                if predicted.abs() <= 1e-12 * cost {
+                if predicted.abs() <= rel_tol * cost {
                     break 'outer;
                 }
                 let trial = &x0 + &delta;
@@ -296,7 +333,9 @@ impl LineState {
                 self.set_params(&trial);
                 let (c_new, (h_new, g_new)) = self.evaluate();
                 if c_new.is_finite() && c_new <= cost {
-                    small_step = delta[1].abs() < 1e-7 && delta[0].abs() < 1e-9 && (cost - c_new) <= 1e-12 * cost;
+                    small_step = delta[1].abs() < 1e-7 * step_scale
+                        && delta[0].abs() < 1e-9 * step_scale
+                        && (cost - c_new) <= rel_tol * cost;
                     cost = c_new;
                     (h, g) = (h_new, g_new);
                     lambda = (lambda / 3.0).max(1e-9);

@@ -82,6 +82,7 @@ use crate::camera::CameraModel;
 use crate::detect::GrayF32;
 use crate::error::{Result, VisionError};
 pub use grid::refine_grid;
+pub(crate) use grid::refine_grid_timed;
 
 /// Which pixels support the lines through a corner.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

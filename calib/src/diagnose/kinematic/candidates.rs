@@ -221,7 +221,16 @@ pub(super) fn enumerate_candidates(
     }
     // Link compliance: serial chains with masses, per link that carries a further joint, when
     // the load moment across the next joint's axis varies over the poses.
-    if let ferrocal_robot::RobotModel::Serial(_) = model {
+    if let ferrocal_robot::RobotModel::Serial(chain) = model {
+        if chain.has_mimic_joints() {
+            un.push(Untestable {
+                effect: "link_compliance".into(),
+                joints: Vec::new(),
+                reason: "the link bending model does not yet carry coupled (mimic) joints: not tested on this robot"
+                    .into(),
+            });
+            return Ok((cands, un));
+        }
         let mut per_row = Vec::with_capacity(n);
         for r in &ctx.rows {
             per_row.push(crate::effects::link_bendings(model, &r.q, r.payload_kg.unwrap_or(0.0))?);

@@ -95,7 +95,8 @@ impl Lin {
         for row in rows {
             tau.push(holding_torques(&cm.load_model, &row.q, row.payload_kg.unwrap_or(0.0))?);
             let mut per_link = Vec::new();
-            if let ferrocal_robot::RobotModel::Serial(_) = &cm.load_model {
+            // (Link bending is not modelled on chains with coupled joints: no candidate uses it.)
+            if matches!(&cm.load_model, ferrocal_robot::RobotModel::Serial(c) if !c.has_mimic_joints()) {
                 let (q, _) = cm.effective(row)?;
                 per_link = link_bendings(&cm.load_model, &q, row.payload_kg.unwrap_or(0.0))?
                     .into_iter()

@@ -43,6 +43,7 @@
 //! (`candidates.rs`), the linearised screening and full refits (`family.rs`, `linear.rs`), the
 //! checks (`checks.rs`), the screening of residuals (`screen.rs`) and the words (`words.rs`).
 
+mod bounds;
 mod candidates;
 mod checks;
 mod family;
@@ -50,13 +51,19 @@ mod linear;
 mod screen;
 mod words;
 
+use bounds::default_true;
+
+pub use bounds::Bounds;
+pub use words::STRONG_STRUCTURE_P;
+use words::{summary, verdict_words};
+
 use std::collections::BTreeMap;
 
 use ferrocal_robot::{Kinematics, RobotModel};
 use serde::{Deserialize, Serialize};
 
 use crate::diagnose::engine::{select, Correction, Improvement, Policy, Selection, Test};
-use crate::diagnose::report::{fmt_p, sig, CandidateRow, Diagnosis, Evidence, Verdict};
+use crate::diagnose::report::{fmt_p, sig, Diagnosis, Evidence};
 use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
 use crate::kinematic::{calibrate, KinematicOptions, ModelParams};
@@ -64,137 +71,6 @@ use crate::lsq::LmOptions;
 use crate::measurement::{PoseMeasurement, Split};
 use candidates::{enumerate_candidates, period_grids};
 use family::{Ctx, KinematicFamily};
-
-/// Sizes of the candidate effects: the typical ranges of industrial arms (`max_*`, `thermal_alpha_per_k`;
-/// beyond them an effect is *unusual*: claimed only on strong held-out evidence and then
-/// reported as unusually large, never silently discarded) and the limits past which the
-/// effect's linear model no longer describes a machine (`limit_*`: vetoed, with the reason).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Bounds {
-    /// Largest joint deflection under load a compliance may cause, revolute joints.
-    pub max_deflection_rad: f64,
-    /// Largest deflection of a prismatic joint.
-    pub max_deflection_m: f64,
-    /// Largest backlash (dead band) of a revolute joint.
-    pub max_backlash_rad: f64,
-    /// Largest backlash of a prismatic joint.
-    pub max_backlash_m: f64,
-    /// Largest relative scale error of a joint reading.
-    pub max_scale_error: f64,
-    /// Largest amplitude of a periodic error, revolute joints.
-    pub max_periodic_rad: f64,
-    /// Largest amplitude of a periodic error, prismatic joints.
-    pub max_periodic_m: f64,
-    /// Range of thermal expansion coefficients accepted (metals: Invar about 1.2e-6 to zinc
-    /// about 30e-6 per K).
-    pub thermal_alpha_per_k: [f64; 2],
-    /// Largest relative length drift per hour (a warm-up without a temperature reading).
-    pub max_drift_per_hour: f64,
-    /// Largest tilt amplitude of a wobbling joint axis (axis misalignment): bearings and
-    /// housings of arms hold their axes to well under a milliradian; 2 mrad is generous.
-    #[serde(default = "default_max_axis_wobble_rad")]
-    pub max_axis_wobble_rad: f64,
-    /// Deflection of a revolute joint or a link past which a linear compliance means nothing
-    /// (0.25 rad, 14 deg: a lightweight arm's gravity sag is tens of milliradians).
-    #[serde(default = "limits::deflection_rad")]
-    pub limit_deflection_rad: f64,
-    /// The same for a prismatic joint.
-    #[serde(default = "limits::deflection_m")]
-    pub limit_deflection_m: f64,
-    /// Direction-dependent error of a revolute joint past which it is not a drive train's.
-    #[serde(default = "limits::backlash_rad")]
-    pub limit_backlash_rad: f64,
-    /// The same for a prismatic joint.
-    #[serde(default = "limits::backlash_m")]
-    pub limit_backlash_m: f64,
-    /// Scale error or coupling past which the joint's model is wrong, not its scale.
-    #[serde(default = "limits::scale_error")]
-    pub limit_scale_error: f64,
-    /// Periodic amplitude limit, revolute joints.
-    #[serde(default = "limits::periodic_rad")]
-    pub limit_periodic_rad: f64,
-    /// Periodic amplitude limit, prismatic joints.
-    #[serde(default = "limits::periodic_m")]
-    pub limit_periodic_m: f64,
-    /// Largest magnitude of a thermal expansion coefficient (per K) of any structure.
-    #[serde(default = "limits::thermal_alpha_per_k")]
-    pub limit_thermal_alpha_per_k: f64,
-    /// Largest relative length drift per hour.
-    #[serde(default = "limits::drift_per_hour")]
-    pub limit_drift_per_hour: f64,
-    /// Largest axis tilt amplitude.
-    #[serde(default = "limits::axis_wobble_rad")]
-    pub limit_axis_wobble_rad: f64,
-}
-
-fn default_true() -> bool {
-    true
-}
-
-fn default_max_axis_wobble_rad() -> f64 {
-    0.002
-}
-
-/// The default limits of [`Bounds`] (past them an effect's linear model means nothing).
-mod limits {
-    pub(super) fn deflection_rad() -> f64 {
-        0.25
-    }
-    pub(super) fn deflection_m() -> f64 {
-        0.05
-    }
-    pub(super) fn backlash_rad() -> f64 {
-        0.1
-    }
-    pub(super) fn backlash_m() -> f64 {
-        0.02
-    }
-    pub(super) fn scale_error() -> f64 {
-        0.1
-    }
-    pub(super) fn periodic_rad() -> f64 {
-        0.1
-    }
-    pub(super) fn periodic_m() -> f64 {
-        0.02
-    }
-    pub(super) fn thermal_alpha_per_k() -> f64 {
-        2e-4
-    }
-    pub(super) fn drift_per_hour() -> f64 {
-        1e-2
-    }
-    pub(super) fn axis_wobble_rad() -> f64 {
-        0.02
-    }
-}
-
-impl Default for Bounds {
-    fn default() -> Self {
-        Self {
-            max_deflection_rad: 0.01,
-            max_deflection_m: 0.002,
-            max_backlash_rad: 0.01,
-            max_backlash_m: 0.002,
-            max_scale_error: 0.01,
-            max_periodic_rad: 0.01,
-            max_periodic_m: 0.002,
-            thermal_alpha_per_k: [0.5e-6, 35e-6],
-            max_drift_per_hour: 2e-4,
-            max_axis_wobble_rad: default_max_axis_wobble_rad(),
-            limit_deflection_rad: limits::deflection_rad(),
-            limit_deflection_m: limits::deflection_m(),
-            limit_backlash_rad: limits::backlash_rad(),
-            limit_backlash_m: limits::backlash_m(),
-            limit_scale_error: limits::scale_error(),
-            limit_periodic_rad: limits::periodic_rad(),
-            limit_periodic_m: limits::periodic_m(),
-            limit_thermal_alpha_per_k: limits::thermal_alpha_per_k(),
-            limit_drift_per_hour: limits::drift_per_hour(),
-            limit_axis_wobble_rad: limits::axis_wobble_rad(),
-        }
-    }
-}
 
 /// Settings of [`diagnose`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -652,50 +528,6 @@ pub fn compensated_calibration(
     calibrate(model, &train, &opts)
 }
 
-/// The kinematic verdict of a candidate row in words (`m`: candidates of the step).
-fn verdict_words(row: &CandidateRow, m: usize, opts: &DiagnoseOptions) -> String {
-    match &row.verdict {
-        Verdict::Pending => "not decided (not applicable when fitted on all the data)".into(),
-        Verdict::Unscored(why) => why.clone(),
-        Verdict::TooSmall => format!(
-            "held-out improvement {:.2} % below {:.1} %",
-            row.improvement * 100.0,
-            opts.min_improvement * 100.0
-        ),
-        Verdict::NotSignificant => {
-            format!("not significant ({} after correcting for {m} candidates)", fmt_p(row.p_corrected))
-        }
-        Verdict::NotBest => "not the best candidate".into(),
-        Verdict::NotExamined => "significant, not examined further this step".into(),
-        Verdict::Overlap(sa) => format!(
-            "rejected: nearly a combination of geometric parameters (sine of the angle to the geometric Jacobian {:.3}, variance inflation {:.0})",
-            sa,
-            1.0 / (sa * sa).max(1e-300)
-        ),
-        Verdict::Implausible(why) => format!("rejected as physically implausible: {why}"),
-        Verdict::Unstable(why) => format!("rejected as unstable across the folds: {why}"),
-        Verdict::RefitFailed(e) => format!("rejected: the full refit failed ({e})"),
-        Verdict::NotConfirmed { improvement, p_corrected } => format!(
-            "rejected by the full refits: held-out improvement {:.2} %, {} after correcting for {m} candidates",
-            improvement * 100.0,
-            fmt_p(*p_corrected)
-        ),
-        Verdict::Explained { by, p_added, p_rival_added } => format!(
-            "rejected: {by} explains it (fitted together, {by} still improves the held-out fit, {}, while this adds nothing to it, {})",
-            fmt_p(*p_rival_added),
-            fmt_p(*p_added)
-        ),
-        Verdict::NotSeparable { with, p_added, p_rival_added } => format!(
-            "not claimed: the held-out data cannot tell it from {with} (fitted together, neither adds to the other: {} and {})",
-            fmt_p(*p_added),
-            fmt_p(*p_rival_added)
-        ),
-        Verdict::Accepted { p_corrected } => {
-            format!("ACCEPTED ({} after correcting for {m} candidates)", fmt_p(*p_corrected))
-        }
-    }
-}
-
 /// The JSON view of the engine's result: steps, findings, evidence, final figures and notes.
 fn finish(
     report: &mut DiagnoseReport,
@@ -818,96 +650,4 @@ fn finish(
     report.unexplained =
         Unexplained { structure_found: !sig_tests.is_empty(), depends_on: depends, details: sig_tests };
     report.summary = summary(report, opts);
-}
-
-/// The screen's p-value (corrected) below which structure is called strong in the summary.
-pub const STRONG_STRUCTURE_P: f64 = 1e-6;
-
-/// The report's top sentence: the findings, or why nothing was claimed; and whether
-/// structure remains (see [`DiagnoseReport::summary`]).
-fn summary(report: &DiagnoseReport, opts: &DiagnoseOptions) -> String {
-    let strongest = |tests: &[InputStructure]| -> Option<InputStructure> {
-        tests.iter().filter(|t| t.significant).min_by(|a, b| a.p_corrected.total_cmp(&b.p_corrected)).cloned()
-    };
-    let inputs = |tests: &[InputStructure]| -> String {
-        let mut v: Vec<String> = Vec::new();
-        for t in tests.iter().filter(|t| t.significant && t.p_corrected < STRONG_STRUCTURE_P) {
-            if !v.contains(&t.input) {
-                v.push(t.input.clone());
-            }
-        }
-        v.truncate(6);
-        v.join(", ")
-    };
-    let unit = "mm";
-    let mut out = if report.findings.is_empty() {
-        let strong = strongest(&report.screening_nominal).filter(|t| t.p_corrected < STRONG_STRUCTURE_P);
-        match strong {
-            None => "No finding: nothing beyond the geometric model is supported by the held-out data, and the residuals show no strong structure.".to_string(),
-            Some(t) => {
-                // The best significant candidate of the first step and what happened to it.
-                let best = report.steps.first().and_then(|s| {
-                    s.candidates
-                        .iter()
-                        .filter(|c| c.p_corrected < opts.alpha && c.improvement >= opts.min_improvement)
-                        .max_by(|a, b| a.improvement.total_cmp(&b.improvement))
-                });
-                let why = match best {
-                    Some(c) => format!(
-                        "the best candidate, {} ({:.0} % better held out, {}), was {}",
-                        c.label,
-                        c.improvement * 100.0,
-                        fmt_p(c.p_corrected),
-                        c.verdict.trim_start_matches("rejected").trim_start_matches(':').trim_start()
-                    ),
-                    None => "no candidate effect of the list improves the held-out fit significantly: the physics behind it is not among the candidates (or needs several effects at once)".to_string(),
-                };
-                format!(
-                    "No finding, although the held-out residuals depend strongly on {} ({} for {} against {}): {why}.",
-                    inputs(&report.screening_nominal),
-                    fmt_p(t.p_corrected),
-                    t.quantity,
-                    t.input
-                )
-            }
-        }
-    } else {
-        let names: Vec<String> = report
-            .findings
-            .iter()
-            .map(|f| {
-                let on = if f.joints.is_empty() {
-                    String::new()
-                } else {
-                    format!(
-                        " on joint{} {}",
-                        if f.joints.len() > 1 { "s" } else { "" },
-                        f.joints.iter().map(|j| j.to_string()).collect::<Vec<_>>().join(", ")
-                    )
-                };
-                let unusual =
-                    if f.statement.starts_with("UNUSUAL") { " (unusually large: see its statement)" } else { "" };
-                format!("{}{on}{unusual}", f.effect)
-            })
-            .collect();
-        format!(
-            "{} finding{}: {}; held-out RMS {} -> {} {unit}.",
-            report.findings.len(),
-            if report.findings.len() == 1 { "" } else { "s" },
-            names.join(", "),
-            sig(report.nominal.heldout_rms_mm, 3),
-            sig(report.final_fit.heldout_rms_mm, 3)
-        )
-    };
-    if !report.findings.is_empty() {
-        if let Some(t) = strongest(&report.screening_final).filter(|t| t.p_corrected < STRONG_STRUCTURE_P) {
-            out.push_str(&format!(
-                " Structure remains against {} ({} for {}): more physics than was found, or an effect of another form.",
-                inputs(&report.screening_final),
-                fmt_p(t.p_corrected),
-                t.quantity
-            ));
-        }
-    }
-    out
 }

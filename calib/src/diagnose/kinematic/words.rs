@@ -7,7 +7,9 @@ use nalgebra::Vector3;
 use super::family::Ctx;
 use super::linear::Lin;
 use super::screen::implied;
+use super::{DiagnoseOptions, DiagnoseReport, InputStructure};
 use crate::diagnose::report::{fmt_p, sig, Evidence};
+use crate::diagnose::report::{CandidateRow, Verdict};
 use crate::effects::EffectSpec;
 
 pub(super) fn telling_input(spec: &EffectSpec, names: &[String]) -> String {
@@ -250,4 +252,140 @@ pub(super) fn evidence(
         before: b.iter().map(|v| v * factor).collect(),
         after: a.iter().map(|v| v * factor).collect(),
     }
+}
+
+/// The kinematic verdict of a candidate row in words (`m`: candidates of the step).
+pub(super) fn verdict_words(row: &CandidateRow, m: usize, opts: &DiagnoseOptions) -> String {
+    match &row.verdict {
+        Verdict::Pending => "not decided (not applicable when fitted on all the data)".into(),
+        Verdict::Unscored(why) => why.clone(),
+        Verdict::TooSmall => format!(
+            "held-out improvement {:.2} % below {:.1} %",
+            row.improvement * 100.0,
+            opts.min_improvement * 100.0
+        ),
+        Verdict::NotSignificant => {
+            format!("not significant ({} after correcting for {m} candidates)", fmt_p(row.p_corrected))
+        }
+        Verdict::NotBest => "not the best candidate".into(),
+        Verdict::NotExamined => "significant, not examined further this step".into(),
+        Verdict::Overlap(sa) => format!(
+            "rejected: nearly a combination of geometric parameters (sine of the angle to the geometric Jacobian {:.3}, variance inflation {:.0})",
+            sa,
+            1.0 / (sa * sa).max(1e-300)
+        ),
+        Verdict::Implausible(why) => format!("rejected as physically implausible: {why}"),
+        Verdict::Unstable(why) => format!("rejected as unstable across the folds: {why}"),
+        Verdict::RefitFailed(e) => format!("rejected: the full refit failed ({e})"),
+        Verdict::NotConfirmed { improvement, p_corrected } => format!(
+            "rejected by the full refits: held-out improvement {:.2} %, {} after correcting for {m} candidates",
+            improvement * 100.0,
+            fmt_p(*p_corrected)
+        ),
+        Verdict::Explained { by, p_added, p_rival_added } => format!(
+            "rejected: {by} explains it (fitted together, {by} still improves the held-out fit, {}, while this adds nothing to it, {})",
+            fmt_p(*p_rival_added),
+            fmt_p(*p_added)
+        ),
+        Verdict::NotSeparable { with, p_added, p_rival_added } => format!(
+            "not claimed: the held-out data cannot tell it from {with} (fitted together, neither adds to the other: {} and {})",
+            fmt_p(*p_added),
+            fmt_p(*p_rival_added)
+        ),
+        Verdict::Accepted { p_corrected } => {
+            format!("ACCEPTED ({} after correcting for {m} candidates)", fmt_p(*p_corrected))
+        }
+    }
+}
+
+/// The screen's p-value (corrected) below which structure is called strong in the summary.
+pub const STRONG_STRUCTURE_P: f64 = 1e-6;
+
+/// The report's top sentence: the findings, or why nothing was claimed; and whether
+/// structure remains (see [`DiagnoseReport::summary`]).
+pub(super) fn summary(report: &DiagnoseReport, opts: &DiagnoseOptions) -> String {
+    let strongest = |tests: &[InputStructure]| -> Option<InputStructure> {
+        tests.iter().filter(|t| t.significant).min_by(|a, b| a.p_corrected.total_cmp(&b.p_corrected)).cloned()
+    };
+    let inputs = |tests: &[InputStructure]| -> String {
+        let mut v: Vec<String> = Vec::new();
+        for t in tests.iter().filter(|t| t.significant && t.p_corrected < STRONG_STRUCTURE_P) {
+            if !v.contains(&t.input) {
+                v.push(t.input.clone());
+            }
+        }
+        v.truncate(6);
+        v.join(", ")
+    };
+    let unit = "mm";
+    let mut out = if report.findings.is_empty() {
+        let strong = strongest(&report.screening_nominal).filter(|t| t.p_corrected < STRONG_STRUCTURE_P);
+        match strong {
+            None => "No finding: nothing beyond the geometric model is supported by the held-out data, and the residuals show no strong structure.".to_string(),
+            Some(t) => {
+                // The best significant candidate of the first step and what happened to it.
+                let best = report.steps.first().and_then(|s| {
+                    s.candidates
+                        .iter()
+                        .filter(|c| c.p_corrected < opts.alpha && c.improvement >= opts.min_improvement)
+                        .max_by(|a, b| a.improvement.total_cmp(&b.improvement))
+                });
+                let why = match best {
+                    Some(c) => format!(
+                        "the best candidate, {} ({:.0} % better held out, {}), was {}",
+                        c.label,
+                        c.improvement * 100.0,
+                        fmt_p(c.p_corrected),
+                        c.verdict.trim_start_matches("rejected").trim_start_matches(':').trim_start()
+                    ),
+                    None => "no candidate effect of the list improves the held-out fit significantly: the physics behind it is not among the candidates (or needs several effects at once)".to_string(),
+                };
+                format!(
+                    "No finding, although the held-out residuals depend strongly on {} ({} for {} against {}): {why}.",
+                    inputs(&report.screening_nominal),
+                    fmt_p(t.p_corrected),
+                    t.quantity,
+                    t.input
+                )
+            }
+        }
+    } else {
+        let names: Vec<String> = report
+            .findings
+            .iter()
+            .map(|f| {
+                let on = if f.joints.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        " on joint{} {}",
+                        if f.joints.len() > 1 { "s" } else { "" },
+                        f.joints.iter().map(|j| j.to_string()).collect::<Vec<_>>().join(", ")
+                    )
+                };
+                let unusual =
+                    if f.statement.starts_with("UNUSUAL") { " (unusually large: see its statement)" } else { "" };
+                format!("{}{on}{unusual}", f.effect)
+            })
+            .collect();
+        format!(
+            "{} finding{}: {}; held-out RMS {} -> {} {unit}.",
+            report.findings.len(),
+            if report.findings.len() == 1 { "" } else { "s" },
+            names.join(", "),
+            sig(report.nominal.heldout_rms_mm, 3),
+            sig(report.final_fit.heldout_rms_mm, 3)
+        )
+    };
+    if !report.findings.is_empty() {
+        if let Some(t) = strongest(&report.screening_final).filter(|t| t.p_corrected < STRONG_STRUCTURE_P) {
+            out.push_str(&format!(
+                " Structure remains against {} ({} for {}): more physics than was found, or an effect of another form.",
+                inputs(&report.screening_final),
+                fmt_p(t.p_corrected),
+                t.quantity
+            ));
+        }
+    }
+    out
 }

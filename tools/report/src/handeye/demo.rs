@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use ferrocal_calib::check::Check;
 use ferrocal_calib::handeye::opencv::{best_baseline, opencv_baselines};
 use ferrocal_calib::handeye::{calibrate_hand_eye, ChainFigures, HandEyeOptions, IntrinsicsMode};

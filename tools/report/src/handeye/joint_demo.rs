@@ -3,7 +3,7 @@
 //! and by the joint adjustment of robot and camera in pixels, against the tracker-calibrated
 //! model and the nominal one on held-out tracker poses.
 
-use anyhow::Result;
+use crate::error::Result;
 use ferrocal_calib::check::Check;
 use ferrocal_datasets::handeye::joint_study::{run_joint_study, JointStudyConfig, Score};
 use serde_json::json;

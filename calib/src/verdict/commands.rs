@@ -1,0 +1,305 @@
+//! The verdicts of the commands (`camera calibrate`, `camera stereo`, `calibrate`, `evaluate`,
+//! `export`, `diagnose`, `import`): which numbers each holds against which limit of
+//! [`Thresholds`], and the next step in words (`docs/verdicts.md`).
+
+use serde_json::Value;
+
+use super::{fmt_num, CameraLimits, Check, Status, Thresholds, Verdict};
+use crate::kinematic::{ErrorStats, KinematicCalibration};
+
+/// `calibrate`: the held-out figures of the validation fit (or a warning that there are none)
+/// and what the data could not identify.
+pub fn calibrate(
+    t: &Thresholds,
+    cal: &KinematicCalibration,
+    validation: Option<(&KinematicCalibration, &ErrorStats, &ErrorStats)>,
+    robot: &str,
+    out: &std::path::Path,
+) -> Verdict {
+    let l = &t.calibrate;
+    let mut checks = Vec::new();
+    match validation {
+        Some((v, before, after)) => {
+            checks.push(Check::at_most(
+                "calibrate.heldout_rms_mm",
+                &format!("held-out RMS ({} poses)", after.n),
+                "mm",
+                after.rms_mm,
+                l.heldout_rms_mm_warn,
+                l.heldout_rms_mm_fail,
+            ));
+            checks.push(Check::at_most(
+                "calibrate.heldout_vs_nominal",
+                &format!(
+                    "held-out RMS calibrated over nominal ({} / {} mm)",
+                    fmt_num(after.rms_mm),
+                    fmt_num(before.rms_mm)
+                ),
+                "",
+                after.rms_mm / before.rms_mm,
+                l.heldout_vs_nominal_warn,
+                l.heldout_vs_nominal_fail,
+            ));
+            checks.push(Check::at_most(
+                "calibrate.heldout_over_train",
+                "held-out over training RMS",
+                "",
+                after.rms_mm / v.train_after.rms_mm,
+                l.heldout_over_train_warn,
+                l.heldout_over_train_fail,
+            ));
+        }
+        None => checks.push(Check::flag(
+            "calibrate.heldout",
+            "no poses held out (nothing checked on unseen poses)",
+            "poses held out",
+            true,
+        )),
+    }
+    checks.push(Check::at_most(
+        "calibrate.unidentified",
+        "joints the poses cannot identify",
+        "",
+        cal.advice.len() as f64,
+        l.unidentified_warn,
+        f64::INFINITY,
+    ));
+    let dropped: Vec<String> = cal
+        .dropped_rows
+        .iter()
+        .map(|d| format!("'{}'{}", d.pose_id, d.line.map(|l| format!(" (line {l})")).unwrap_or_default()))
+        .collect();
+    checks.push(Check::flag(
+        "calibrate.dropped_rows",
+        &format!("{} row(s) far beyond the others dropped: {}", dropped.len(), dropped.join(", ")),
+        "no row far beyond the others",
+        !dropped.is_empty(),
+    ));
+    let advice = cal.advice.first().cloned().unwrap_or_default();
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
+        Some("calibrate.dropped_rows") => format!(
+            "check {} in the table for a typo (a wrong digit, swapped columns, another unit), correct or remove it, and calibrate again",
+            dropped.join(", ")
+        ),
+        None => format!(
+            "use the calibration: ferrocal evaluate --robot {robot} --calibration {} --measurements <a table of other poses>, or ferrocal export / correct",
+            out.display()
+        ),
+        Some("calibrate.heldout") => {
+            "re-run without --no-validation (or with a split column) so that poses the fit did not see check it".into()
+        }
+        Some("calibrate.unidentified") => format!("record more poses: {advice}"),
+        Some("calibrate.heldout_vs_nominal") if c.is_some_and(|c| c.status == Status::Fail) => {
+            "the calibration predicts unseen poses worse than the nominal model: check the table (units, joint order) and --robot, or identify fewer parameters (--params)".into()
+        }
+        Some("calibrate.heldout_vs_nominal") => "the calibration gains little on unseen poses: measure more poses spread over the workspace, or run ferrocal diagnose for the physics the model leaves out".into(),
+        Some("calibrate.heldout_over_train") => "the fit does not carry over to unseen poses: identify fewer parameters (--params, --practical-threshold) or measure more poses".into(),
+        _ => format!("find what the model leaves out: ferrocal diagnose --robot {robot} --measurements <the table>"),
+    }
+    })
+}
+
+/// `evaluate`: the position RMS of the scored rows.
+pub fn evaluate(t: &Thresholds, stats: &ErrorStats, scored: &str) -> Verdict {
+    let l = &t.evaluate;
+    let checks = vec![Check::at_most(
+        "evaluate.rms_mm",
+        &format!("position RMS on {scored}"),
+        "mm",
+        stats.rms_mm,
+        l.rms_mm_warn,
+        l.rms_mm_fail,
+    )];
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.status) {
+        None => "use the calibration: ferrocal export (URDF, DH) or ferrocal correct (a program's commands)".into(),
+        Some(Status::Warning) => {
+            "look at the largest per-pose errors in the JSON, then run ferrocal diagnose on the table for what the model leaves out".into()
+        }
+        Some(_) => "check that the table and the calibration share the measuring device's frame (else --refit-frame) and the robot; then run ferrocal diagnose on the table".into(),
+    }
+    })
+}
+
+/// `export`: how far the written model, read back, is from the calibrated one.
+pub fn export(t: &Thresholds, roundtrip_mm: f64, roundtrip_deg: f64) -> Verdict {
+    let l = &t.export;
+    let checks = vec![
+        Check::at_most(
+            "export.roundtrip_mm",
+            "read-back position difference",
+            "mm",
+            roundtrip_mm,
+            l.roundtrip_mm_warn,
+            l.roundtrip_mm_fail,
+        ),
+        Check::at_most(
+            "export.roundtrip_deg",
+            "read-back orientation difference",
+            "deg",
+            roundtrip_deg,
+            l.roundtrip_deg_warn,
+            l.roundtrip_deg_fail,
+        ),
+    ];
+    Verdict::with_next(checks, |c| {
+        match c {
+        None => "load the exported model in the other tool and check one pose against ferrocal robot fk".into(),
+        Some(_) => "the written model does not reproduce the calibration: use the calibration file with ferrocal directly and report this".into(),
+    }
+    })
+}
+
+/// `diagnose` (all variants), from the report's JSON: held-out ratio final over nominal,
+/// structure left unexplained, candidates rejected, a declined analysis. `unit` is `mm`, `px`
+/// or `n`.
+pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verdict {
+    let l = &t.diagnose;
+    let num = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
+    let key = format!("heldout_rms_{unit}");
+    let (nominal, fin) = (num(&report["nominal"][&key]), num(&report["final"][&key]));
+    let mut checks = Vec::new();
+    let declined = report["declined"].as_str().map(str::to_string);
+    if declined.is_some() {
+        checks.push(Check::flag("diagnose.declined", "the analysis declined (nothing claimed)", "analysed", true));
+    } else {
+        checks.push(Check::at_most(
+            "diagnose.heldout_ratio",
+            &format!("held-out RMS with the findings over without ({} / {} {unit})", fmt_num(fin), fmt_num(nominal)),
+            "",
+            fin / nominal,
+            l.heldout_ratio_warn,
+            l.heldout_ratio_fail,
+        ));
+    }
+    let depends: Vec<String> = report["unexplained"]["depends_on"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|v| v.as_str().map(str::to_string)).collect())
+        .unwrap_or_default();
+    let structure = report["unexplained"]["structure_found"].as_bool().unwrap_or(false);
+    checks.push(Check::flag(
+        "diagnose.unexplained_structure",
+        &if depends.is_empty() {
+            "structure left unexplained".to_string()
+        } else {
+            format!("structure left unexplained (against {})", depends.join(", "))
+        },
+        "no structure left unexplained",
+        structure,
+    ));
+    let rejected: Vec<&str> = report["notes"]
+        .as_array()
+        .map(|a| a.iter().filter_map(Value::as_str).filter(|n| n.contains(": rejected")).collect())
+        .unwrap_or_default();
+    checks.push(Check::at_most(
+        "diagnose.rejected",
+        "significant candidates rejected",
+        "",
+        rejected.len() as f64,
+        l.rejected_warn,
+        f64::INFINITY,
+    ));
+    let n_findings = report["findings"].as_array().map_or(0, Vec::len);
+    let first_rejected = rejected.first().map(|s| s.to_string()).unwrap_or_default();
+    // The robot report's top sentence (why nothing was claimed, when the residuals show strong
+    // structure).
+    let summary = report["summary"].as_str().unwrap_or_default().to_string();
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
+        None if n_findings > 0 => format!("model the findings: {rerun}"),
+        None => "the model explains the data: calibrate with it as it is".into(),
+        Some("diagnose.declined") => format!("record more data: {}", declined.unwrap_or_default()),
+        Some("diagnose.unexplained_structure") if n_findings == 0 && !summary.is_empty() => format!(
+            "{summary} Read the candidate table, then record poses that vary {} over their whole range and diagnose again (docs/diagnose.md)",
+            if depends.is_empty() { "the inputs".to_string() } else { depends.join(", ") }
+        ),
+        Some("diagnose.unexplained_structure") => format!(
+            "the residuals still follow {}: record poses that vary {} over their whole range, the other inputs spread, and diagnose again (or add a candidate effect, docs/diagnose.md)",
+            if depends.is_empty() { "the inputs".to_string() } else { depends.join(", ") },
+            if depends.len() == 1 { "it" } else { "them" }
+        ),
+        Some("diagnose.rejected") => format!("look at the rejected candidate before trusting the findings: {first_rejected}"),
+        _ => "the findings do not improve held-out data: do not model them; record more data".into(),
+    }
+    })
+}
+
+/// `import`: the rows written.
+pub fn import(t: &Thresholds, rows: usize, test_rows: usize, out: &std::path::Path) -> Verdict {
+    let l = &t.import;
+    let checks = vec![Check::at_least("import.rows", "rows written", "", rows as f64, l.rows_warn, l.rows_fail)];
+    Verdict::with_next(checks, |c| {
+        match c {
+        None => format!(
+            "calibrate from the table ({test_rows} rows marked test are held out): ferrocal calibrate --robot <model> --measurements {} --out <cal.json>",
+            out.display()
+        ),
+        Some(_) => "the recording holds too few rows for a calibration: record more poses".into(),
+    }
+    })
+}
+
+/// The next step of a camera verdict: when every check passes, when too few views (or pairs)
+/// were used, when the third figure (held-out ratio, rectified rows) is the problem, and else.
+struct CameraNext {
+    ok: &'static str,
+    views: &'static str,
+    third: &'static str,
+    other: &'static str,
+}
+
+/// A camera verdict: the fit's reprojection RMS, the views (or pairs) used and, when there is
+/// one, a third figure (`third`, named `third_name`), with the next step of `next`.
+fn camera_fit(rms: Check, views: Check, third: Option<Check>, third_name: &str, next: CameraNext) -> Verdict {
+    let mut checks = vec![rms, views];
+    checks.extend(third);
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
+            None => next.ok,
+            Some("camera.views") => next.views,
+            Some(n) if n == third_name => next.third,
+            _ => next.other,
+        }
+        .to_string()
+    })
+}
+
+/// `camera calibrate`: fit RMS, views used, held-out over fit RMS.
+pub fn camera(l: &CameraLimits, rms_px: f64, views: usize, heldout_px: Option<f64>) -> Verdict {
+    let third = "camera.heldout_ratio";
+    camera_fit(
+        Check::at_most("camera.rms_px", "reprojection RMS", "px", rms_px, l.rms_px_warn, l.rms_px_fail),
+        Check::at_least("camera.views", "views used", "", views as f64, l.views_warn, l.views_fail),
+        heldout_px.map(|h| {
+            Check::at_most(third, "held-out over fit RMS", "", h / rms_px, l.heldout_ratio_warn, l.heldout_ratio_fail)
+        }),
+        third,
+        CameraNext {
+            ok: "use the camera model (the JSON, or --opencv-yaml / --ros-yaml), e.g. as --intrinsics of ferrocal handeye",
+            views: "record more views (10 or more), with the pattern tilted and covering the whole image, and calibrate again",
+            third: "the model does not predict views it did not see: record more views reaching the image corners, or try --model rational8",
+            other: "look at the per-view RMS (the JSON's per_view, or --report) and retake or drop the worst views; try --reject-outliers",
+        },
+    )
+}
+
+/// `camera stereo`: the pair's RMS, the pairs used, the rectified row difference.
+pub fn stereo(t: &Thresholds, rms_px: f64, pairs: usize, row_rms_px: Option<f64>) -> Verdict {
+    let (l, c) = (&t.stereo, &t.camera);
+    let third = "stereo.row_rms_px";
+    camera_fit(
+        Check::at_most("stereo.rms_px", "reprojection RMS", "px", rms_px, l.rms_px_warn, l.rms_px_fail),
+        Check::at_least("camera.views", "pairs used", "", pairs as f64, c.views_warn, c.views_fail),
+        row_rms_px.map(|r| {
+            Check::at_most(third, "rectified row difference RMS", "px", r, l.row_rms_px_warn, l.row_rms_px_fail)
+        }),
+        third,
+        CameraNext {
+            ok: "use the pair (--opencv-stereo-yaml or --left-ros-yaml / --right-ros-yaml for rectification)",
+            views: "record more pairs (10 or more) with the pattern seen by both cameras across the image",
+            third: "the pair does not rectify well: check that the images are synchronous and the rig rigid, then calibrate again",
+            other: "look at the per-view RMS of both cameras in the JSON and retake or drop the worst pairs",
+        },
+    )
+}

@@ -1,0 +1,165 @@
+//! The `handeye` workflow: a recording (images, the poses table, the target, the mount) loaded
+//! ([`HandEyeInput::load`]), the hand-eye calibration with OpenCV's solvers beside it on the
+//! same corners ([`HandEyeInput::fit`]) and, with a robot model and joint readings, the joint
+//! adjustment of robot and camera ([`HandEyeInput::joint_adjustment`]). The binary turns its
+//! arguments into [`HandEyeRunOptions`]; the report crate turns the results into JSON and HTML.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+use ferrocal_calib::handeye::opencv::{opencv_baselines, BaselineReport};
+use ferrocal_calib::handeye::{
+    calibrate_hand_eye, calibrate_joint_from, HandEyeData, HandEyeOptions, HandEyeResult, IntrinsicsMode,
+    JointCalibration, JointOptions, Mount,
+};
+use ferrocal_robot::RobotModel;
+use ferrocal_vision::calib::corners::SkippedImage;
+use ferrocal_vision::calib::CalibrationOptions;
+use ferrocal_vision::detect::Pattern;
+
+use super::{load_recording, read_camera_file, read_handeye_poses, PosesTable, RobotReading, Skipped};
+use crate::error::{DatasetError, Result};
+use crate::import::images::expand_image_specs;
+
+/// The inputs and choices of a hand-eye calibration (the arguments of `ferrocal handeye`).
+#[derive(Clone, Debug)]
+pub struct HandEyeRunOptions {
+    /// Images: files, directories or globs.
+    pub images: Vec<PathBuf>,
+    /// The poses table (`image`, a flange pose or joint readings, optional `split`).
+    pub poses: PathBuf,
+    /// The target, e.g. `chessboard:9x6:25mm`.
+    pub pattern: String,
+    /// Where the camera is.
+    pub mount: Mount,
+    /// Robot model (preset, URDF or TOML) for joint readings.
+    pub robot: Option<String>,
+    /// Camera file to hold fixed; without it the camera is calibrated from the training images.
+    pub intrinsics: Option<PathBuf>,
+    /// Fit the printed target's overall scale against the robot's metric poses.
+    pub fit_target_scale: bool,
+    /// Huber threshold in robust standard deviations (0: plain least squares).
+    pub huber_sigmas: f64,
+    /// Take the flange poses as measurements with the noise estimated from the data.
+    pub robot_poses_as_measurements: bool,
+    /// The flange poses' noise, given: mm per coordinate and degrees per axis (not estimated).
+    pub robot_sigma_mm_deg: Option<(f64, f64)>,
+    /// Take the flange poses as exact (no robot-pose noise); overrides the two above.
+    pub exact_robot_poses: bool,
+}
+
+impl HandEyeRunOptions {
+    /// The options of the method: the camera given or calibrated, the print scale, the robust
+    /// loss and the robot poses' noise as asked.
+    pub fn hand_eye_options(&self) -> Result<HandEyeOptions> {
+        let intrinsics = match &self.intrinsics {
+            Some(p) => IntrinsicsMode::Fixed(read_camera_file(p)?),
+            None => IntrinsicsMode::Calibrate(CalibrationOptions::default()),
+        };
+        let mut options = HandEyeOptions {
+            intrinsics,
+            fit_target_scale: self.fit_target_scale,
+            huber_sigmas: self.huber_sigmas,
+            ..HandEyeOptions::default()
+        };
+        if self.robot_poses_as_measurements {
+            (options.robot_sigma_m, options.robot_sigma_rad) = HandEyeOptions::MEASURED_POSE_SIGMAS;
+        }
+        if let Some((mm, deg)) = self.robot_sigma_mm_deg {
+            (options.robot_sigma_m, options.robot_sigma_rad, options.estimate_noise) =
+                (mm * 1e-3, deg.to_radians(), false);
+        }
+        if self.exact_robot_poses {
+            (options.robot_sigma_m, options.robot_sigma_rad) = (0.0, 0.0);
+        }
+        Ok(options)
+    }
+}
+
+/// A loaded recording: the corners of every usable image with its flange pose.
+#[derive(Clone, Debug)]
+pub struct HandEyeInput {
+    /// The target.
+    pub pattern: Pattern,
+    /// The poses table.
+    pub table: PosesTable,
+    /// The robot model, when joint readings are to be turned into flange poses.
+    pub robot: Option<RobotModel>,
+    /// The image files the specifications named.
+    pub paths: Vec<PathBuf>,
+    /// Specifications that named no image.
+    pub skipped_images: Vec<SkippedImage>,
+    /// Images (or table rows) left out while loading, with the reason.
+    pub skipped: Vec<Skipped>,
+    /// The recording.
+    pub data: HandEyeData,
+}
+
+/// A hand-eye calibration with OpenCV's solvers on the same corners.
+#[derive(Clone, Debug)]
+pub struct HandEyeFit {
+    /// The options the method ran with.
+    pub options: HandEyeOptions,
+    /// The calibration.
+    pub result: HandEyeResult,
+    /// OpenCV's hand-eye solvers, with the camera the calibration started from.
+    pub baselines: Vec<BaselineReport>,
+}
+
+impl HandEyeInput {
+    /// Reads the poses table, the robot model and the images of `o`, and detects the target.
+    pub fn load(o: &HandEyeRunOptions) -> Result<Self> {
+        let pattern: Pattern = o.pattern.parse()?;
+        let table = read_handeye_poses(&o.poses)?;
+        let robot = o.robot.as_deref().map(RobotModel::load).transpose()?;
+        let flange = table.flange_poses(robot.as_ref())?;
+        let mut skipped_images = Vec::new();
+        let paths = expand_image_specs(&o.images, &mut skipped_images);
+        let (data, skipped) = load_recording(&paths, &table, &flange, &pattern, o.mount)?;
+        Ok(Self { pattern, table, robot, paths, skipped_images, skipped, data })
+    }
+
+    /// The hand-eye calibration of the recording with `options`, and OpenCV's solvers beside it.
+    pub fn fit(&self, options: HandEyeOptions) -> Result<HandEyeFit> {
+        let result = calibrate_hand_eye(&self.data, &options).map_err(|e| {
+            DatasetError::from(e).context(format!(
+                "handeye: {} usable image(s) of {}",
+                self.data.views.len(),
+                self.paths.len()
+            ))
+        })?;
+        let opencv_camera = result.initial_camera.as_ref().map_or(result.camera, |c| c.camera);
+        let baselines = opencv_baselines(&self.data, &options, &opencv_camera);
+        Ok(HandEyeFit { options, result, baselines })
+    }
+
+    /// The joint adjustment of the robot's kinematic parameters with the camera and the
+    /// hand-eye transforms, started from `fit`, with the target held at the print scale the
+    /// hand-eye fit found; every image needs joint readings and the input a robot model.
+    pub fn joint_adjustment(&self, fit: &HandEyeFit) -> Result<JointCalibration> {
+        let Some(model) = &self.robot else {
+            return Err(DatasetError::Input("handeye --out: the joint adjustment needs --robot".into()));
+        };
+        let rows: HashMap<&str, &super::PoseRow> = self.table.rows.iter().map(|r| (r.image.as_str(), r)).collect();
+        let joints = self
+            .data
+            .views
+            .iter()
+            .map(|v| match rows.get(v.name.as_str()).map(|r| &r.robot) {
+                Some(RobotReading::Joints(q)) => Ok(q.clone()),
+                _ => Err(DatasetError::Input(format!(
+                    "handeye --out: image {} has no joint readings in the poses table",
+                    v.name
+                ))),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let joint_options = JointOptions { hand_eye: fit.options.clone(), ..JointOptions::default() };
+        let mut scaled = self.data.clone();
+        if let Some((scale, _)) = fit.result.target_scale {
+            scaled.target_points_m =
+                ferrocal_calib::handeye::evaluate::scaled_target(&self.data.target_points_m, scale);
+        }
+        calibrate_joint_from(model, &scaled, &joints, fit.result.clone(), &joint_options)
+            .map_err(|e| DatasetError::from(e).context("handeye: the joint adjustment of robot and camera"))
+    }
+}

@@ -1,0 +1,98 @@
+//! `ferrocal correct`: the arguments of the `correct` workflow
+//! ([`ferrocal_datasets::correct`]), its outputs and its verdict
+//! ([`ferrocal_report::compensate::correct_verdict`]).
+
+use std::path::Path;
+use std::process::ExitCode;
+
+use anyhow::{bail, Result};
+use ferrocal_datasets::correct::{correct_run, ProgramFormat};
+use ferrocal_report::report::same_file;
+use ferrocal_report::verdict::VerdictSettings;
+
+/// `ferrocal correct`.
+#[derive(Debug, clap::Args)]
+pub struct CorrectArgs {
+    /// Robot model (preset, URDF or TOML): the nominal model the program was written for.
+    #[arg(long)]
+    pub robot: String,
+    /// The calibration (`ferrocal calibrate --out`, `diagnose --out`).
+    #[arg(long)]
+    pub calibration: std::path::PathBuf,
+    /// The program's joint commands: `pose_id`, `q1_<u>` ... (rad, deg, m, mm), optionally the
+    /// conditions the effects see (`dir<i>`, `temp_c`, `payload_kg`, `t_s`).
+    #[arg(long)]
+    pub program: std::path::PathBuf,
+    /// The corrected commands (CSV, the program's joint units), with per pose the error the
+    /// correction removes and what remains under the calibrated model.
+    #[arg(long)]
+    pub out: std::path::PathBuf,
+    /// Match positions only (the smallest joint change that does), not orientations.
+    #[arg(long)]
+    pub positions_only: bool,
+    /// Also write the corrected program as an ABB RAPID module (`MoveAbsJ` per command).
+    #[arg(long, value_name = "FILE.mod")]
+    pub rapid: Option<std::path::PathBuf>,
+    /// Also write it as G-code (one axis letter per joint, `G1` per command).
+    #[arg(long, value_name = "FILE.ngc")]
+    pub gcode: Option<std::path::PathBuf>,
+    /// Also write it as a Universal Robots URScript (`movej` per command; six revolute joints).
+    #[arg(long, value_name = "FILE.script")]
+    pub urscript: Option<std::path::PathBuf>,
+    /// Also write it as a KUKA KRL program (`PTP {AXIS: ..}` per command); the `DEF` name is the
+    /// file's stem.
+    #[arg(long, value_name = "FILE.src")]
+    pub krl: Option<std::path::PathBuf>,
+    /// Wait at every command of the written programs, seconds (0: move on once in position).
+    #[arg(long, default_value_t = 0.0)]
+    pub dwell_s: f64,
+}
+
+/// Runs `ferrocal correct`: every command is corrected through the calibrated model so that it
+/// reaches the pose the nominal model meant; a command that cannot be corrected is an error
+/// naming its pose id and line, and nothing is written.
+pub fn run(a: &CorrectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
+    for input in [&a.program, &a.calibration] {
+        if same_file(input, &a.out) {
+            bail!("--out {} would overwrite the input {}; choose another file", a.out.display(), input.display());
+        }
+    }
+    let run = correct_run(&a.robot, &a.calibration, &a.program, a.positions_only)?;
+    // The robot programs asked for, all composed before anything is written; an output that
+    // names an input is refused.
+    let outputs: Vec<(ProgramFormat, &Path)> = [
+        (ProgramFormat::Rapid, &a.rapid),
+        (ProgramFormat::Gcode, &a.gcode),
+        (ProgramFormat::Urscript, &a.urscript),
+        (ProgramFormat::Krl, &a.krl),
+    ]
+    .into_iter()
+    .filter_map(|(k, p)| p.as_deref().map(|p| (k, p)))
+    .collect();
+    let inputs = [&a.program, &a.calibration, &a.out];
+    for (_, p) in &outputs {
+        if let Some(i) = inputs.iter().find(|i| same_file(i, p)) {
+            bail!("output {} would overwrite {}; choose another file", p.display(), i.display());
+        }
+    }
+    let header = vec![
+        format!("corrected by ferrocal {} ({})", env!("CARGO_PKG_VERSION"), ferrocal_report::report::now_rfc3339()),
+        format!("program {}; calibration {}; robot {}", a.program.display(), a.calibration.display(), a.robot),
+        "joint commands for the calibrated robot to reach the poses the nominal model meant; the path between them is not checked against safety zones".into(),
+    ];
+    let programs = run.programs(&outputs, a.dwell_s, &header)?;
+    ferrocal_report::write_atomic(&a.out, run.csv.as_bytes())?;
+    for (path, text) in &programs {
+        ferrocal_report::write_atomic(path, text.as_bytes())?;
+        println!("corrected program written to {}", path.display());
+    }
+    let removed = &run.removed_mm;
+    let mean = removed.iter().sum::<f64>() / removed.len().max(1) as f64;
+    println!(
+        "{} commands corrected; the calibrated model predicts the uncorrected ones {mean:.4} mm off on average; written to {}",
+        removed.len(),
+        a.out.display()
+    );
+    let verdict = ferrocal_report::compensate::correct_verdict(&vs.thresholds, &run, &a.out, &a.calibration);
+    Ok(vs.conclude(&verdict))
+}
