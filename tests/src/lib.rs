@@ -36,6 +36,28 @@ pub fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
+/// Asserts that the HTML report `html` opens with the verdict box of the verdict in the JSON
+/// `json` wrote by the same run (same status, same next step).
+pub fn assert_verdict_box(html: &Path, json_of_run: &serde_json::Value) {
+    let page = std::fs::read_to_string(html).unwrap();
+    let v = &json_of_run["verdict"];
+    let status = v["status"].as_str().unwrap_or_else(|| panic!("no verdict in the JSON: {json_of_run}"));
+    let at = page
+        .find(&format!("class=\"verdict v-{status}\""))
+        .unwrap_or_else(|| panic!("{}: no {status} verdict box", html.display()));
+    let first_section = page.find("<section").unwrap_or(page.len());
+    assert!(at < first_section, "{}: the verdict box is not first", html.display());
+    assert!(page.contains(&format!("Verdict: {}", status.to_uppercase())));
+    let next = v["next"]
+        .as_str()
+        .unwrap()
+        .replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;");
+    assert!(page.contains(&next), "{}: the next step is not in the box", html.display());
+}
+
 /// Runs a command that must succeed.
 pub fn ok(cmd: &mut Command) -> Output {
     let out = run(cmd);

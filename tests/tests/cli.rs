@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ferrocal_tests::{calibrate_cmd, data, evaluate_cmd, ferrocal, import_ur5, json, run};
+use ferrocal_tests::{assert_verdict_box, calibrate_cmd, data, evaluate_cmd, ferrocal, import_ur5, json, run};
 
 #[test]
 fn ur5_calibrate_and_evaluate_through_the_binary() {
@@ -18,6 +18,7 @@ fn ur5_calibrate_and_evaluate_through_the_binary() {
     let heldout = r["heldout"]["after"]["mean_mm"].as_f64().unwrap();
     assert!(heldout < 0.12, "held-out mean {heldout} mm (every second grid pose)");
     assert!(std::fs::read_to_string(&html).unwrap().contains("<svg"));
+    assert_verdict_box(&html, &r);
     let ev = tmp.path().join("ev.json");
     let out = run(&mut evaluate_cmd(&[], "ur5", &cal, &table, &ev));
     assert!(out.status.success());
@@ -178,6 +179,7 @@ fn camera_calibrate_own_corners_beat_opencvs_recipe_on_held_out_views() {
     assert!((fx / 535.9157 - 1.0).abs() < 0.005, "fx {fx}");
     // The report: per-view bars, residual vectors, coverage, two views of the poses, the
     // projection uncertainty map.
+    assert_verdict_box(&tmp.path().join("own.html"), &own);
     let html = std::fs::read_to_string(tmp.path().join("own.html")).unwrap();
     assert!(html.matches("<svg").count() >= 6, "report figures");
     assert!(html.contains("Projection uncertainty") && html.contains("held out") && html.contains("left01.jpg"));
@@ -279,6 +281,7 @@ fn demo_writes_its_report() {
     let html = std::fs::read_to_string(out_dir.join("index.html")).unwrap();
     assert!(html.contains("Provenance") && html.contains("<svg"));
     let r = json(&out_dir.join("report.json"));
+    assert_verdict_box(&out_dir.join("index.html"), &r);
     for (k, v) in r["sections"].as_object().unwrap() {
         assert_ne!(v["check"], "fail", "demo section {k} failed: {}", v["status"]);
         assert_ne!(v["check"], "skipped", "demo section {k} was skipped: is ../shared/data beside the checkout?");
@@ -297,9 +300,17 @@ fn diagnose_finds_the_deformation_of_a_simulated_force_sensing_end_effector() {
     let out = run(ferrocal().args(["dynamics", "simulate", "--rig", "platform", "--seed", "5", "--out"]).arg(&sim));
     assert!(out.status.success());
     let report = dir.path().join("force.json");
-    let out = run(ferrocal().args(["diagnose", "--forces"]).arg(sim.join("static.csv")).arg("--json").arg(&report));
+    let html = dir.path().join("force.html");
+    let out = run(ferrocal()
+        .args(["diagnose", "--forces"])
+        .arg(sim.join("static.csv"))
+        .arg("--json")
+        .arg(&report)
+        .arg("--report")
+        .arg(&html));
     assert!(out.status.success());
     let v = json(&report);
+    assert_verdict_box(&html, &v);
     assert_eq!(v["findings"][0]["effect"], "platform_deformation", "{v:#}");
     let true_mass = json(&sim.join("truth.json"))["mass_kg"].as_f64().unwrap();
     let mass = v["mass_kg"][1].as_f64().unwrap();

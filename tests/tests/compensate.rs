@@ -85,8 +85,11 @@ fn diagnose_out_compensates_held_out_blocks_of_the_ur5() {
         .arg(&table)
         .arg("--json")
         .arg(&diag)
+        .arg("--report")
+        .arg(tmp.path().join("diag.html"))
         .arg("--out")
         .arg(&comp));
+    ferrocal_tests::assert_verdict_box(&tmp.path().join("diag.html"), &json(&diag));
     let findings = json(&diag)["findings"].as_array().unwrap().len();
     let c = json(&comp);
     assert_eq!(c["effects"].as_array().unwrap().len(), findings, "every accepted effect is in the calibration");

@@ -57,6 +57,7 @@ fn handeye_on_a_rendered_chessboard_recording() {
     assert_eq!(r["opencv"].as_array().unwrap().len(), 7);
     let page = std::fs::read_to_string(&html).unwrap();
     assert!(page.contains("Chain residual per image") && page.contains("calibrateRobotWorldHandEye"));
+    ferrocal_tests::assert_verdict_box(&html, &r);
 }
 
 /// The joint adjustment through the binary: `handeye simulate --robot ur5` renders the joint

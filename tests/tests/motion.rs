@@ -10,7 +10,9 @@ fn motion(dir: &Path, name: &str, args: &[&str]) -> (Option<i32>, serde_json::Va
     let out = dir.join(name);
     let o = run(ferrocal().arg("motion").args(args).arg("--out").arg(&out));
     assert!(out.join("index.html").exists(), "{name}: no index.html");
-    (o.status.code(), json(&out.join("report.json")))
+    let report = json(&out.join("report.json"));
+    ferrocal_tests::assert_verdict_box(&out.join("index.html"), &report);
+    (o.status.code(), report)
 }
 
 fn num(v: &serde_json::Value) -> f64 {

@@ -171,6 +171,32 @@ fn evaluate_refuses_calibration_missing_parameters_for_another_robot_or_duplicat
         Duration::from_secs(30),
     );
     assert!(err.contains("deg.csv: line ") && err.contains("outside the limits"), "{err}");
+    // Two outputs on one path are refused before any work, and nothing is written: `correct`
+    // with `--krl` equal to `--out`, `--rapid` equal to `--gcode`; `export --urdf X --dh X`.
+    let program = edited(tmp.path(), "program.csv", Some(20), |_, _| {});
+    let same = tmp.path().join("same.out");
+    for extra in [["--krl", "--out"], ["--rapid", "--gcode"]] {
+        let mut c = ferrocal();
+        c.args(["correct", "--robot", "ur5", "--calibration"]).arg(&cal).arg("--program").arg(&program);
+        if extra[1] != "--out" {
+            c.arg("--out").arg(tmp.path().join("corrected.csv"));
+        }
+        let err = fails_within(c.arg(extra[0]).arg(&same).arg(extra[1]).arg(&same), Duration::from_secs(30));
+        assert!(err.contains("named as two outputs"), "{extra:?}: {err}");
+        assert!(!same.exists() && !tmp.path().join("corrected.csv").exists(), "{extra:?}: nothing written");
+    }
+    let err = fails_within(
+        ferrocal()
+            .args(["export", "--robot", "ur5", "--calibration"])
+            .arg(&cal)
+            .arg("--urdf")
+            .arg(&same)
+            .arg("--dh")
+            .arg(&same),
+        Duration::from_secs(30),
+    );
+    assert!(err.contains("named as two outputs"), "{err}");
+    assert!(!same.exists(), "export wrote nothing");
     let mut cut = full.clone();
     cut["parameters"].as_array_mut().unwrap().truncate(5);
     let err = fails_within(&mut evaluate("ur5", &write("cut.json", &cut)), Duration::from_secs(30));

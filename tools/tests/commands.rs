@@ -121,6 +121,9 @@ fn camera_stereo_exports_the_rectified_pair_and_a_report() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(f("stereo.json")).unwrap()).unwrap();
     let num = |x: &serde_json::Value| x.as_f64().unwrap();
+    let page = std::fs::read_to_string(f("report.html")).unwrap();
+    let status = v["verdict"]["status"].as_str().unwrap();
+    assert!(page.contains(&format!("class=\"verdict v-{status}\"")), "the stereo report opens with its verdict");
     let (b, sb) = (num(&v["baseline_mm"]), num(&v["baseline_std_mm"]));
     assert!((b - 83.435).abs() < 3.0 * sb, "baseline {b} +- {sb} mm vs OpenCV's 83.435 mm");
     let rect = &v["rectification"];

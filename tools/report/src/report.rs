@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Context, Result};
 use ferrocal_calib::check::{Check, CheckCounts, CheckStatus};
+use ferrocal_calib::verdict::Verdict;
 use serde::Serialize;
 use serde_json::Value;
 
@@ -181,6 +182,42 @@ pub struct Report {
     pub provenance: Provenance,
     /// Sections in order.
     pub sections: Vec<Section>,
+    /// The command's verdict, shown first (the box under the title) and written to the JSON.
+    /// When it is computed only after the report is written (the studies), the HTML keeps a slot
+    /// that [`crate::verdict::add_verdict_to_html`] fills.
+    pub verdict: Option<Verdict>,
+}
+
+/// Where the verdict box goes in a report written before its verdict was known.
+pub const VERDICT_SLOT: &str = "<!-- ferrocal:verdict -->";
+
+/// The verdict as the box that opens a report: the status, the next step, and each check with
+/// its value and limit.
+pub fn verdict_box(v: &Verdict) -> String {
+    let mut h = String::new();
+    let status = v.status.name();
+    let _ = write!(
+        h,
+        "<div class=\"verdict v-{status}\" id=\"verdict\"><p><strong>Verdict: {}</strong></p><p><strong>Next:</strong> {}</p>",
+        status.to_uppercase(),
+        esc(if v.next.trim().is_empty() { "none" } else { v.next.trim() })
+    );
+    if !v.checks.is_empty() {
+        h.push_str("<table><tr><th>check</th><th>result</th><th>status</th></tr>");
+        for c in &v.checks {
+            let _ = write!(
+                h,
+                "<tr><td>{}</td><td class=\"l\">{}</td><td class=\"s-{}\">{}</td></tr>",
+                esc(&c.name),
+                esc(&c.what),
+                c.status.name(),
+                c.status.name()
+            );
+        }
+        h.push_str("</table>");
+    }
+    h.push_str("</div>");
+    h
 }
 
 fn esc(s: &str) -> String {
@@ -190,7 +227,7 @@ fn esc(s: &str) -> String {
 impl Report {
     /// An empty report.
     pub fn new(title: &str, provenance: Provenance) -> Self {
-        Self { title: title.to_string(), provenance, sections: Vec::new() }
+        Self { title: title.to_string(), provenance, sections: Vec::new(), verdict: None }
     }
 
     /// True when a section's check failed.
@@ -238,6 +275,11 @@ impl Report {
             CSS,
             esc(&self.title)
         );
+        match &self.verdict {
+            Some(v) => h.push_str(&verdict_box(v)),
+            None => h.push_str(VERDICT_SLOT),
+        }
+        h.push('\n');
         h.push_str("<nav><ul>");
         for s in &self.sections {
             let _ = write!(h, "<li><a href=\"#{}\">{}</a>{}</li>", esc(&s.id), esc(&s.title), s.badge());
@@ -316,11 +358,15 @@ impl Report {
             m.insert("data".into(), s.data.clone());
             sections.insert(s.id.clone(), Value::Object(m));
         }
-        serde_json::json!({
+        let mut j = serde_json::json!({
             "title": self.title,
             "provenance": self.provenance,
             "sections": sections,
-        })
+        });
+        if let Some(v) = &self.verdict {
+            crate::verdict::add_verdict(&mut j, v);
+        }
+        j
     }
 
     /// Writes `index.html` and `report.json` into `dir` (created if needed), each atomically.
@@ -486,7 +532,11 @@ figure{margin:1em 0}figcaption{font-size:90%;color:#444}.attr{font-size:80%;colo
 .ok{color:#fff;background:#2a7;padding:1px 6px;border-radius:3px;font-size:70%}\
 .bad{color:#fff;background:#c33;padding:1px 6px;border-radius:3px;font-size:70%}\
 .note{color:#fff;background:#888;padding:1px 6px;border-radius:3px;font-size:70%}\
-pre{background:#f6f6f6;padding:6px;overflow-x:auto}nav ul{columns:2}";
+pre{background:#f6f6f6;padding:6px;overflow-x:auto}nav ul{columns:2}\
+.verdict{border:2px solid #888;border-left-width:10px;border-radius:4px;padding:.4em 1em;margin:1em 0}\
+.verdict p{margin:.3em 0}.verdict table{margin:.5em 0}.verdict td.l{text-align:left}\
+.v-pass{border-color:#2a7;background:#f0faf4}.v-warning{border-color:#d90;background:#fff8e6}\
+.v-fail{border-color:#c33;background:#fdf0f0}.s-pass{color:#2a7}.s-warning{color:#b70}.s-fail{color:#c33;font-weight:bold}";
 
 /// An 8-bit grey image as an inline `<img>` (PNG, base64), for figures.
 pub fn inline_png(img: &image::GrayImage, alt: &str) -> String {
@@ -537,6 +587,31 @@ mod tests {
         assert!(html.contains("<span class=\"note\">skipped: x.csv is not present</span>"), "{html}");
         assert!(html.contains("x.csv is not present: section skipped."));
         assert!(!r.failed());
+    }
+
+    #[test]
+    fn the_verdict_box_opens_the_report_and_its_slot_is_filled_later() {
+        use ferrocal_calib::verdict::Check as VCheck;
+        let v = Verdict::new(
+            vec![
+                VCheck::at_most("camera.rms_px", "reprojection RMS", "px", 0.7, 0.5, 1.0),
+                VCheck::at_least("camera.views", "views", "", 12.0, 10.0, 5.0),
+            ],
+            "retake the blurred views <3>",
+        );
+        let mut r = report();
+        let without = r.to_html();
+        assert!(without.contains(VERDICT_SLOT), "a report without its verdict keeps the slot");
+        r.verdict = Some(v.clone());
+        let html = r.to_html();
+        let (box_at, nav_at) = (html.find("class=\"verdict v-warning\"").unwrap(), html.find("<nav>").unwrap());
+        assert!(box_at < nav_at, "the box comes before everything else");
+        assert!(html.contains("Verdict: WARNING"));
+        assert!(html.contains("retake the blurred views &lt;3&gt;"), "escaped");
+        assert!(html.contains("reprojection RMS 0.7 px &gt; 0.5 px (warning)"));
+        assert!(!html.contains(VERDICT_SLOT));
+        assert_eq!(r.to_json()["verdict"]["status"], "warning");
+        assert_eq!(without.replacen(VERDICT_SLOT, &verdict_box(&v), 1), html, "filling the slot gives the same page");
     }
 
     #[test]

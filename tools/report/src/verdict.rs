@@ -72,6 +72,21 @@ pub fn add_verdict_to_file(path: &Path, v: &Verdict) -> Result<()> {
     crate::report::write_atomic(path, serde_json::to_string_pretty(&j)?.as_bytes())
 }
 
+/// Puts the verdict box into the HTML report `path` written before its verdict was known (its
+/// [`crate::report::VERDICT_SLOT`]; after the title when a page has no slot), in place.
+pub fn add_verdict_to_html(path: &Path, v: &Verdict) -> Result<()> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let boxed = crate::report::verdict_box(v);
+    let html = if text.contains(crate::report::VERDICT_SLOT) {
+        text.replacen(crate::report::VERDICT_SLOT, &boxed, 1)
+    } else if let Some(i) = text.find("</h1>") {
+        format!("{}{boxed}{}", &text[..i + 5], &text[i + 5..])
+    } else {
+        return Ok(());
+    };
+    crate::report::write_atomic(path, html.as_bytes())
+}
+
 /// The checks of a report's JSON (`report.json` of the studies and `plan`): sections whose check
 /// failed (failure above `failed_fail`) and, when `skipped_warn` is given, sections skipped
 /// (warning above it). `section` prefixes the check names (`plan`, `demo`, ...).
@@ -166,5 +181,8 @@ pub fn conclude_report(vs: &VerdictSettings, dir: &Path, name: &str) -> Result<E
         }
     });
     add_verdict_to_file(&path, &v)?;
+    if html.exists() {
+        add_verdict_to_html(&html, &v)?;
+    }
     Ok(vs.conclude_with(&v, ExitCode::SUCCESS, 2))
 }

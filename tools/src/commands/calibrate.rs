@@ -217,6 +217,7 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
         prov.add_input(&args.measurements);
         let mut rep = Report::new(&format!("Calibration of {}", model.name()), prov);
         rep.sections.extend(calibration_sections(cal, validation, final_rows));
+        rep.verdict = Some(verdict.clone());
         files.push((h, rep.to_html().into_bytes()));
     }
     write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
@@ -310,11 +311,11 @@ pub fn run_export(args: &ExportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     file.check_robot(&args.robot, &model).with_context(|| format!("{}", args.calibration.display()))?;
     let cm = file.apply(&model).with_context(|| format!("applying {}", args.calibration.display()))?;
     let companion_path = args.urdf.as_ref().map(|u| u.with_extension("calibration.json"));
-    for out in [args.urdf.as_ref(), companion_path.as_ref(), args.dh.as_ref()].into_iter().flatten() {
-        if ferrocal_report::report::same_file(out, &args.calibration) {
-            bail!("{}: would overwrite the input calibration", out.display());
-        }
-    }
+    // Two outputs on one path (`--urdf X --dh X`, or a DH table named like the URDF's companion)
+    // or an output naming an input are refused before anything is written.
+    let outs: Vec<&Path> =
+        [args.urdf.as_deref(), companion_path.as_deref(), args.dh.as_deref()].into_iter().flatten().collect();
+    check_outputs(&outs, &[args.calibration.as_path(), Path::new(&args.robot)])?;
     // Everything is composed first, then written.
     let mut outputs: Vec<(PathBuf, String)> = Vec::new();
     let mut roundtrip = (0.0f64, 0.0f64);
@@ -333,8 +334,8 @@ pub fn run_export(args: &ExportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         outputs.push((dh.clone(), ex.table.to_csv(&comment)));
     }
     let Some(urdf) = &args.urdf else {
-        for (p, text) in &outputs {
-            write_atomic(p, text.as_bytes())?;
+        write_all_atomic(&outputs.iter().map(|(p, t)| (p.as_path(), t.as_bytes())).collect::<Vec<_>>())?;
+        for (p, _) in &outputs {
             println!("wrote {}", p.display());
         }
         return Ok(vs.conclude(&super::verdicts::export(&vs.thresholds, roundtrip.0, roundtrip.1)));
@@ -350,9 +351,7 @@ pub fn run_export(args: &ExportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     roundtrip = (roundtrip.0.max(ex.roundtrip_m_rad.0 * 1e3), roundtrip.1.max(ex.roundtrip_m_rad.1.to_degrees()));
     outputs.push((urdf.clone(), ex.urdf.clone()));
     outputs.push((companion_path.clone(), serde_json::to_string_pretty(&ex.companion)?));
-    for (p, text) in &outputs {
-        write_atomic(p, text.as_bytes())?;
-    }
+    write_all_atomic(&outputs.iter().map(|(p, t)| (p.as_path(), t.as_bytes())).collect::<Vec<_>>())?;
     if let Some(dh) = &args.dh {
         println!("wrote {}", dh.display());
     }

@@ -383,7 +383,9 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
             held_out: held_out.as_ref(),
             provenance: prov,
         };
-        out.text(p, &camera_report(cal, input).to_html());
+        let mut rep = camera_report(cal, input);
+        rep.verdict = Some(verdict.clone());
+        out.text(p, &rep.to_html());
     }
     out.write()?;
     Ok(vs.conclude(&verdict))
@@ -526,7 +528,9 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
             corners: &corners,
             provenance: prov,
         };
-        out.text(p, &stereo_report(&st, input).to_html());
+        let mut rep = stereo_report(&st, input);
+        rep.verdict = Some(verdict.clone());
+        out.text(p, &rep.to_html());
     }
     out.write()?;
     Ok(vs.conclude(&verdict))

@@ -5,9 +5,8 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use ferrocal_datasets::correct::{correct_run, ProgramFormat};
-use ferrocal_report::report::same_file;
 use ferrocal_report::verdict::VerdictSettings;
 
 /// `ferrocal correct`.
@@ -52,14 +51,9 @@ pub struct CorrectArgs {
 /// reaches the pose the nominal model meant; a command that cannot be corrected is an error
 /// naming its pose id and line, and nothing is written.
 pub fn run(a: &CorrectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    for input in [&a.program, &a.calibration] {
-        if same_file(input, &a.out) {
-            bail!("--out {} would overwrite the input {}; choose another file", a.out.display(), input.display());
-        }
-    }
-    let run = correct_run(&a.robot, &a.calibration, &a.program, a.positions_only)?;
-    // The robot programs asked for, all composed before anything is written; an output that
-    // names an input is refused.
+    // The robot programs asked for; every output is checked before any work (two outputs on
+    // one path, or an output that names an input, are refused), all are composed, then written
+    // together.
     let outputs: Vec<(ProgramFormat, &Path)> = [
         (ProgramFormat::Rapid, &a.rapid),
         (ProgramFormat::Gcode, &a.gcode),
@@ -69,21 +63,19 @@ pub fn run(a: &CorrectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     .into_iter()
     .filter_map(|(k, p)| p.as_deref().map(|p| (k, p)))
     .collect();
-    let inputs = [&a.program, &a.calibration, &a.out];
-    for (_, p) in &outputs {
-        if let Some(i) = inputs.iter().find(|i| same_file(i, p)) {
-            bail!("output {} would overwrite {}; choose another file", p.display(), i.display());
-        }
-    }
+    let all_outputs: Vec<&Path> = std::iter::once(a.out.as_path()).chain(outputs.iter().map(|(_, p)| *p)).collect();
+    ferrocal_report::check_outputs(&all_outputs, &[a.program.as_path(), a.calibration.as_path(), Path::new(&a.robot)])?;
+    let run = correct_run(&a.robot, &a.calibration, &a.program, a.positions_only)?;
     let header = vec![
         format!("corrected by ferrocal {} ({})", env!("CARGO_PKG_VERSION"), ferrocal_report::report::now_rfc3339()),
         format!("program {}; calibration {}; robot {}", a.program.display(), a.calibration.display(), a.robot),
         "joint commands for the calibrated robot to reach the poses the nominal model meant; the path between them is not checked against safety zones".into(),
     ];
     let programs = run.programs(&outputs, a.dwell_s, &header)?;
-    ferrocal_report::write_atomic(&a.out, run.csv.as_bytes())?;
-    for (path, text) in &programs {
-        ferrocal_report::write_atomic(path, text.as_bytes())?;
+    let mut files: Vec<(&Path, &[u8])> = vec![(a.out.as_path(), run.csv.as_bytes())];
+    files.extend(programs.iter().map(|(p, t)| (p.as_ref(), t.as_bytes())));
+    ferrocal_report::write_all_atomic(&files)?;
+    for (path, _) in &programs {
         println!("corrected program written to {}", path.display());
     }
     let removed = &run.removed_mm;

@@ -123,6 +123,7 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         prov.add_input(meas);
         let mut r = Report::new(&format!("Missing physics: {} on {}", model.name(), meas.display()), prov);
         r.sections = sections(&rep, args.attribution.as_deref());
+        r.verdict = Some(verdict.clone());
         files.push((h, r.to_html().into_bytes()));
     }
     ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
@@ -248,14 +249,17 @@ fn run_camera(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         "calibrate with the lens model or target shape the findings name (ferrocal camera calibrate --model ...)",
     );
     add_verdict(&mut rep_json, &verdict);
-    write_atomic(&args.json, serde_json::to_string_pretty(&rep_json)?.as_bytes())?;
+    // Both files together: no report without its JSON.
+    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.json, serde_json::to_string_pretty(&rep_json)?.into_bytes())];
     if let Some(h) = &args.report {
         let prov = Provenance::new(json!({"images": args.images, "pattern": pattern_text, "options": opts}));
         let mut r =
             Report::new(&format!("Missing physics of a camera ({} views of {pattern_text})", views.len()), prov);
         r.sections.push(camera_section(&rep, opts.folds, args.attribution.as_deref()));
-        write_atomic(h, r.to_html().as_bytes())?;
+        r.verdict = Some(verdict.clone());
+        files.push((h, r.to_html().into_bytes()));
     }
+    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     if let Some(d) = &rep.declined {
         println!("diagnose: {d}");
     }
@@ -295,14 +299,17 @@ fn run_forces(args: &DiagnoseArgs, path: &std::path::Path, vs: &VerdictSettings)
         "identify the sensor with the terms the findings name (docs/dynamics.md)",
     );
     add_verdict(&mut rep_json, &verdict);
-    write_atomic(&args.json, serde_json::to_string_pretty(&rep_json)?.as_bytes())?;
+    // Both files together: no report without its JSON.
+    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.json, serde_json::to_string_pretty(&rep_json)?.into_bytes())];
     if let Some(h) = &args.report {
         let prov = Provenance::new(json!({"forces": path.display().to_string(), "options": opts}));
         let mut r =
             Report::new(&format!("Missing physics of a force-sensing end-effector ({} poses)", poses.len()), prov);
         r.sections.push(force_section(&rep, opts.folds, args.attribution.as_deref()));
-        write_atomic(h, r.to_html().as_bytes())?;
+        r.verdict = Some(verdict.clone());
+        files.push((h, r.to_html().into_bytes()));
     }
+    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
     if let Some(d) = &rep.declined {
         println!("diagnose: {d}");
     }

@@ -210,14 +210,6 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     skipped_json.extend(input.skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
     skipped_json.extend(result.skipped.iter().map(|s| json!({"image": s.name, "reason": s.reason})));
     let source = input.table.source.as_deref();
-    if let Some(h) = &a.report {
-        let mut prov =
-            Provenance::new(json!({"pattern": pattern_text, "mount": mount.name(), "options": format!("{options:?}")}));
-        prov.add_input(poses_path);
-        let mut rep = Report::new(&format!("Hand-eye calibration ({}, {})", mount.name(), pattern_text), prov);
-        rep.sections.extend(html::handeye_sections(result, baselines, source));
-        files.push((h, rep.to_html().into_bytes()));
-    }
     print_summary(result, best_baseline(baselines), source);
     let has_heldout = result.figures.heldout_rms_px.is_some();
     let split = if has_heldout { ferrocal_calib::Split::Test } else { ferrocal_calib::Split::Train };
@@ -245,6 +237,15 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     }
     let out_text = a.out.as_ref().map(|p| p.display().to_string());
     let verdict = verdict::handeye_verdict(checks, mount, has_heldout, out_text.as_deref());
+    if let Some(h) = &a.report {
+        let mut prov =
+            Provenance::new(json!({"pattern": pattern_text, "mount": mount.name(), "options": format!("{options:?}")}));
+        prov.add_input(poses_path);
+        let mut rep = Report::new(&format!("Hand-eye calibration ({}, {})", mount.name(), pattern_text), prov);
+        rep.sections.extend(html::handeye_sections(result, baselines, source));
+        rep.verdict = Some(verdict.clone());
+        files.push((h, rep.to_html().into_bytes()));
+    }
     if let Some(p) = &a.json {
         let mut v = json::handeye_json(result, baselines, Value::Array(skipped_json), source);
         ferrocal_report::verdict::add_verdict(&mut v, &verdict);

@@ -114,5 +114,6 @@ pub fn run(args: &PlanArgs, vs: &ferrocal_report::verdict::VerdictSettings) -> R
     }
     });
     ferrocal_report::verdict::add_verdict_to_file(&report_path, &verdict)?;
+    ferrocal_report::verdict::add_verdict_to_html(&outcome.html, &verdict)?;
     Ok(vs.conclude_with(&verdict, ExitCode::SUCCESS, 2))
 }
