@@ -32,11 +32,34 @@ pub fn check_regular_target(path: &Path) -> Result<()> {
     }
 }
 
+/// The longest file name most file systems take, bytes.
+const MAX_NAME_BYTES: usize = 255;
+
+/// The hidden name a write of `name` is staged under: `.NAME.TAGPID`, with `NAME` cut (and
+/// marked with a hash of the whole name, so two long names never share a staging name) when
+/// the whole would be longer than a file name may be: a legal 250-character output stays
+/// writable.
+pub fn staging_name(name: &str, tag: &str) -> String {
+    let suffix = format!(".{tag}{}", std::process::id());
+    let whole = format!(".{name}{suffix}");
+    if whole.len() <= MAX_NAME_BYTES {
+        return whole;
+    }
+    // FNV-1a of the whole name.
+    let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3));
+    let mark = format!("~{:08x}", hash as u32);
+    let mut keep = MAX_NAME_BYTES - 1 - suffix.len() - mark.len();
+    while !name.is_char_boundary(keep) {
+        keep -= 1;
+    }
+    format!(".{}{mark}{suffix}", &name[..keep])
+}
+
 /// The folder of `path` and the temporary name beside it that a write is staged under.
 fn staging_path(path: &Path) -> (&Path, PathBuf) {
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    (dir, dir.join(format!(".{name}.tmp{}", std::process::id())))
+    (dir, dir.join(staging_name(&name, "tmp")))
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
@@ -107,5 +130,24 @@ mod tests {
         let left: Vec<_> =
             std::fs::read_dir(dir.path()).unwrap().filter_map(|e| e.ok()).map(|e| e.file_name()).collect();
         assert!(left.iter().all(|n| !n.to_string_lossy().contains(".tmp")), "{left:?}");
+    }
+
+    #[test]
+    fn a_legal_250_character_name_is_written_and_long_names_stage_apart() {
+        let dir = tempfile::tempdir().unwrap();
+        let long_a = format!("{}a.csv", "x".repeat(245));
+        let long_b = format!("{}b.csv", "x".repeat(245));
+        assert_eq!(long_a.len(), 250);
+        let (sa, sb) = (staging_name(&long_a, "tmp"), staging_name(&long_b, "tmp"));
+        assert!(sa.len() <= MAX_NAME_BYTES && sb.len() <= MAX_NAME_BYTES, "{} {}", sa.len(), sb.len());
+        assert_ne!(sa, sb, "two long names never share a staging name");
+        let (pa, pb) = (dir.path().join(&long_a), dir.path().join(&long_b));
+        write_all_atomic(&[(&pa, b"1"), (&pb, b"2")], &[]).unwrap();
+        assert_eq!(std::fs::read(&pa).unwrap(), b"1");
+        assert_eq!(std::fs::read(&pb).unwrap(), b"2");
+        // Multi-byte names are cut on a character boundary.
+        let wide = "\u{00e9}".repeat(125);
+        assert!(staging_name(&wide, "partial-").len() <= MAX_NAME_BYTES);
+        assert_eq!(staging_name("t.csv", "tmp"), format!(".t.csv.tmp{}", std::process::id()));
     }
 }

@@ -58,6 +58,37 @@ fn handeye_on_a_rendered_chessboard_recording() {
     let page = std::fs::read_to_string(&html).unwrap();
     assert!(page.contains("Chain residual per image") && page.contains("calibrateRobotWorldHandEye"));
     ferrocal_tests::assert_verdict_box(&html, &r);
+    // A camera file of another resolution (the same numbers, a 640 x 480 image size) is refused
+    // with both sizes named, by `handeye` and by `measure`.
+    let yaml = std::fs::read_to_string(dir.join("camera.yaml")).unwrap();
+    let width = yaml.lines().find_map(|l| l.strip_prefix("image_width: ")).unwrap().trim().to_string();
+    let height = yaml.lines().find_map(|l| l.strip_prefix("image_height: ")).unwrap().trim().to_string();
+    let other = tmp.path().join("other.yaml");
+    std::fs::write(
+        &other,
+        yaml.replace(&format!("image_width: {width}"), "image_width: 640")
+            .replace(&format!("image_height: {height}"), "image_height: 480"),
+    )
+    .unwrap();
+    for cmd in ["handeye", "measure"] {
+        let out = ferrocal()
+            .args([cmd, "--images"])
+            .arg(dir.join("images"))
+            .arg("--poses")
+            .arg(dir.join("poses.csv"))
+            .args(["--pattern", pattern, "--mount", "eye-to-hand", "--intrinsics"])
+            .arg(&other)
+            .arg("--json")
+            .arg(tmp.path().join(format!("{cmd}-other.json")))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{cmd}: {err}");
+        assert!(
+            err.contains("is for 640 x 480 px images") && err.contains(&format!("{width} x {height} px")),
+            "{cmd}: {err}"
+        );
+    }
 }
 
 /// The joint adjustment through the binary: `handeye simulate --robot ur5` renders the joint

@@ -480,3 +480,42 @@ fn a_typo_row_in_the_ur5_table_is_named_and_its_result_matches_the_clean_table()
         assert!((mm - clean_mm).abs() <= 0.05 * clean_mm, "case {case}: {mm} vs {clean_mm}");
     }
 }
+
+#[cfg(unix)]
+#[test]
+fn a_fifo_or_device_as_an_image_and_sizes_beyond_a_bound_are_named_before_any_work() {
+    let tmp = tempfile::tempdir().unwrap();
+    let fifo = tmp.path().join("camera.png");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let detect = |img: &Path| {
+        let out = ferrocal()
+            .args(["detect", "--pattern", "chessboard:9x6:25mm", "--images"])
+            .arg(img)
+            .arg("--json")
+            .arg(tmp.path().join("d.json"))
+            .output()
+            .unwrap();
+        assert_ne!(out.status.code(), Some(0));
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    // A FIFO is never opened (opening one would wait for a writer forever).
+    let err = detect(&fifo);
+    assert!(err.contains("camera.png") && err.contains("named pipe (FIFO), not an image file"), "{err}");
+    let err = detect(Path::new("/dev/zero"));
+    assert!(err.contains("/dev/zero") && err.contains("character device"), "{err}");
+    // A sample rate that would need 384 TB is refused by name, without a panic.
+    let err = fails_within(
+        ferrocal().args(["dynamics", "simulate", "--rate-hz", "1e12", "--out"]).arg(tmp.path().join("dyn")),
+        Duration::from_secs(30),
+    );
+    assert!(err.contains("--rate-hz 1000000000000") && err.contains("at most"), "{err}");
+    assert!(!err.contains("panicked") && !err.contains("memory allocation"), "{err}");
+    // 100,000 rendered images are refused before the first is written.
+    let he = tmp.path().join("he");
+    let err = fails_within(
+        ferrocal().args(["handeye", "simulate", "--mount", "eye-to-hand", "--train", "100000", "--out"]).arg(&he),
+        Duration::from_secs(30),
+    );
+    assert!(err.contains("at most 2000"), "{err}");
+    assert!(!he.exists(), "nothing written");
+}

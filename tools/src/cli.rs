@@ -160,3 +160,60 @@ pub enum RobotCommand {
         to: Option<String>,
     },
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::CommandFactory;
+    use std::collections::{BTreeMap, BTreeSet};
+
+    /// Every command (by its path, `camera calibrate`) that takes arguments of its own, with
+    /// the long names of those arguments.
+    fn commands_and_flags() -> BTreeMap<String, BTreeSet<String>> {
+        fn walk(c: &clap::Command, path: &str, out: &mut BTreeMap<String, BTreeSet<String>>) {
+            let flags: BTreeSet<String> = c
+                .get_arguments()
+                .filter_map(|a| a.get_long().map(str::to_string))
+                .filter(|l| l != "help" && l != "version")
+                .collect();
+            let subs: Vec<&clap::Command> = c.get_subcommands().filter(|s| s.get_name() != "help").collect();
+            if !path.is_empty() && (subs.is_empty() || !flags.is_empty()) {
+                out.insert(path.to_string(), flags);
+            }
+            for s in subs {
+                let p = if path.is_empty() { s.get_name().to_string() } else { format!("{path} {}", s.get_name()) };
+                walk(s, &p, out);
+            }
+        }
+        let mut out = BTreeMap::new();
+        walk(&Cli::command(), "", &mut out);
+        out
+    }
+
+    #[test]
+    fn the_shared_flag_table_names_exactly_the_commands_that_have_each_flag() {
+        let doc = include_str!("../../docs/cli.md");
+        let commands = commands_and_flags();
+        let root = Cli::command();
+        let mut rows = 0;
+        for line in doc.lines().filter(|l| l.starts_with("| `--")) {
+            let cells: Vec<&str> = line.trim_matches('|').split(" | ").map(str::trim).collect();
+            let flag = cells[0].trim_start_matches("`--").split([' ', '`']).next().unwrap();
+            let listed = cells[cells.len() - 1];
+            rows += 1;
+            if listed == "every command" {
+                let a = root.get_arguments().find(|a| a.get_long() == Some(flag));
+                assert!(a.is_some_and(|a| a.is_global_set()), "--{flag} is listed for every command but is not global");
+                continue;
+            }
+            let want: BTreeSet<String> = listed.split(", ").map(|c| c.trim_matches('`').to_string()).collect();
+            for c in &want {
+                assert!(commands.contains_key(c), "docs/cli.md lists `{c}` for --{flag}, but there is no such command");
+            }
+            let have: BTreeSet<String> =
+                commands.iter().filter(|(_, f)| f.contains(flag)).map(|(c, _)| c.clone()).collect();
+            assert_eq!(have, want, "--{flag}: the commands that have it (left) and docs/cli.md's list (right)");
+        }
+        assert!(rows >= 15, "the table has {rows} rows");
+    }
+}

@@ -101,6 +101,14 @@ fn initial_camera(
     match &options.intrinsics {
         IntrinsicsMode::Fixed(c) => {
             c.validate().map_err(|e| data_error(format!("the given camera: {e}")))?;
+            // A camera file of another camera or resolution would be fitted as if it were this
+            // one (120 px residuals that still "converge"): the image size must match.
+            if let Some(v) = views.iter().find(|v| v.image_size != c.image_size) {
+                return Err(data_error(format!(
+                    "the given camera (--intrinsics) is for {} x {} px images, but {} is {} x {} px: the file belongs to another camera or resolution; calibrate this camera (leave out --intrinsics) or give its own file",
+                    c.image_size.width_px, c.image_size.height_px, v.name, v.image_size.width_px, v.image_size.height_px
+                )));
+            }
             Ok((*c, None))
         }
         IntrinsicsMode::Calibrate(o) => {

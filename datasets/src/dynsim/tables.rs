@@ -43,6 +43,42 @@ pub struct TableSettings {
     pub crosstalk: f64,
 }
 
+/// The most samples one simulated excitation may hold (periods x 4 s x rate): 2 million, about
+/// 300 MB of tables; real rigs record 1-10 kHz for minutes, far below it.
+pub const MAX_EXCITATION_SAMPLES: f64 = 2.0e6;
+/// The most poses of one quasi-static table.
+pub const MAX_STATIC_POSES: usize = 100_000;
+
+impl TableSettings {
+    /// Refuses settings whose tables could not be held (a rate of 1e12 Hz) before anything is
+    /// allocated, naming the flag and the bound.
+    pub fn check(&self) -> Result<()> {
+        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
+            return Err(DatasetError::Input(format!("--rate-hz {}: must be a positive sample rate", self.rate_hz)));
+        }
+        let samples = self.periods.max(1) as f64 * 4.0 * self.rate_hz;
+        if samples > MAX_EXCITATION_SAMPLES {
+            return Err(DatasetError::Input(format!(
+                "--rate-hz {} with --periods {} asks for {samples:.3e} samples; at most {MAX_EXCITATION_SAMPLES:.0e} are simulated (lower the rate or the periods)",
+                self.rate_hz, self.periods
+            )));
+        }
+        if self.poses > MAX_STATIC_POSES {
+            return Err(DatasetError::Input(format!(
+                "--poses {}: at most {MAX_STATIC_POSES} quasi-static poses are simulated",
+                self.poses
+            )));
+        }
+        if !(self.payload_kg.is_finite() && self.payload_kg >= 0.0 && self.crosstalk.is_finite()) {
+            return Err(DatasetError::Input(format!(
+                "--payload-kg {} and --crosstalk {} must be finite, the payload not negative",
+                self.payload_kg, self.crosstalk
+            )));
+        }
+        Ok(())
+    }
+}
+
 /// The cross-talk pattern of `ferrocal dynamics simulate --crosstalk F`: sensor `i` reads `F` of
 /// the next sensor's load and `-F / 2` of the previous one's (cyclic: neighbouring struts of the
 /// framework share a mounting).
@@ -61,6 +97,7 @@ fn err(what: &'static str) -> impl Fn(String) -> DatasetError {
 
 /// The simulated files: `(file name, contents)` in writing order.
 pub fn simulated_tables(s: &TableSettings) -> Result<Vec<(&'static str, String)>> {
+    s.check()?;
     let setup =
         DynamicSetup { periods: s.periods.max(1), rate_hz: s.rate_hz, max_evaluations: 300, ..DynamicSetup::default() };
     let mut files = Vec::new();

@@ -173,8 +173,99 @@ pub fn parse_handeye_poses(text: &str, file: &Path) -> Result<PosesTable> {
     if rows.is_empty() {
         return Err(DatasetError::Invalid { location: Location::line(file, t.header_line), message: "no rows".into() });
     }
+    check_units(&t, &rows, &position, &joints)?;
     let source = text.lines().find_map(|l| l.strip_prefix("# source:").map(|s| s.trim().to_string()));
     Ok(PosesTable { file: file.to_path_buf(), rows, joint_units: joints.iter().map(|j| j.1).collect(), source })
+}
+
+/// Refuses values that cannot be in the unit their header names, naming the column and the
+/// likely unit: flange positions in metres under `_mm` (every coordinate within 10 mm: no
+/// hand-eye recording moves the flange so little), millimetres under `_m` (a flange 100 m or
+/// more from the base), joints in radians under `_deg` (every reading within 2 pi degrees while
+/// they vary) and degrees under `_rad` (a reading beyond 4 pi, two turns). Tables of fewer than
+/// [`crate::import::plausible::MIN_POSES_FOR_UNIT_CHECK`] rows are not judged.
+fn check_units(
+    t: &Table,
+    rows: &[PoseRow],
+    position: &Option<(LengthUnit, Vec<usize>, Vec<usize>)>,
+    joints: &[(usize, JointUnit)],
+) -> Result<()> {
+    if rows.len() < crate::import::plausible::MIN_POSES_FOR_UNIT_CHECK {
+        return Ok(());
+    }
+    let bad = |col: usize, message: String| Err(DatasetError::Invalid { location: t.header_loc(col), message });
+    if let Some((unit, cols, _)) = position {
+        let p: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| match &r.robot {
+                RobotReading::Flange(f) => Some(f.translation.vector),
+                RobotReading::Joints(_) => None,
+            })
+            .flat_map(|v| [v.x, v.y, v.z])
+            .collect();
+        let largest_m = p.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let varies = p.iter().any(|v| (v - p[0]).abs() > 1e-9);
+        if *unit == LengthUnit::Mm && largest_m <= 10e-3 && varies {
+            return bad(
+                cols[0],
+                format!(
+                    "every flange position lies within +-{:.3} mm of the base: the values look like metres; if so, name the columns x_m, y_m, z_m",
+                    largest_m * 1e3
+                ),
+            );
+        }
+        if *unit == LengthUnit::M && largest_m >= 100.0 {
+            return bad(
+                cols[0],
+                format!("a flange position lies {largest_m:.1} m from the base: the values look like millimetres; if so, name the columns x_mm, y_mm, z_mm"),
+            );
+        }
+    }
+    for (j, &(col, unit)) in joints.iter().enumerate() {
+        let q: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| match &r.robot {
+                RobotReading::Joints(q) => q.get(j).copied(),
+                RobotReading::Flange(_) => None,
+            })
+            .collect();
+        let largest = q.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        if unit == JointUnit::Rad && largest > 2.0 * std::f64::consts::TAU {
+            return bad(
+                col,
+                format!(
+                    "a reading of {largest:.1} rad ({:.1} turns): the values look like degrees; if so, name the column q{}_deg",
+                    largest / std::f64::consts::TAU,
+                    j + 1
+                ),
+            );
+        }
+    }
+    // Radians under `_deg`: judged over all joint columns together (a single joint may well
+    // stay within a few degrees).
+    let deg_cols: Vec<usize> =
+        joints.iter().enumerate().filter(|(_, j)| j.1 == JointUnit::Deg).map(|(k, _)| k).collect();
+    if !deg_cols.is_empty() {
+        let values: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| match &r.robot {
+                RobotReading::Joints(q) => Some(deg_cols.iter().filter_map(|&k| q.get(k).copied()).collect::<Vec<_>>()),
+                RobotReading::Flange(_) => None,
+            })
+            .flatten()
+            .collect();
+        let largest_deg = values.iter().fold(0.0f64, |a, v| a.max(v.abs().to_degrees()));
+        let spread = values.iter().fold(0.0f64, |a, v| a.max((v - values[0]).abs().to_degrees()));
+        if largest_deg <= std::f64::consts::TAU + 1e-3 && spread > 1e-3 {
+            return bad(
+                joints[deg_cols[0]].0,
+                format!(
+                    "every joint reading in degrees stays within +-{largest_deg:.2}: the values look like radians; if so, name the columns q<i>_rad"
+                ),
+            );
+        }
+    }
+    Ok(())
 }
 
 impl PosesTable {
@@ -284,5 +375,34 @@ mod tests {
             let e = parse(&text).unwrap_err().to_string();
             assert!(e.contains(at) && e.contains(what), "{text}: {e}");
         }
+    }
+
+    #[test]
+    fn values_in_another_unit_than_the_header_names_are_refused_with_the_likely_unit() {
+        let rows = |f: &dyn Fn(usize) -> String| (0..8).map(|k| format!("i{k}.png,{}\n", f(k))).collect::<String>();
+        // Flange positions in metres under `_mm`.
+        let head = "image,x_mm,y_mm,z_mm,qw,qx,qy,qz\n";
+        let metres = format!("{head}{}", rows(&|k| format!("0.{}1,-0.2,0.4{k},1,0,0,0", k % 3)));
+        let e = parse(&metres).unwrap_err().to_string();
+        assert!(e.contains("column 'x_mm'") && e.contains("look like metres") && e.contains("x_m, y_m, z_m"), "{e}");
+        // The same numbers in mm are a real recording (a flange 400 mm away).
+        let mm = format!("{head}{}", rows(&|k| format!("{}1,-200,40{k},1,0,0,0", k % 3)));
+        assert!(parse(&mm).is_ok());
+        // Millimetres under `_m`.
+        let m_head = "image,x_m,y_m,z_m,qw,qx,qy,qz\n";
+        let e = parse(&format!("{m_head}{}", rows(&|k| format!("{}1,-200,40{k},1,0,0,0", k % 3)))).unwrap_err();
+        assert!(e.to_string().contains("look like millimetres"), "{e}");
+        // Radians under `_deg`: every joint within 2 pi degrees while they move.
+        let q_head = "image,q1_deg,q2_deg,q3_deg\n";
+        let e = parse(&format!("{q_head}{}", rows(&|k| format!("0.{k},-1.2,2.{k}")))).unwrap_err().to_string();
+        assert!(e.contains("column 'q1_deg'") && e.contains("look like radians"), "{e}");
+        assert!(parse(&format!("{q_head}{}", rows(&|k| format!("{k}0,-72,12{k}")))).is_ok());
+        // Degrees under `_rad`: a reading of more than two turns.
+        let r_head = "image,q1_rad,q2_rad,q3_rad\n";
+        let e = parse(&format!("{r_head}{}", rows(&|k| format!("0.{k},-1.2,9{k}")))).unwrap_err().to_string();
+        assert!(e.contains("column 'q3_rad'") && e.contains("look like degrees") && e.contains("q3_deg"), "{e}");
+        // Too few rows to judge.
+        let few = "image,x_mm,y_mm,z_mm,qw,qx,qy,qz\na,0.1,0.2,0.3,1,0,0,0\nb,0.2,0.1,0.3,1,0,0,0\n";
+        assert!(parse(few).is_ok());
     }
 }

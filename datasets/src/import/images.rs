@@ -197,6 +197,11 @@ pub fn list_images(spec: impl AsRef<Path>, opts: &ImageFolderOptions) -> Result<
         }
     } else if spec.is_file() {
         candidates.push(spec.to_path_buf());
+    } else if let Some(kind) = special_file_kind(spec) {
+        return Err(DatasetError::Input(format!(
+            "{}: is a {kind}, not an image file: name the image files (or their folder) instead",
+            spec.display()
+        )));
     } else {
         return Err(DatasetError::Io {
             path: spec.to_path_buf(),
@@ -378,6 +383,30 @@ pub fn write_joints_table(path: impl AsRef<Path>, folder: &ImageFolder, joint_un
         out.push('\n');
     }
     std::fs::write(path, out).map_err(|source| DatasetError::Write { path: path.to_path_buf(), source })
+}
+
+/// What an existing path that is neither a regular file nor a folder is (a FIFO, a device, a
+/// socket), for an error that names it; `None` when nothing is there.
+fn special_file_kind(path: &Path) -> Option<&'static str> {
+    let meta = std::fs::metadata(path).ok()?;
+    let t = meta.file_type();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return Some("named pipe (FIFO)");
+        }
+        if t.is_char_device() {
+            return Some("character device");
+        }
+        if t.is_block_device() {
+            return Some("block device");
+        }
+        if t.is_socket() {
+            return Some("socket");
+        }
+    }
+    (!t.is_file() && !t.is_dir()).then_some("special file")
 }
 
 /// Expands files, directories and globs into image paths (natural order, duplicates removed),

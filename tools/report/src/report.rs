@@ -186,6 +186,10 @@ pub struct Report {
     /// When it is computed only after the report is written (the studies), the HTML keeps a slot
     /// that [`crate::verdict::add_verdict_to_html`] fills.
     pub verdict: Option<Verdict>,
+    /// How many sections, from the first, are shown whole; the others show their heading and
+    /// first paragraph, with their tables and figures folded (`<details>`) below. A section
+    /// whose check failed is always shown whole.
+    pub open_sections: usize,
 }
 
 /// Where the verdict box goes in a report written before its verdict was known.
@@ -227,7 +231,7 @@ fn esc(s: &str) -> String {
 impl Report {
     /// An empty report.
     pub fn new(title: &str, provenance: Provenance) -> Self {
-        Self { title: title.to_string(), provenance, sections: Vec::new(), verdict: None }
+        Self { title: title.to_string(), provenance, sections: Vec::new(), verdict: None, open_sections: 2 }
     }
 
     /// True when a section's check failed.
@@ -285,9 +289,20 @@ impl Report {
             let _ = write!(h, "<li><a href=\"#{}\">{}</a>{}</li>", esc(&s.id), esc(&s.title), s.badge());
         }
         h.push_str("</ul></nav>\n");
-        for s in &self.sections {
+        for (i, s) in self.sections.iter().enumerate() {
             let _ = writeln!(h, "<section id=\"{}\"><h2>{}{}</h2>", esc(&s.id), esc(&s.title), s.badge());
-            for b in &s.blocks {
+            let open = i < self.open_sections || s.failed();
+            // A folded section keeps its first paragraph in view.
+            let lead = usize::from(!open && matches!(s.blocks.first(), Some(Block::Text(_))));
+            for (k, b) in s.blocks.iter().enumerate() {
+                if !open && k == lead {
+                    let n = s.blocks.len() - lead;
+                    let _ = writeln!(
+                        h,
+                        "<details><summary>{n} more item{} (tables, figures, notes)</summary>",
+                        if n == 1 { "" } else { "s" }
+                    );
+                }
                 match b {
                     Block::Text(t) => {
                         let _ = writeln!(h, "<p>{}</p>", esc(t));
@@ -317,6 +332,9 @@ impl Report {
                         h.push_str("</table>\n");
                     }
                 }
+            }
+            if !open && s.blocks.len() > lead {
+                h.push_str("</details>\n");
             }
             h.push_str("</section>\n");
         }
@@ -470,7 +488,7 @@ impl StagedFolder {
     pub fn create(target: &Path) -> Result<Self> {
         let (dir, name) = folder_parts(target);
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create folder {}", dir.display()))?;
-        let staged = dir.join(format!(".{name}.partial-{}", std::process::id()));
+        let staged = dir.join(ferrocal_datasets::atomic::staging_name(&name, "partial-"));
         if staged.exists() {
             std::fs::remove_dir_all(&staged).with_context(|| format!("cannot remove {}", staged.display()))?;
         }
@@ -489,7 +507,7 @@ impl StagedFolder {
     pub fn commit(mut self) -> Result<PathBuf> {
         ferrocal_datasets::pause_before_commit();
         let (dir, name) = folder_parts(&self.target);
-        let old = dir.join(format!(".{name}.old-{}", std::process::id()));
+        let old = dir.join(ferrocal_datasets::atomic::staging_name(&name, "old-"));
         let had_target = std::fs::symlink_metadata(&self.target).is_ok();
         if had_target {
             std::fs::rename(&self.target, &old)
@@ -532,7 +550,9 @@ figure{margin:1em 0}figcaption{font-size:90%;color:#444}.attr{font-size:80%;colo
 .ok{color:#fff;background:#2a7;padding:1px 6px;border-radius:3px;font-size:70%}\
 .bad{color:#fff;background:#c33;padding:1px 6px;border-radius:3px;font-size:70%}\
 .note{color:#fff;background:#888;padding:1px 6px;border-radius:3px;font-size:70%}\
-pre{background:#f6f6f6;padding:6px;overflow-x:auto}nav ul{columns:2}\
+pre{background:#f6f6f6;padding:6px;overflow-x:auto;white-space:pre-wrap}nav ul{columns:2}\
+details>summary{cursor:pointer;color:#335;margin:.5em 0}table{max-width:100%;display:block;overflow-x:auto}\
+svg,img{max-width:100%;height:auto}\
 .verdict{border:2px solid #888;border-left-width:10px;border-radius:4px;padding:.4em 1em;margin:1em 0}\
 .verdict p{margin:.3em 0}.verdict table{margin:.5em 0}.verdict td.l{text-align:left}\
 .v-pass{border-color:#2a7;background:#f0faf4}.v-warning{border-color:#d90;background:#fff8e6}\
@@ -612,6 +632,30 @@ mod tests {
         assert!(!html.contains(VERDICT_SLOT));
         assert_eq!(r.to_json()["verdict"]["status"], "warning");
         assert_eq!(without.replacen(VERDICT_SLOT, &verdict_box(&v), 1), html, "filling the slot gives the same page");
+    }
+
+    #[test]
+    fn sections_after_the_first_fold_their_details_unless_they_failed() {
+        let mut r = Report::new("t", Provenance::new(Value::Null));
+        for (id, ok) in [("a", true), ("b", true), ("c", true), ("d", false)] {
+            let mut s = Section::new(id, id);
+            s.text(format!("lead of {id}")).table("numbers", &["x"], vec![vec!["1".into()]]).status(ok, "x");
+            r.sections.push(s);
+        }
+        let html = r.to_html();
+        let body = |id: &str| {
+            let from = html.find(&format!("<section id=\"{id}\"")).unwrap();
+            let to = from + html[from..].find("</section>").unwrap();
+            html[from..to].to_string()
+        };
+        assert!(!body("a").contains("<details>") && !body("b").contains("<details>"), "the first two are whole");
+        let c = body("c");
+        let (lead, fold) = (c.find("lead of c").unwrap(), c.find("<details>").unwrap());
+        assert!(lead < fold && c.find("<table>").unwrap() > fold, "{c}");
+        assert!(c.contains("1 more item (tables"), "{c}");
+        assert!(!body("d").contains("<details>"), "a failed section is shown whole");
+        r.open_sections = usize::MAX;
+        assert!(!r.to_html().contains("<details>"));
     }
 
     #[test]

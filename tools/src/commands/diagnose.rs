@@ -11,7 +11,7 @@ use ferrocal_report::diagnose::{camera_section, force_section, sections};
 use serde_json::json;
 
 use ferrocal_report::verdict::{add_verdict, VerdictSettings};
-use ferrocal_report::{write_atomic, Provenance, Report};
+use ferrocal_report::{Provenance, Report};
 
 /// `ferrocal diagnose`.
 #[derive(Debug, Args)]

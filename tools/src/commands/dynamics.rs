@@ -218,10 +218,13 @@ fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
         seed: a.seed,
         crosstalk: a.crosstalk,
     };
+    // Composed first (bounds checked before any allocation), then written together.
+    let tables = simulated_tables(&settings)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-    for (name, text) in simulated_tables(&settings)? {
-        write_atomic(&a.out.join(name), text.as_bytes())?;
-    }
+    let paths: Vec<PathBuf> = tables.iter().map(|(name, _)| a.out.join(name)).collect();
+    ferrocal_report::write_all_atomic(
+        &paths.iter().zip(&tables).map(|(p, (_, t))| (p.as_path(), t.as_bytes())).collect::<Vec<_>>(),
+    )?;
     println!("wrote {}", a.out.display());
     Ok(ExitCode::SUCCESS)
 }

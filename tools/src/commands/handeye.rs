@@ -81,9 +81,14 @@ pub struct HandeyeArgs {
     /// data (for controllers whose poses scatter from pose to pose).
     #[arg(long)]
     pub robot_poses_as_measurements: bool,
-    /// Huber threshold in robust standard deviations (0: plain least squares).
-    #[arg(long, default_value_t = 3.0)]
+    /// Huber threshold in robust standard deviations (0: plain least squares); the same as
+    /// `--loss huber:<sigmas>`.
+    #[arg(long, default_value_t = 3.0, conflicts_with = "loss")]
     pub huber: f64,
+    /// Robust loss of the second solve, as in `calibrate` and `camera calibrate`: `none` or
+    /// `huber:<sigmas>` (robust standard deviations of the first solve); default `huber:3`.
+    #[arg(long)]
+    pub loss: Option<String>,
     /// With --robot and joint readings: adjust the robot's kinematic parameters together with
     /// the camera, W and X (the joint adjustment) and write the calibrated robot here, in the
     /// format `evaluate` reads (device frame: W^-1, the camera's frame for eye-to-hand; tool: X).
@@ -188,7 +193,14 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         // robot, whose length errors a free scale would take up, and the adjustment holds the
         // scale of its start.
         fit_target_scale: a.target_scale || (!a.nominal_target_scale && a.out.is_none()),
-        huber_sigmas: a.huber,
+        huber_sigmas: match a.loss.as_deref() {
+            None => a.huber,
+            Some(l) => match ferrocal_datasets::calibration::parse_loss(l)? {
+                ferrocal_lsq::Loss::Squared => 0.0,
+                ferrocal_lsq::Loss::Huber { delta } => delta,
+                _ => anyhow::bail!("--loss {l}: the hand-eye fit takes none or huber:<sigmas>"),
+            },
+        },
         robot_poses_as_measurements: a.robot_poses_as_measurements,
         robot_sigma_mm_deg: a.robot_sigma_mm.zip(a.robot_sigma_deg),
         exact_robot_poses: a.exact_robot_poses,
@@ -255,13 +267,34 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     Ok(vs.conclude(&verdict))
 }
 
+/// The most images one `handeye simulate` renders (about 1 MB each).
+const MAX_SIMULATED_IMAGES: usize = 2000;
+
 fn run_simulate(s: &SimulateArgs) -> Result<ExitCode> {
+    if s.train + s.test > MAX_SIMULATED_IMAGES {
+        bail!(
+            "handeye simulate: --train {} and --test {} ask for {} images; at most {MAX_SIMULATED_IMAGES} are rendered",
+            s.train,
+            s.test,
+            s.train + s.test
+        );
+    }
+    // Written aside and moved into place: a run that is stopped leaves no folder of images
+    // without its poses.csv.
+    ferrocal_report::StagedFolder::check(&s.out, false)?;
+    let staged = ferrocal_report::StagedFolder::create(&s.out)?;
+    let code = simulate_into(s, staged.path())?;
+    staged.commit()?;
+    Ok(code)
+}
+
+fn simulate_into(s: &SimulateArgs, dir: &std::path::Path) -> Result<ExitCode> {
     if let Some(robot) = &s.robot {
         if robot != "ur5" || s.mount != MountArg::EyeToHand {
             bail!("handeye simulate --robot: only the ur5 cell, eye-to-hand, is simulated (got {robot})");
         }
         let config = ferrocal_datasets::handeye::joint_record::rendered_ur5_cell(s.train, s.test);
-        let r = ferrocal_datasets::handeye::joint_record::write_joint_recording(&config, &s.out, s.seed)?;
+        let r = ferrocal_datasets::handeye::joint_record::write_joint_recording(&config, dir, s.seed)?;
         eprintln!(
             "{} + {} images written to {} (pattern {}); nominal {} held out: mean {:.4} mm after the frame refit",
             r.n_train,
@@ -276,7 +309,7 @@ fn run_simulate(s: &SimulateArgs) -> Result<ExitCode> {
     let mut config = ferrocal_datasets::handeye::HandEyeSimConfig::default_for(mount_of(s.mount));
     config.n_train = s.train;
     config.n_test = s.test;
-    let r = ferrocal_datasets::handeye::write_rendered_recording(&config, &s.out, s.seed)?;
+    let r = ferrocal_datasets::handeye::write_rendered_recording(&config, dir, s.seed)?;
     eprintln!("{} images written to {} (pattern {})", r.n_images, s.out.display(), r.pattern);
     Ok(ExitCode::SUCCESS)
 }
