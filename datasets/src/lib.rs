@@ -3,6 +3,8 @@
 //! Entry points:
 //! - [`import`]: the measurement CSV of `shared/spec/measurements.md`, the UR5 and UR10
 //!   laser-tracker recordings, image folders; export to the measurement CSV.
+//! - [`camera`]: the `camera calibrate` and `camera stereo` workflows (views, held-out split,
+//!   calibration, held-out scoring, the rectified row check).
 //! - [`handeye`]: hand-eye recordings (poses table, industrial_calibration importer, images
 //!   to a recording, simulation and the Monte Carlo study of the covariance).
 //! - [`measure`]: from a session's images to metric target poses (camera rig calibrated from the
@@ -28,6 +30,7 @@
 
 pub mod atomic;
 pub mod calibration;
+pub mod camera;
 pub mod checks;
 pub mod correct;
 pub mod dynsim;
