@@ -2,12 +2,14 @@
 //! ([`CameraViews::detect`], [`StereoViews::detect`]), the views split into training and
 //! held-out ones, the calibration ([`CameraViews::calibrate`], [`StereoViews::calibrate`]), the
 //! held-out scoring ([`CameraRun::held_out`]) and the rectified row check of a pair
-//! ([`StereoRun::rectified`]). The binary turns its arguments into the options and prints; the
+//! ([`StereoRun::rectified`]); and the views of a camera's diagnosis ([`target_point_views`]).
+//! The binary turns its arguments into the options and prints; the
 //! report crate turns the results into JSON, camera files and HTML (`ferrocal_report::camera`).
 //!
 //! A bad image never stops the batch: it is listed in `skipped` with the reason. Too few usable
 //! views is an error that says how many were usable and why the others were not.
 
+use std::collections::HashMap;
 use std::path::PathBuf;
 
 use ferrocal_vision::calib::corners::{detect_pattern_views, CornerMethod, PatternViews, SkippedImage};
@@ -17,6 +19,9 @@ use ferrocal_vision::calib::{
     PatternCalibration, PlanarTarget, RectifiedCorner, StereoCalibration, View, MIN_VIEWS,
 };
 use ferrocal_vision::camera::io::StereoPair;
+use ferrocal_vision::camera::ImageSize;
+use ferrocal_vision::detect::{load_gray, DetectOptions, Detector, Pattern};
+use nalgebra::Point3;
 
 use crate::error::{DatasetError, Result};
 
@@ -220,3 +225,73 @@ impl StereoRun {
     }
 }
 
+/// The views of the pattern `pattern` (a pattern string, e.g. `chessboard:9x6:25mm`) in the
+/// images of `specs` (files, globs or folders), for a camera's diagnosis: the target's points
+/// numbered by their position on the target (a 1 um grid), one view per image that shows the
+/// pattern anchored with at least 4 corners. An image left out is named through `warn` with the
+/// reason, and the batch goes on; `tick(done, total)` follows the detection. Images of
+/// different sizes are refused (one camera, one image size).
+pub fn target_point_views(
+    specs: &[String],
+    pattern: &str,
+    warn: &dyn Fn(&str),
+    tick: &dyn Fn(usize, usize),
+) -> Result<(Vec<View>, PlanarTarget)> {
+    let pattern: Pattern = pattern.parse()?;
+    let mut detector = Detector::new(pattern, DetectOptions::default(), None)?;
+    let mut files = Vec::new();
+    for spec in specs {
+        let folder = crate::import::list_images(spec, &Default::default())?;
+        for s in &folder.skipped {
+            warn(&format!("skipped {}: {}", s.path.display(), s.reason));
+        }
+        files.extend(folder.images.into_iter().map(|e| e.path));
+    }
+    let mut points: Vec<Point3<f64>> = Vec::new();
+    let mut key_of = HashMap::new();
+    let mut views = Vec::new();
+    for (i, f) in files.iter().enumerate() {
+        tick(i, files.len());
+        let found = load_gray(f).and_then(|img| {
+            let size = ImageSize { width_px: img.width(), height_px: img.height() };
+            detector.detect(&img).map(|d| (d, size))
+        });
+        let (dets, size) = match found {
+            Ok(x) => x,
+            Err(e) => {
+                warn(&format!("{}: {e}", f.display()));
+                continue;
+            }
+        };
+        let mut ids = Vec::new();
+        let mut px = Vec::new();
+        for c in dets.iter().filter(|d| d.anchored).flat_map(|d| &d.corners) {
+            let Some(t) = c.target_m else { continue };
+            let key = ((t.x * 1e6).round() as i64, (t.y * 1e6).round() as i64, (t.z * 1e6).round() as i64);
+            let id = *key_of.entry(key).or_insert_with(|| {
+                points.push(t);
+                points.len() - 1
+            });
+            ids.push(id);
+            px.push(c.position_px);
+        }
+        if px.len() < 4 {
+            warn(&format!("{}: the pattern was not found whole (or has no size in the pattern string)", f.display()));
+            continue;
+        }
+        let mut v = View::new(f.display().to_string(), size, px);
+        v.point_ids = ids;
+        views.push(v);
+    }
+    tick(files.len(), files.len());
+    if let Some(first) = views.first() {
+        let size = first.image_size;
+        if let Some(bad) = views.iter().find(|v| v.image_size != size) {
+            return Err(DatasetError::Input(format!(
+                "{} is {}x{} px but {} is {}x{}: one camera, one image size",
+                bad.name, bad.image_size.width_px, bad.image_size.height_px, first.name, size.width_px, size.height_px
+            )));
+        }
+    }
+    Ok((views, PlanarTarget { points_m: points, reversible: false }))
+}
