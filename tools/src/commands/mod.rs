@@ -16,7 +16,6 @@ pub mod recording;
 mod robot;
 pub mod simulate;
 pub mod stiffness;
-mod verdicts;
 
 use std::process::ExitCode;
 
