@@ -7,6 +7,8 @@
 //!   calibration, held-out scoring, the rectified row check).
 //! - [`handeye`]: hand-eye recordings (poses table, industrial_calibration importer, images
 //!   to a recording, simulation and the Monte Carlo study of the covariance).
+//! - [`kinematics`]: the `robot` command's joint values in user units, poses from text, forward
+//!   kinematics within the limits.
 //! - [`measure`]: from a session's images to metric target poses (camera rig calibrated from the
 //!   plate views, one pose with covariance per robot pose).
 //! - [`render`]: the physically modelled camera renderer of the synthetic cell.
@@ -38,6 +40,7 @@ pub mod error;
 pub mod formats;
 pub mod handeye;
 pub mod import;
+pub mod kinematics;
 pub mod measure;
 pub mod motion;
 pub mod recording;

@@ -12,6 +12,7 @@
 //! - [`dynamics`]: force-sensor models and hexapod dynamics (`ferrocal dynamics study`);
 //! - [`stiffness`]: elastostatic identification (`ferrocal stiffness study` and `identify`);
 //! - [`demo`]: the sections of `ferrocal demo`;
+//! - [`robot`]: `ferrocal robot info` and a tool pose, as terminal lines and JSON;
 //! - [`outputs`]: a command's output files, composed first and written together;
 //! - [`verdict`]: how every command ends (the verdict line, its JSON, the exit status).
 #![deny(missing_docs)]
@@ -33,6 +34,7 @@ pub mod plan;
 pub mod plot;
 pub mod recording;
 pub mod report;
+pub mod robot;
 pub mod stiffness;
 pub mod verdict;
 
