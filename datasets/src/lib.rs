@@ -5,6 +5,7 @@
 //!   laser-tracker recordings, image folders; export to the measurement CSV.
 //! - [`camera`]: the `camera calibrate` and `camera stereo` workflows (views, held-out split,
 //!   calibration, held-out scoring, the rectified row check).
+//! - [`detect`]: the `detect` workflow (a pattern found in a batch of images).
 //! - [`handeye`]: hand-eye recordings (poses table, industrial_calibration importer, images
 //!   to a recording, simulation and the Monte Carlo study of the covariance).
 //! - [`kinematics`]: the `robot` command's joint values in user units, poses from text, forward
@@ -35,6 +36,7 @@ pub mod calibration;
 pub mod camera;
 pub mod checks;
 pub mod correct;
+pub mod detect;
 pub mod dynsim;
 pub mod error;
 pub mod formats;
