@@ -2,7 +2,7 @@
 //! ([`CameraViews::detect`], [`StereoViews::detect`]), the views split into training and
 //! held-out ones, the calibration ([`CameraViews::calibrate`], [`StereoViews::calibrate`]), the
 //! held-out scoring ([`CameraRun::held_out`]) and the rectified row check of a pair
-//! ([`StereoRun::rectified`]); and the views of a camera's diagnosis ([`target_point_views`]).
+//! ([`StereoRun::rectify`]); and the views of a camera's diagnosis ([`target_point_views`]).
 //! The binary turns its arguments into the options and prints; the
 //! report crate turns the results into JSON, camera files and HTML (`ferrocal_report::camera`).
 //!
@@ -33,6 +33,17 @@ pub fn too_few_views(what: &str, usable: usize, total: usize, skipped: &[Skipped
         "{what}: {usable} usable view(s) of {total} image(s), at least {MIN_VIEWS} needed{}",
         if reasons.is_empty() { String::new() } else { format!("; skipped: {}", reasons.join("; ")) }
     ))
+}
+
+/// Refuses a stereo pair given `left` and `right` images of different counts (the pairs are
+/// formed by sorted order).
+pub fn check_pairs(left: usize, right: usize) -> Result<()> {
+    if left != right {
+        return Err(DatasetError::Input(format!(
+            "camera stereo: {left} left and {right} right images; the pairs are formed by sorted order, so give as many of each"
+        )));
+    }
+    Ok(())
 }
 
 /// The pattern found in one camera's images.
@@ -209,14 +220,36 @@ pub struct StereoRun {
     pub calibration: StereoCalibration,
 }
 
+/// A pair's rectification with the corners seen in both images of a pair, rectified, and the
+/// RMS of their row difference.
+#[derive(Clone, Debug)]
+pub struct Rectified {
+    /// The pair as the stereo files hold it, with its rectification.
+    pub pair: StereoPair,
+    /// Every corner seen in both images of a pair, rectified in both.
+    pub corners: Vec<RectifiedCorner>,
+    /// RMS of the rectified row difference (column difference for vertical stereo), pixels.
+    pub row_rms_px: f64,
+}
+
 impl StereoRun {
-    /// Every corner seen in both images of a pair, rectified by `pair`'s rectification, and the
-    /// RMS of their row difference, pixels.
-    pub fn rectified(&self, pair: &StereoPair) -> (Vec<RectifiedCorner>, f64) {
+    /// The pair rectified, with the rectified row check. A pair that cannot be rectified (a wide
+    /// fisheye whose image corners lie beyond 90 degrees) is an error only when the outputs need
+    /// the rectification (`needed`); else the inner result is the reason.
+    pub fn rectify(&self, needed: bool) -> Result<std::result::Result<Rectified, String>> {
+        let pair = match self.calibration.pair() {
+            Ok(p) => p,
+            Err(e) if !needed => return Ok(Err(e.to_string())),
+            Err(e) => {
+                return Err(DatasetError::Input(format!(
+                    "camera stereo: the pair cannot be rectified ({e}); the ROS and OpenCV stereo files and the report need it"
+                )))
+            }
+        };
         let rect = &pair.rectification;
         let corners = self.calibration.rectified_corners(rect, &self.views.left, &self.views.right, &self.target);
-        let rms = rectified_row_rms_px(&corners, rect.vertical());
-        (corners, rms)
+        let row_rms_px = rectified_row_rms_px(&corners, rect.vertical());
+        Ok(Ok(Rectified { pair, corners, row_rms_px }))
     }
 
     /// The left images, then the right ones.

@@ -5,11 +5,11 @@
 use std::path::Path;
 
 use ferrocal_calib::verdict::Verdict;
-use ferrocal_datasets::camera::{CameraRun, StereoRun};
+use ferrocal_datasets::camera::{CameraRun, Rectified, StereoRun};
 use ferrocal_vision::calib::corners::SkippedImage;
 use ferrocal_vision::calib::heldout::HeldOut;
-use ferrocal_vision::calib::{CameraCalibration, RectifiedCorner, StereoCalibration};
-use ferrocal_vision::camera::io::{self, StereoPair};
+use ferrocal_vision::calib::{CameraCalibration, StereoCalibration};
+use ferrocal_vision::camera::io;
 use ferrocal_vision::camera::DistortionKind;
 use ferrocal_vision::detect::Pattern;
 use serde_json::{json, Value};
@@ -150,7 +150,7 @@ pub fn print_camera(label: &str, cal: &CameraCalibration) {
 
 /// The rectification in the stereo JSON: OpenCV's matrices row by row (T, P2 and Q in
 /// metres), the common focal length, the baseline and the rectified row check.
-pub fn rectification_json(pair: &ferrocal_vision::camera::io::StereoPair, row_rms_px: f64, n_corners: usize) -> Value {
+pub fn rectification_json(pair: &io::StereoPair, row_rms_px: f64, n_corners: usize) -> Value {
     let rc = &pair.rectification;
     let rows = |m: &dyn Fn(usize, usize) -> f64, r: usize, c: usize| -> Vec<Vec<f64>> {
         (0..r).map(|i| (0..c).map(|j| m(i, j)).collect()).collect()
@@ -183,6 +183,13 @@ pub struct CameraFiles<'a> {
     pub report: Option<&'a Path>,
     /// The camera's name in the ROS file.
     pub camera_name: &'a str,
+}
+
+impl CameraFiles<'_> {
+    /// Every output asked for, in the order of the arguments.
+    pub fn all(&self) -> Vec<&Path> {
+        [self.json, self.opencv_yaml, self.ros_yaml, self.report].into_iter().flatten().collect()
+    }
 }
 
 /// The files of `ferrocal camera calibrate`, composed (not written): the JSON with the verdict,
@@ -273,16 +280,12 @@ impl StereoFiles<'_> {
     }
 }
 
-/// A pair's rectification with the corners seen in both images, rectified, and the RMS of
-/// their row difference, pixels.
-pub type Rectified<'a> = (&'a StereoPair, &'a [RectifiedCorner], f64);
-
 /// The files of `ferrocal camera stereo`, composed (not written): the JSON with the verdict and
 /// the rectification, both cameras' OpenCV files and, when the pair could be rectified, the ROS
 /// files, the OpenCV stereo file and the HTML report opening with the verdict.
 pub fn stereo_outputs(
     run: &StereoRun,
-    rectified: Option<Rectified>,
+    rectified: Option<&Rectified>,
     verdict: &Verdict,
     files: &StereoFiles,
 ) -> Result<Outputs> {
@@ -292,7 +295,7 @@ pub fn stereo_outputs(
         let mut v = stereo_json(st, run.n_pairs, &pattern, run.options.fix_aspect, &run.views.skipped);
         add_verdict(&mut v, verdict);
         v["rectification"] =
-            rectified.map_or(Value::Null, |(pair, corners, rms)| rectification_json(pair, rms, corners.len()));
+            rectified.map_or(Value::Null, |r| rectification_json(&r.pair, r.row_rms_px, r.corners.len()));
         out.json(p, &v)?;
     }
     for (cal, path) in [(st.left(), files.left_opencv_yaml), (st.right(), files.right_opencv_yaml)] {
@@ -300,7 +303,7 @@ pub fn stereo_outputs(
             out.text(p, io::to_opencv_yaml(&cal.camera)?);
         }
     }
-    let Some((pair, corners, _)) = rectified else {
+    let Some(Rectified { pair, corners, .. }) = rectified else {
         return Ok(out);
     };
     if files.left_ros_yaml.is_some() || files.right_ros_yaml.is_some() {
@@ -343,11 +346,28 @@ pub fn stereo_line(st: &StereoCalibration, n_pairs: usize) -> String {
 
 /// The terminal line of the rectification check: the common focal length, the baseline and the
 /// row difference RMS over the corner pairs.
-pub fn rectified_line(pair: &StereoPair, row_rms_px: f64, n_corners: usize) -> String {
-    let rect = &pair.rectification;
+pub fn rectified_line(r: &Rectified) -> String {
+    let rect = &r.pair.rectification;
     format!(
-        "rectified: f' {:.3} px, baseline {:.3} mm, row difference RMS {row_rms_px:.4} px over {n_corners} corner pairs",
+        "rectified: f' {:.3} px, baseline {:.3} mm, row difference RMS {:.4} px over {} corner pairs",
         rect.focal_px(),
-        rect.baseline() * 1e3
+        rect.baseline() * 1e3,
+        r.row_rms_px,
+        r.corners.len()
     )
+}
+
+/// The verdict of `ferrocal camera calibrate` ([`ferrocal_calib::verdict::commands::camera`]):
+/// the fit's RMS, the views it used and the held-out RMS when views were held out.
+pub fn camera_verdict(t: &ferrocal_calib::verdict::Thresholds, run: &CameraRun, held_out: Option<&HeldOut>) -> Verdict {
+    let heldout_rms = held_out.and_then(|h| h.rms_px);
+    ferrocal_calib::verdict::commands::camera(&t.camera, run.fit.calibration.rms_px, run.n_used(), heldout_rms)
+}
+
+/// The terminal line of the held-out scoring of `n_views` views.
+pub fn held_out_line(h: &HeldOut, n_views: usize) -> String {
+    match h.rms_px {
+        Some(r) => format!("held out: RMS {r:.4} px over {n_views} views"),
+        None => format!("held out: no view usable ({n_views} held out)"),
+    }
 }

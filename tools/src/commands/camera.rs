@@ -8,12 +8,15 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_calib::verdict::commands as verdict;
-use ferrocal_datasets::camera::{CameraViews, StereoViews};
+use ferrocal_datasets::camera::{check_pairs, CameraViews, StereoViews};
 use ferrocal_datasets::import::images::expand_image_specs;
-use ferrocal_report::camera::{camera_outputs, rectified_line, stereo_line, stereo_outputs, CameraFiles, StereoFiles};
+use ferrocal_report::camera::{
+    camera_outputs, camera_verdict, held_out_line, rectified_line, stereo_line, stereo_outputs, CameraFiles,
+    StereoFiles,
+};
 use ferrocal_report::report::check_outputs;
 use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_vision::calib::corners::{CornerMethod, SkippedImage, SubpixWindow};
@@ -35,10 +38,8 @@ pub enum CameraCommand {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ModelArg {
     /// OpenCV's 5 coefficients k1 k2 p1 p2 k3.
-    #[value(name = "brown5")]
     Brown5,
     /// OpenCV's rational model, 8 coefficients.
-    #[value(name = "rational8")]
     Rational8,
     /// Kannala-Brandt (OpenCV fisheye), 4 coefficients.
     #[value(name = "kannala_brandt", alias = "kannala-brandt")]
@@ -96,16 +97,12 @@ pub struct SolveArgs {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum CovarianceArg {
     /// Corners independent.
-    #[value(name = "independent")]
     Independent,
     /// Leave-one-view-out jackknife.
-    #[value(name = "jackknife")]
     Jackknife,
     /// View-clustered sandwich.
-    #[value(name = "sandwich")]
     Sandwich,
     /// The jackknife with enough views, else independent.
-    #[value(name = "auto")]
     Auto,
 }
 
@@ -124,7 +121,6 @@ impl CovarianceArg {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum CornersArg {
     /// The project's detector and edge-model refinement.
-    #[value(name = "own")]
     Own,
     /// OpenCV's findChessboardCorners + cornerSubPix.
     #[value(name = "opencv")]
@@ -138,7 +134,6 @@ pub enum WindowArg {
     #[value(name = "opencv")]
     OpenCv,
     /// Shrunk to the squares.
-    #[value(name = "adaptive")]
     Adaptive,
 }
 
@@ -273,9 +268,7 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         report: a.report.as_deref(),
         camera_name: &a.camera_name,
     };
-    let outputs: Vec<&Path> =
-        [files.json, files.opencv_yaml, files.ros_yaml, files.report].into_iter().flatten().collect();
-    check_outputs(&outputs, &paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    check_outputs(&files.all(), &paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     let found = CameraViews::detect(paths, skipped, &pattern, a.solve.corner_method());
     report_skipped(&found.skipped);
     let run = found.calibrate(&pattern, &options, a.test_every)?;
@@ -283,26 +276,17 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     if let Some(b) = &run.fit.circle_bias {
         println!("{b}");
     }
-    let held_out = match a.test_every {
-        Some(_) => {
-            let h = run.held_out()?;
-            match h.rms_px {
-                Some(r) => println!("held out: RMS {r:.4} px over {} views", run.test_views.len()),
-                None => println!("held out: no view usable ({} held out)", run.test_views.len()),
-            }
-            for v in h.views.iter().filter(|v| v.error.is_some()) {
-                eprintln!("ferrocal: held-out view {}: {}", v.name, v.error.as_deref().unwrap_or(""));
-            }
-            Some(h)
+    let held_out = a.test_every.map(|_| run.held_out()).transpose()?;
+    if let Some(h) = &held_out {
+        println!("{}", held_out_line(h, run.test_views.len()));
+        for v in h.views.iter().filter(|v| v.error.is_some()) {
+            eprintln!("ferrocal: held-out view {}: {}", v.name, v.error.as_deref().unwrap_or(""));
         }
-        None => None,
-    };
+    }
     if a.compare_opencv {
         println!("{}", compare_with_opencv(&run.paths, &pattern, &options)?);
     }
-    let rms = run.fit.calibration.rms_px;
-    let heldout_rms = held_out.as_ref().and_then(|h| h.rms_px);
-    let verdict = verdict::camera(&vs.thresholds.camera, rms, run.n_used(), heldout_rms);
+    let verdict = camera_verdict(&vs.thresholds, &run, held_out.as_ref());
     camera_outputs(&run, held_out.as_ref(), a.test_every, &verdict, &files)?.write()?;
     Ok(vs.conclude(&verdict))
 }
@@ -314,12 +298,8 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let right_paths = expand_image_specs(&a.right, &mut skipped);
     if left_paths.len() != right_paths.len() {
         report_skipped(&skipped);
-        bail!(
-            "camera stereo: {} left and {} right images; the pairs are formed by sorted order, so give as many of each",
-            left_paths.len(),
-            right_paths.len()
-        );
     }
+    check_pairs(left_paths.len(), right_paths.len())?;
     let files = StereoFiles {
         json: a.json.as_deref(),
         left_opencv_yaml: a.left_opencv_yaml.as_deref(),
@@ -340,23 +320,18 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     println!("{}", stereo_line(st, run.n_pairs));
     // The rectification; a pair that cannot be rectified (a wide fisheye whose image corners
     // lie beyond 90 degrees) is an error only for the outputs that need it.
-    let pair = match st.pair() {
-        Ok(p) => Some(p),
-        Err(e) if !files.need_rectification() => {
-            eprintln!("ferrocal: warning: the pair cannot be rectified: {e}");
+    let rectified = match run.rectify(files.need_rectification())? {
+        Ok(r) => {
+            println!("{}", rectified_line(&r));
+            Some(r)
+        }
+        Err(why) => {
+            eprintln!("ferrocal: warning: the pair cannot be rectified: {why}");
             None
         }
-        Err(e) => bail!(
-            "camera stereo: the pair cannot be rectified ({e}); the ROS and OpenCV stereo files and the report need it"
-        ),
     };
-    let rectified = pair.as_ref().map(|p| run.rectified(p));
-    if let (Some(pair), Some((corners, rms))) = (&pair, &rectified) {
-        println!("{}", rectified_line(pair, *rms, corners.len()));
-    }
-    let row_rms = rectified.as_ref().map(|(_, rms)| *rms);
+    let row_rms = rectified.as_ref().map(|r| r.row_rms_px);
     let verdict = verdict::stereo(&vs.thresholds, st.calibration.rms_px, run.n_pairs, row_rms);
-    let rect = pair.as_ref().zip(rectified.as_ref()).map(|(p, (c, rms))| (p, c.as_slice(), *rms));
-    stereo_outputs(&run, rect, &verdict, &files)?.write()?;
+    stereo_outputs(&run, rectified.as_ref(), &verdict, &files)?.write()?;
     Ok(vs.conclude(&verdict))
 }
