@@ -132,11 +132,13 @@ pub fn nominal_stats(model: &RobotModel, train: &[&PoseMeasurement], test: &[&Po
     Ok(cal.calibrated.evaluate(test)?)
 }
 
-/// Loads a model and a measurement table and checks that they agree; with the table's warnings.
+/// Loads a model and a measurement table and checks that they agree; the table's warnings go to
+/// `warn` once they do.
 pub fn load_model_and_rows(
     robot: &str,
     measurements: &Path,
-) -> Result<(RobotModel, Vec<PoseMeasurement>, Vec<String>)> {
+    warn: &dyn Fn(&str),
+) -> Result<(RobotModel, Vec<PoseMeasurement>)> {
     let model = RobotModel::load(robot)
         .map_err(|e| DatasetError::from(e).context(format!("cannot load robot model '{robot}'")))?;
     let table = crate::import::read_measurements(measurements)?;
@@ -153,7 +155,8 @@ pub fn load_model_and_rows(
         e.context(format!("{}: joint units do not match the joint kinds of '{}'", measurements.display(), model.name()))
     })?;
     table.check_joint_values(&model.joint_limits(), model.name())?;
-    Ok((model, table.set.rows, table.warnings))
+    table.warnings.iter().for_each(|w| warn(w));
+    Ok((model, table.set.rows))
 }
 
 /// Fewest distinct joint configurations a calibration or diagnosis accepts (a rigid registration
@@ -172,6 +175,67 @@ pub fn check_distinct_poses(rows: &[PoseMeasurement], measurements: &Path) -> Re
         )));
     }
     Ok(distinct)
+}
+
+/// The flags of `ferrocal calibrate` that choose the method, as given on the command line.
+#[derive(Clone, Copy, Debug)]
+pub struct CalibrateFlags<'a> {
+    /// `--params`: `default`, `all`, `none` or comma-separated name prefixes ([`parse_params`]).
+    pub params: &'a str,
+    /// `--loss`: `none`, `huber:<sigmas>` or `cauchy:<sigmas>` ([`parse_loss`]).
+    pub loss: &'a str,
+    /// Position standard deviation for rows without a sigma column, mm.
+    pub sigma_mm: f64,
+    /// Orientation standard deviation for rows with orientations, degrees.
+    pub sigma_deg: f64,
+    /// Ignore measured orientations.
+    pub positions_only: bool,
+    /// Drop parameters whose parameter-to-noise ratio is below this.
+    pub practical_threshold: Option<f64>,
+    /// `--effects`: a `diagnose --json` report, a calibration file or a list of effects.
+    pub effects: Option<&'a str>,
+    /// `--cost`: `fk` or `closure`.
+    pub cost: &'a str,
+    /// Largest number of solver iterations.
+    pub max_iterations: usize,
+}
+
+impl CalibrateFlags<'_> {
+    /// The options of the calibration, each flag checked by name; a row far beyond the others
+    /// (a typo) is named and dropped, not fitted.
+    pub fn options(&self) -> Result<KinematicOptions> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(self.sigma_mm) || !positive(self.sigma_deg) {
+            return Err(DatasetError::Input("--sigma-mm and --sigma-deg must be positive".into()));
+        }
+        if self.max_iterations == 0 {
+            return Err(DatasetError::Input("--max-iterations must be at least 1".into()));
+        }
+        Ok(KinematicOptions {
+            model_params: parse_params(self.params)?,
+            use_orientation: !self.positions_only,
+            sigma_position_m: self.sigma_mm * 1e-3,
+            sigma_orientation_rad: self.sigma_deg.to_radians(),
+            loss: parse_loss(self.loss)?,
+            practical_threshold: self.practical_threshold,
+            effects: match self.effects {
+                Some(e) => ferrocal_calib::effect_list::effects_from_argument(e)
+                    .map_err(|e| DatasetError::from(e).context("--effects"))?,
+                None => Vec::new(),
+            },
+            cost: match self.cost {
+                "fk" => ferrocal_calib::kinematic::Cost::ForwardKinematics,
+                "closure" => ferrocal_calib::kinematic::Cost::Closure,
+                other => return Err(DatasetError::Input(format!("--cost {other}: use fk or closure"))),
+            },
+            lm: ferrocal_calib::lsq::LmOptions {
+                max_iterations: self.max_iterations,
+                ..KinematicOptions::default().lm
+            },
+            outliers: Some(ferrocal_calib::kinematic::OutlierScreen::default()),
+            ..KinematicOptions::default()
+        })
+    }
 }
 
 /// The robust loss of `--loss`: `none` (or `squared`), `huber:<sigmas>` or `cauchy:<sigmas>`.
@@ -337,6 +401,10 @@ pub fn evaluate_rows(
 pub struct ExportRun {
     /// The files in writing order: the DH table, the URDF and its companion calibration file.
     pub files: Vec<(PathBuf, String)>,
+    /// The DH table.
+    pub dh: Option<PathBuf>,
+    /// The URDF.
+    pub urdf: Option<PathBuf>,
     /// The URDF's companion calibration file (`<name>.calibration.json`).
     pub companion: Option<PathBuf>,
     /// How far the DH table's forward kinematics are from the calibrated model, mm and degrees.
@@ -369,8 +437,15 @@ pub fn export_calibration(
     dh: Option<&Path>,
 ) -> Result<ExportRun> {
     let version = env!("CARGO_PKG_VERSION");
-    let mut run =
-        ExportRun { files: Vec::new(), companion: None, dh_roundtrip_mm_deg: None, urdf_roundtrip_mm_deg: None };
+    let (dh_path, urdf_path) = (dh.map(Path::to_path_buf), urdf.map(Path::to_path_buf));
+    let mut run = ExportRun {
+        files: Vec::new(),
+        dh: dh_path,
+        urdf: urdf_path,
+        companion: None,
+        dh_roundtrip_mm_deg: None,
+        urdf_roundtrip_mm_deg: None,
+    };
     if let Some(dh) = dh {
         let ex = export_mdh(cm)?;
         let (mm, deg) = (ex.roundtrip_m_rad.0 * 1e3, ex.roundtrip_m_rad.1.to_degrees());

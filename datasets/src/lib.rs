@@ -6,6 +6,7 @@
 //! - [`camera`]: the `camera calibrate` and `camera stereo` workflows (views, held-out split,
 //!   calibration, held-out scoring, the rectified row check).
 //! - [`detect`]: the `detect` workflow (a pattern found in a batch of images).
+//! - [`diagnose`]: the `diagnose` workflow on a measurement table.
 //! - [`handeye`]: hand-eye recordings (poses table, industrial_calibration importer, images
 //!   to a recording, simulation and the Monte Carlo study of the covariance).
 //! - [`kinematics`]: the `robot` command's joint values in user units, poses from text, forward
@@ -37,6 +38,7 @@ pub mod camera;
 pub mod checks;
 pub mod correct;
 pub mod detect;
+pub mod diagnose;
 pub mod dynsim;
 pub mod error;
 pub mod formats;

@@ -8,7 +8,7 @@ use ferrocal_calib::file::CalibrationFile;
 use ferrocal_calib::kinematic::{CalibratedModel, ErrorStats, KinematicCalibration};
 use ferrocal_calib::verdict::Verdict;
 use ferrocal_calib::PoseMeasurement;
-use ferrocal_datasets::calibration::{CalibrationRun, EvaluateRun, SpatialCheck};
+use ferrocal_datasets::calibration::{CalibrationRun, EvaluateRun, ExportRun, SpatialCheck};
 use serde_json::json;
 
 use crate::error::Result;
@@ -318,4 +318,29 @@ pub fn evaluate_run_json(run: &EvaluateRun) -> Result<(serde_json::Value, ErrorS
         out["refit_frame"] = serde_json::to_value(record)?;
     }
     Ok((out, stats))
+}
+
+/// The terminal line of `ferrocal evaluate`: which rows were scored (`scored`, in words) and
+/// the errors.
+pub fn evaluate_line(scored: &str, stats: &ErrorStats) -> String {
+    format!("scored on {scored}: mean {:.4} mm, RMS {:.4} mm, max {:.4} mm", stats.mean_mm, stats.rms_mm, stats.max_mm)
+}
+
+/// The terminal lines of `ferrocal export`: the DH table written, the URDF and its companion
+/// with how far they read back from the calibrated model (`n_effects`: the effects the
+/// companion keeps).
+pub fn export_lines(ex: &ExportRun, n_effects: usize) -> Vec<String> {
+    let mut out: Vec<String> = ex.dh.iter().map(|dh| format!("wrote {}", dh.display())).collect();
+    if let (Some(urdf), Some(companion), Some((mm, deg))) = (&ex.urdf, &ex.companion, ex.urdf_roundtrip_mm_deg) {
+        let effects = match n_effects {
+            0 => String::new(),
+            n => format!("; {n} effect(s) kept in the calibration file"),
+        };
+        out.push(format!(
+            "wrote {} and {} (read back: {mm:.2e} mm, {deg:.2e} deg from the calibrated model{effects})",
+            urdf.display(),
+            companion.display()
+        ));
+    }
+    out
 }

@@ -1,18 +1,23 @@
 //! Report sections of `ferrocal diagnose`: the robot variant (fits, findings with their
 //! evidence plots, candidates, untestable candidates, the screening of every input), the camera
-//! and the force-sensor variants; their JSON with the verdict ([`diagnose_json`]) and their
-//! terminal summaries.
+//! and the force-sensor variants; their JSON with the verdict ([`diagnose_json`]), the robot
+//! variant's output files ([`robot_outputs`]) and their terminal summaries.
 
 use ferrocal_calib::diagnose::camera::CameraDiagnoseReport;
 use ferrocal_calib::diagnose::force::ForceDiagnoseReport;
-use ferrocal_calib::diagnose::{DiagnoseReport, Evidence, InputStructure};
+use std::path::Path;
+
+use ferrocal_calib::diagnose::{DiagnoseOptions, DiagnoseReport, Evidence, InputStructure};
+use ferrocal_calib::file::CalibrationFile;
+use ferrocal_calib::kinematic::KinematicCalibration;
 use ferrocal_calib::verdict::{Thresholds, Verdict};
 use serde::Serialize;
-use serde_json::Value;
+use serde_json::{json, Value};
 
 use crate::error::Result;
+use crate::outputs::Outputs;
 use crate::plot::{self, Series};
-use crate::report::Section;
+use crate::report::{Provenance, Report, Section};
 use crate::verdict::add_verdict;
 
 /// The JSON of a diagnosis (any variant) with its verdict added, and the verdict
@@ -23,6 +28,65 @@ pub fn diagnose_json(t: &Thresholds, rep: &impl Serialize, unit: &str, next: &st
     let verdict = ferrocal_calib::verdict::commands::diagnose(t, &v, unit, next);
     add_verdict(&mut v, &verdict);
     Ok((v, verdict))
+}
+
+/// Where the robot variant of `ferrocal diagnose` writes, and what it read.
+#[derive(Clone, Copy, Debug)]
+pub struct DiagnoseFiles<'a> {
+    /// The robot model as given (preset, URDF or TOML).
+    pub robot: &'a str,
+    /// The measurement table.
+    pub measurements: &'a Path,
+    /// The JSON report.
+    pub json: &'a Path,
+    /// The HTML report with the evidence.
+    pub report: Option<&'a Path>,
+    /// The calibration refitted with the accepted effects.
+    pub out: Option<&'a Path>,
+    /// Data attribution printed in the HTML report.
+    pub attribution: Option<&'a str>,
+}
+
+/// The files of the robot variant, composed (not written), and its verdict: the JSON with the
+/// verdict, the refitted calibration (`compensated`) and the HTML report of the model named
+/// `model` (its provenance: the robot and `opts`).
+pub fn robot_outputs(
+    t: &Thresholds,
+    rep: &DiagnoseReport,
+    model: &str,
+    compensated: Option<&KinematicCalibration>,
+    opts: &DiagnoseOptions,
+    files: &DiagnoseFiles,
+) -> Result<(Outputs, Verdict)> {
+    let (robot, meas) = (files.robot, files.measurements);
+    let rerun = format!(
+        "ferrocal calibrate --robot {robot} --measurements {} --effects {} --out <calibration.json>",
+        meas.display(),
+        files.json.display()
+    );
+    let (rep_json, verdict) = diagnose_json(t, rep, "mm", &rerun)?;
+    let mut out = Outputs::default();
+    out.json(files.json, &rep_json)?;
+    if let (Some(path), Some(cal)) = (files.out, compensated) {
+        out.json(path, &CalibrationFile::new(robot, &cal.calibrated))?;
+    }
+    if let Some(h) = files.report {
+        let mut prov = Provenance::new(json!({"robot": robot, "options": opts}));
+        prov.add_input(meas);
+        let title = format!("Missing physics: {model} on {}", meas.display());
+        out.html(h, Report::of(&title, prov, sections(rep, files.attribution)), &verdict);
+    }
+    Ok((out, verdict))
+}
+
+/// The terminal line of the refitted calibration written to `path`.
+pub fn compensated_line(path: &Path, cal: &KinematicCalibration) -> String {
+    format!(
+        "wrote {} ({} effect(s) with the geometry; training RMS {:.4} mm)",
+        path.display(),
+        cal.calibrated.effects.len(),
+        cal.train_after.rms_mm
+    )
 }
 
 /// The terminal summary of the robot variant on the model named `model`: why it declined (if

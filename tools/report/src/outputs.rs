@@ -21,6 +21,22 @@ impl Outputs {
         Ok(())
     }
 
+    /// The JSON `value` at `path` and, when given, a report as HTML at its path, opening with
+    /// the box of `verdict` (no report without its JSON).
+    pub fn json_and_report(
+        path: &Path,
+        value: &impl Serialize,
+        report: Option<(&Path, Report)>,
+        verdict: &Verdict,
+    ) -> Result<Self> {
+        let mut out = Self::default();
+        out.json(path, value)?;
+        if let Some((p, r)) = report {
+            out.html(p, r, verdict);
+        }
+        Ok(out)
+    }
+
     /// Adds `value` as pretty-printed JSON at `path`, before every file added so far.
     pub fn json_first(&mut self, path: &Path, value: &impl Serialize) -> Result<()> {
         self.0.insert(0, (path.to_path_buf(), serde_json::to_string_pretty(value)?.into_bytes()));

@@ -4,18 +4,18 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
-use ferrocal_calib::kinematic::KinematicOptions;
 use ferrocal_calib::verdict::commands as verdict;
-use ferrocal_calib::PoseMeasurement;
 use ferrocal_robot::RobotModel;
 use serde_json::json;
 
 use ferrocal_datasets::calibration::{
-    apply_calibration, calibrate_table, companion_path, evaluate_rows, export_calibration,
+    apply_calibration, calibrate_table, companion_path, evaluate_rows, export_calibration, CalibrateFlags,
 };
-use ferrocal_report::calibrate::{calibrate_outputs, evaluate_run_json, summary_lines, CalibrateFiles};
+use ferrocal_report::calibrate::{
+    calibrate_outputs, evaluate_line, evaluate_run_json, export_lines, summary_lines, CalibrateFiles,
+};
 use ferrocal_report::verdict::{add_verdict, VerdictSettings};
 use ferrocal_report::{check_outputs, write_all_atomic, write_atomic};
 
@@ -105,57 +105,30 @@ pub struct EvaluateArgs {
     pub sigma_mm: f64,
 }
 
-pub use ferrocal_datasets::calibration::{check_distinct_poses, check_params};
+pub use ferrocal_datasets::calibration::{check_distinct_poses, check_params, load_model_and_rows};
 
-/// Loads a model and a measurement table and checks that they agree; the table's warnings go
-/// to stderr.
-pub fn load_model_and_rows(robot: &str, measurements: &Path) -> Result<(RobotModel, Vec<PoseMeasurement>)> {
-    let (model, rows, warnings) = ferrocal_datasets::calibration::load_model_and_rows(robot, measurements)?;
-    for w in &warnings {
-        eprintln!("warning: {w}");
-    }
-    Ok((model, rows))
-}
-use ferrocal_datasets::calibration::{parse_loss, parse_params};
-
-/// The options from the arguments.
-pub fn options(args: &CalibrateArgs) -> Result<KinematicOptions> {
-    let positive = |v: f64| v.is_finite() && v > 0.0;
-    if !positive(args.sigma_mm) || !positive(args.sigma_deg) {
-        bail!("--sigma-mm and --sigma-deg must be positive");
-    }
-    if args.max_iterations == 0 {
-        bail!("--max-iterations must be at least 1");
-    }
-    Ok(KinematicOptions {
-        model_params: parse_params(&args.params)?,
-        use_orientation: !args.positions_only,
-        sigma_position_m: args.sigma_mm * 1e-3,
-        sigma_orientation_rad: args.sigma_deg.to_radians(),
-        loss: parse_loss(&args.loss)?,
-        practical_threshold: args.practical_threshold,
-        effects: match &args.effects {
-            Some(e) => ferrocal_calib::effect_list::effects_from_argument(e).context("--effects")?,
-            None => Vec::new(),
-        },
-        cost: match args.cost.as_str() {
-            "fk" => ferrocal_calib::kinematic::Cost::ForwardKinematics,
-            "closure" => ferrocal_calib::kinematic::Cost::Closure,
-            other => bail!("--cost {other}: use fk or closure"),
-        },
-        lm: ferrocal_calib::lsq::LmOptions { max_iterations: args.max_iterations, ..KinematicOptions::default().lm },
-        // A row far beyond the others (a typo) is named and dropped, not fitted.
-        outliers: Some(ferrocal_calib::kinematic::OutlierScreen::default()),
-        ..KinematicOptions::default()
-    })
+/// A table's warning, on stderr.
+pub fn warn(w: &str) {
+    eprintln!("warning: {w}");
 }
 
 pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    let opts = options(args)?;
+    let opts = CalibrateFlags {
+        params: &args.params,
+        loss: &args.loss,
+        sigma_mm: args.sigma_mm,
+        sigma_deg: args.sigma_deg,
+        positions_only: args.positions_only,
+        practical_threshold: args.practical_threshold,
+        effects: args.effects.as_deref(),
+        cost: &args.cost,
+        max_iterations: args.max_iterations,
+    }
+    .options()?;
     let files = CalibrateFiles { out: &args.out, json: args.json.as_deref(), report: args.report.as_deref() };
     let outputs: Vec<&Path> = [Some(files.out), files.json, files.report].into_iter().flatten().collect();
     check_outputs(&outputs, &[args.measurements.as_path(), Path::new(&args.robot)])?;
-    let (model, rows) = load_model_and_rows(&args.robot, &args.measurements)?;
+    let (model, rows) = load_model_and_rows(&args.robot, &args.measurements, &warn)?;
     check_params(&opts.model_params, &model)?;
     check_distinct_poses(&rows, &args.measurements)?;
     let progress = crate::progress::bar(2, "calibrating");
@@ -176,7 +149,7 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
 
 pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     check_outputs(&[&args.json], &[&args.measurements, &args.calibration, Path::new(&args.robot)])?;
-    let (model, rows) = load_model_and_rows(&args.robot, &args.measurements)?;
+    let (model, rows) = load_model_and_rows(&args.robot, &args.measurements, &warn)?;
     let cm = apply_calibration(&args.robot, &model, &args.calibration)?;
     // A table with a split column is scored on its test rows only (shared/spec/cli.md); the
     // frame refit uses the whole table, as the spec says.
@@ -189,10 +162,7 @@ pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCod
     let verdict = verdict::evaluate(&vs.thresholds, &stats, &scored_words);
     add_verdict(&mut out, &verdict);
     write_atomic(&args.json, serde_json::to_string_pretty(&out)?.as_bytes())?;
-    println!(
-        "scored on {scored_words}: mean {:.4} mm, RMS {:.4} mm, max {:.4} mm",
-        stats.mean_mm, stats.rms_mm, stats.max_mm
-    );
+    println!("{}", evaluate_line(&scored_words, &stats));
     Ok(vs.conclude(&verdict))
 }
 
@@ -228,20 +198,7 @@ pub fn run_export(args: &ExportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     // Everything is composed first, then written.
     let ex = export_calibration(&cm, &args.robot, &args.calibration, args.urdf.as_deref(), args.dh.as_deref())?;
     write_all_atomic(&ex.files.iter().map(|(p, t)| (p.as_path(), t.as_bytes())).collect::<Vec<_>>())?;
-    if let Some(dh) = &args.dh {
-        println!("wrote {}", dh.display());
-    }
-    if let (Some(urdf), Some(companion), Some((mm, deg))) = (&args.urdf, &ex.companion, ex.urdf_roundtrip_mm_deg) {
-        let effects = match cm.effects.len() {
-            0 => String::new(),
-            n => format!("; {n} effect(s) kept in the calibration file"),
-        };
-        println!(
-            "wrote {} and {} (read back: {mm:.2e} mm, {deg:.2e} deg from the calibrated model{effects})",
-            urdf.display(),
-            companion.display()
-        );
-    }
+    export_lines(&ex, cm.effects.len()).iter().for_each(|l| println!("{l}"));
     let (mm, deg) = ex.roundtrip_mm_deg();
     Ok(vs.conclude(&verdict::export(&vs.thresholds, mm, deg)))
 }

@@ -6,11 +6,12 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions};
 use ferrocal_datasets::camera::target_point_views;
+use ferrocal_datasets::diagnose::{diagnose_options, diagnose_rows};
 use ferrocal_datasets::dynsim::identify::diagnose_static_table;
 use ferrocal_report::diagnose::{
-    camera_section, camera_summary_lines, diagnose_json, force_section, force_summary_lines, sections, summary_lines,
+    camera_section, camera_summary_lines, compensated_line, diagnose_json, force_section, force_summary_lines,
+    robot_outputs, summary_lines, DiagnoseFiles,
 };
 use serde_json::json;
 
@@ -80,60 +81,29 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (Some(robot), Some(meas)) = (&args.robot, &args.measurements) else {
         bail!("diagnose needs --robot <model> and --measurements <csv> (or --images and --pattern for a camera, --forces for a force-sensing end-effector)");
     };
-    if args.sigma_mm.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
-        bail!("--sigma-mm must be positive");
-    }
-    let opts = DiagnoseOptions {
-        folds: args.folds,
-        alpha: args.alpha,
-        validation_fraction: args.validation_fraction,
-        sigma_position_m: args.sigma_mm.map_or(DiagnoseOptions::default().sigma_position_m, |s| s * 1e-3),
-        sigma_from_data: args.sigma_mm.is_none(),
-        ..DiagnoseOptions::default()
+    let opts = diagnose_options(args.folds, args.alpha, args.validation_fraction, args.sigma_mm)?;
+    let files = DiagnoseFiles {
+        robot,
+        measurements: meas,
+        json: &args.json,
+        report: args.report.as_deref(),
+        out: args.out.as_deref(),
+        attribution: args.attribution.as_deref(),
     };
-    let outputs: Vec<&Path> =
-        [Some(args.json.as_path()), args.out.as_deref(), args.report.as_deref()].into_iter().flatten().collect();
+    let outputs: Vec<&Path> = [Some(files.json), files.out, files.report].into_iter().flatten().collect();
     ferrocal_report::check_outputs(&outputs, &[meas.as_path(), Path::new(robot)])?;
-    let (model, rows) = super::calibrate::load_model_and_rows(robot, meas)?;
+    let (model, rows) = super::calibrate::load_model_and_rows(robot, meas, &super::calibrate::warn)?;
     super::calibrate::check_distinct_poses(&rows, meas)?;
     // The diagnosis reports no steps; a spinner with the elapsed time shows it is alive (on
     // 11,911 UR10 rows it runs for minutes).
     let progress = crate::progress::spinner(&format!("diagnosing {} rows", rows.len()));
-    let rep = diagnose(&model, &rows, &opts).context("diagnosis")?;
+    let (rep, compensated) = diagnose_rows(&model, &rows, &opts, args.out.is_some())?;
     progress.finish_and_clear();
-    let compensated = match &args.out {
-        Some(_) => Some(
-            ferrocal_calib::diagnose::compensated_calibration(&model, &rows, &rep)
-                .context("refitting the calibration with the accepted effects")?,
-        ),
-        None => None,
-    };
     // Composed first, then written together (no half-set outputs).
-    let rerun = format!(
-        "ferrocal calibrate --robot {robot} --measurements {} --effects {} --out <calibration.json>",
-        meas.display(),
-        args.json.display()
-    );
-    let (rep_json, verdict) = diagnose_json(&vs.thresholds, &rep, "mm", &rerun)?;
-    let mut out = Outputs::default();
-    out.json(&args.json, &rep_json)?;
-    if let (Some(path), Some(cal)) = (&args.out, &compensated) {
-        out.json(path, &ferrocal_calib::file::CalibrationFile::new(robot, &cal.calibrated))?;
-    }
-    if let Some(h) = &args.report {
-        let mut prov = Provenance::new(json!({"robot": robot, "options": opts}));
-        prov.add_input(meas);
-        let title = format!("Missing physics: {} on {}", model.name(), meas.display());
-        out.html(h, Report::of(&title, prov, sections(&rep, args.attribution.as_deref())), &verdict);
-    }
+    let (out, verdict) = robot_outputs(&vs.thresholds, &rep, model.name(), compensated.as_ref(), &opts, &files)?;
     out.write()?;
     if let (Some(path), Some(cal)) = (&args.out, &compensated) {
-        println!(
-            "wrote {} ({} effect(s) with the geometry; training RMS {:.4} mm)",
-            path.display(),
-            cal.calibrated.effects.len(),
-            cal.train_after.rms_mm
-        );
+        println!("{}", compensated_line(path, cal));
     }
     summary_lines(&rep, model.name()).iter().for_each(|l| println!("{l}"));
     Ok(vs.conclude(&verdict))
@@ -159,15 +129,12 @@ fn run_camera(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         "calibrate with the lens model or target shape the findings name (ferrocal camera calibrate --model ...)";
     let (rep_json, verdict) = diagnose_json(&vs.thresholds, &rep, "px", next)?;
     // Both files together: no report without its JSON.
-    let mut out = Outputs::default();
-    out.json(&args.json, &rep_json)?;
-    if let Some(h) = &args.report {
+    let report = args.report.as_deref().map(|h| {
         let prov = Provenance::new(json!({"images": args.images, "pattern": pattern_text, "options": opts}));
         let title = format!("Missing physics of a camera ({} views of {pattern_text})", views.len());
-        let section = camera_section(&rep, opts.folds, args.attribution.as_deref());
-        out.html(h, Report::of(&title, prov, vec![section]), &verdict);
-    }
-    out.write()?;
+        (h, Report::of(&title, prov, vec![camera_section(&rep, opts.folds, args.attribution.as_deref())]))
+    });
+    Outputs::json_and_report(&args.json, &rep_json, report, &verdict)?.write()?;
     camera_summary_lines(&rep).iter().for_each(|l| println!("{l}"));
     Ok(vs.conclude(&verdict))
 }
@@ -181,15 +148,12 @@ fn run_forces(args: &DiagnoseArgs, path: &Path, vs: &VerdictSettings) -> Result<
     let next = "identify the sensor with the terms the findings name (docs/dynamics.md)";
     let (rep_json, verdict) = diagnose_json(&vs.thresholds, &rep, "n", next)?;
     // Both files together: no report without its JSON.
-    let mut out = Outputs::default();
-    out.json(&args.json, &rep_json)?;
-    if let Some(h) = &args.report {
+    let report = args.report.as_deref().map(|h| {
         let prov = Provenance::new(json!({"forces": path.display().to_string(), "options": opts}));
         let title = format!("Missing physics of a force-sensing end-effector ({n_poses} poses)");
-        let section = force_section(&rep, opts.folds, args.attribution.as_deref());
-        out.html(h, Report::of(&title, prov, vec![section]), &verdict);
-    }
-    out.write()?;
+        (h, Report::of(&title, prov, vec![force_section(&rep, opts.folds, args.attribution.as_deref())]))
+    });
+    Outputs::json_and_report(&args.json, &rep_json, report, &verdict)?.write()?;
     force_summary_lines(&rep, n_poses).iter().for_each(|l| println!("{l}"));
     Ok(vs.conclude(&verdict))
 }
