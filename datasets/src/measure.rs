@@ -143,6 +143,32 @@ pub struct MeasureOptions {
     pub calibration: CalibrationOptions,
 }
 
+impl MeasureOptions {
+    /// The options of `ferrocal measure --session`: the detector's corners, `corner_sigma_px` for
+    /// corners without a covariance (refused unless positive), the default calibration.
+    pub fn detector(corner_sigma_px: f64) -> Result<Self, DatasetError> {
+        if !(corner_sigma_px.is_finite() && corner_sigma_px > 0.0) {
+            return Err(DatasetError::Input(format!(
+                "measure: --corner-sigma-px must be positive, got {corner_sigma_px}"
+            )));
+        }
+        Ok(Self { corners: CornerSource::Detector, corner_sigma_px, calibration: CalibrationOptions::default() })
+    }
+}
+
+/// Refuses a table `out` inside the session folder `session` (a file of the session).
+pub fn check_out_of_session(out: &Path, session: &Path) -> Result<(), DatasetError> {
+    if let (Ok(out), Ok(session)) = (out.canonicalize(), session.canonicalize()) {
+        if out.starts_with(&session) {
+            return Err(DatasetError::Input(format!(
+                "measure: refusing to overwrite {}, a file of the session",
+                out.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// One robot pose measured by the cameras.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct MeasuredPose {

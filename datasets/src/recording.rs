@@ -19,7 +19,7 @@
 //! A measurement table needs joint readings; with flange poses only the per-image poses are
 //! returned (for the JSON summary).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, Isometry3, Matrix3, Matrix6};
 use serde::Serialize;
@@ -46,6 +46,16 @@ pub struct RecordingOptions {
     pub calibration: CalibrationOptions,
     /// Noise of corners without a usable covariance, pixels.
     pub corner_sigma_px: f64,
+}
+
+impl RecordingOptions {
+    /// The options of `ferrocal measure --images`: the camera read from the file `intrinsics`
+    /// (camera calibrate JSON, OpenCV or ROS YAML) or calibrated from the recording's views with
+    /// the default options, `corner_sigma_px` for corners without a covariance.
+    pub fn new(mount: Mount, intrinsics: Option<&Path>, corner_sigma_px: f64) -> Result<Self> {
+        let camera = intrinsics.map(crate::handeye::read_camera_file).transpose()?;
+        Ok(Self { mount, camera, calibration: CalibrationOptions::default(), corner_sigma_px })
+    }
 }
 
 /// One image's measured pose.
@@ -335,4 +345,77 @@ pub fn recording_table_text(
         wopts.comments.push(format!("source: {s}"));
     }
     measurements_to_string(rows, &wopts)
+}
+
+/// The inputs of `ferrocal measure --images ... --poses ... --pattern ...`, read: the target,
+/// the poses table and the image files.
+#[derive(Clone, Debug)]
+pub struct RecordingInput {
+    /// The target.
+    pub pattern: Pattern,
+    /// The poses table file.
+    pub poses: PathBuf,
+    /// The poses table.
+    pub table: PosesTable,
+    /// The image files the specifications named.
+    pub paths: Vec<PathBuf>,
+    /// Specifications that named no image.
+    pub skipped_images: Vec<ferrocal_vision::calib::corners::SkippedImage>,
+}
+
+impl RecordingInput {
+    /// Reads the pattern string `pattern`, the poses table `poses` and the images of `images`
+    /// (files, directories or globs); with `table_out` (a measurement table is to be written)
+    /// a table of flange poses is refused: the table needs joint readings.
+    pub fn load(images: &[PathBuf], poses: &Path, pattern: &str, table_out: bool) -> Result<Self> {
+        let pattern: Pattern = pattern.parse()?;
+        let table = crate::handeye::read_handeye_poses(poses)?;
+        if table_out && table.joint_units.is_empty() {
+            return Err(DatasetError::Input(format!(
+                "measure: {} gives flange poses, but a measurement table needs joint readings (q1_<unit>, ...); \
+                 leave out --out to get the per-image poses in --json, or use `ferrocal handeye` for the hand-eye transform",
+                poses.display()
+            )));
+        }
+        let mut skipped_images = Vec::new();
+        let paths = crate::import::images::expand_image_specs(images, &mut skipped_images);
+        Ok(Self { pattern, poses: poses.to_path_buf(), table, paths, skipped_images })
+    }
+
+    /// The input files: the images, then the poses table.
+    pub fn inputs(&self) -> Vec<&Path> {
+        self.paths.iter().map(PathBuf::as_path).chain([self.poses.as_path()]).collect()
+    }
+
+    /// Refuses an output that is an input (the same file, through any path).
+    pub fn refuse_overwrite(&self, outputs: &[&Path]) -> Result<()> {
+        for o in outputs {
+            if let Ok(o) = o.canonicalize() {
+                if self.inputs().iter().any(|p| p.canonicalize().is_ok_and(|p| p == o)) {
+                    return Err(DatasetError::Input(format!(
+                        "measure: refusing to overwrite {}, an input",
+                        o.display()
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Every image left out, with the reason: those no specification found, then those the
+    /// measurement `m` could not use.
+    pub fn skipped_lines(&self, m: &RecordingMeasurement) -> Vec<String> {
+        let images = self.skipped_images.iter().map(ToString::to_string);
+        images.chain(m.skipped.iter().map(|s| format!("{}: {}", s.what, s.reason))).collect()
+    }
+
+    /// Measures every image ([`measure_recording`]).
+    pub fn measure(&self, opts: &RecordingOptions) -> Result<RecordingMeasurement> {
+        measure_recording(&self.paths, &self.table, &self.pattern, opts)
+    }
+
+    /// The measurement table of `rows` ([`recording_table_text`]).
+    pub fn table_text(&self, rows: &MeasurementSet, mount: Mount, source: Option<&str>) -> Result<String> {
+        recording_table_text(rows, &self.table, mount, &self.poses, source)
+    }
 }

@@ -2,7 +2,7 @@
 //! cameras photographing a target on the end-effector, written to disk as a recorded session.
 //!
 //! Configured in TOML ([`CellConfig`]), deterministic for a seed. See `docs/session-format.md`
-//! for the layout of a written session.
+//! for the layout of a written session; the `simulate` command's edges are in [`session`].
 //!
 //! Frames: `world` is the reference frame of the robot model (its `base` parameters place the
 //! robot in it). The tracker and the cameras are placed in `world`; the target is fixed in the
@@ -14,6 +14,7 @@ pub mod humanoid;
 pub mod plan;
 pub mod planning;
 pub mod scenario;
+pub mod session;
 pub mod temperature;
 pub mod tracker;
 pub mod tree;

@@ -107,14 +107,15 @@ pub fn print_summary(m: &RecordingMeasurement) {
     );
 }
 
-/// The JSON of `ferrocal measure --session ... --json` (without its verdict): the session
-/// `m` measured from the folder `session`, and its comparison with a tracker when there is one.
+/// The JSON of `ferrocal measure --session ... --json`: the session `m` measured from the
+/// folder `session`, its comparison with a tracker when there is one, and its verdict.
 pub fn session_json(
     m: &SessionMeasurement,
     session: &Path,
     comparison: Option<&TrackerComparison>,
+    verdict: &ferrocal_calib::verdict::Verdict,
 ) -> serde_json::Value {
-    json!({
+    let mut v = json!({
         "tracker_comparison": comparison,
         "session": session.display().to_string(),
         "n_measured": m.rows.rows.len(),
@@ -127,7 +128,9 @@ pub fn session_json(
             "sigma_position_mm": p.estimate.sigma_position_mm().as_slice(),
             "sigma_rotation_deg": p.estimate.sigma_rotation_deg().as_slice(),
         })).collect::<Vec<_>>(),
-    })
+    });
+    crate::verdict::add_verdict(&mut v, verdict);
+    v
 }
 
 /// The verdict of `ferrocal measure --session`: how many poses were measured and the rig

@@ -7,12 +7,10 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ferrocal_datasets::handeye::{read_camera_file, read_handeye_poses};
-use ferrocal_datasets::import::images::expand_image_specs;
-use ferrocal_datasets::recording::{measure_recording, recording_table_text, RecordingOptions};
+use ferrocal_datasets::recording::{RecordingInput, RecordingOptions};
 use ferrocal_report::recording::{print_summary, recording_json, recording_verdict};
 use ferrocal_report::verdict::VerdictSettings;
-use ferrocal_vision::calib::CalibrationOptions;
+use ferrocal_report::Outputs;
 
 use super::handeye::{mount_of, MountArg};
 
@@ -53,59 +51,32 @@ pub fn run(
     let (Some(poses), Some(pattern_text)) = (&a.poses, &a.pattern) else {
         bail!("measure: --images needs --poses and --pattern (or give --session)");
     };
-    let pattern: ferrocal_vision::detect::Pattern = pattern_text.parse()?;
-    let table = read_handeye_poses(poses)?;
-    if out.is_some() && table.joint_units.is_empty() {
-        bail!(
-            "measure: {} gives flange poses, but a measurement table needs joint readings (q1_<unit>, ...); \
-             leave out --out to get the per-image poses in --json, or use `ferrocal handeye` for the hand-eye transform",
-            poses.display()
-        );
-    }
-    let mut skipped_images = Vec::new();
-    let paths = expand_image_specs(&a.images, &mut skipped_images);
-    for o in out.iter().chain(json_out.iter()) {
-        if let Ok(o) = o.canonicalize() {
-            if paths.iter().chain(std::iter::once(poses)).any(|p| p.canonicalize().is_ok_and(|p| p == o)) {
-                bail!("measure: refusing to overwrite {}, an input", o.display());
-            }
-        }
-    }
+    let input = RecordingInput::load(&a.images, poses, pattern_text, out.is_some())?;
     let outputs: Vec<&Path> = out.iter().chain(json_out.iter()).map(|p| p.as_path()).collect();
-    let inputs: Vec<&Path> = paths.iter().map(PathBuf::as_path).chain([poses.as_path()]).collect();
-    ferrocal_report::check_outputs(&outputs, &inputs)?;
-    // The table and the JSON are composed first and written together at the end.
-    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
+    input.refuse_overwrite(&outputs)?;
+    ferrocal_report::check_outputs(&outputs, &input.inputs())?;
     let mount = mount_of(a.mount);
-    let opts = RecordingOptions {
-        mount,
-        camera: a.intrinsics.as_deref().map(read_camera_file).transpose()?,
-        calibration: CalibrationOptions::default(),
-        corner_sigma_px,
-    };
-    eprintln!("measuring {} image(s) of {} ...", paths.len(), poses.display());
-    let m =
-        measure_recording(&paths, &table, &pattern, &opts).with_context(|| format!("measure: {}", poses.display()))?;
-    for s in &skipped_images {
+    let opts = RecordingOptions::new(mount, a.intrinsics.as_deref(), corner_sigma_px)?;
+    eprintln!("measuring {} image(s) of {} ...", input.paths.len(), poses.display());
+    let m = input.measure(&opts).with_context(|| format!("measure: {}", poses.display()))?;
+    for s in input.skipped_lines(&m) {
         eprintln!("ferrocal measure: skipped {s}");
     }
-    for s in &m.skipped {
-        eprintln!("ferrocal measure: skipped {}: {}", s.what, s.reason);
-    }
     print_summary(&m);
+    // The table and the JSON are composed first and written together at the end.
+    let mut files = Outputs::default();
     if let (Some(out), Some(rows)) = (out, &m.rows) {
-        let text = recording_table_text(rows, &table, mount, poses, m.source.as_deref())
-            .with_context(|| format!("writing {}", out.display()))?;
-        files.push((out.as_path(), text.into_bytes()));
+        let text = input.table_text(rows, mount, m.source.as_deref());
+        files.text(out, text.with_context(|| format!("writing {}", out.display()))?);
         println!("table {} ({} rows)", out.display(), rows.rows.len());
     }
-    let total = m.poses.len() + m.skipped.len() + skipped_images.len();
+    let total = m.poses.len() + m.skipped.len() + input.skipped_images.len();
     let verdict = recording_verdict(&vs.thresholds, &m, total, out.map(PathBuf::as_path));
     if let Some(j) = json_out {
-        let mut v = recording_json(&m, poses, pattern_text, mount, &skipped_images);
+        let mut v = recording_json(&m, poses, pattern_text, mount, &input.skipped_images);
         ferrocal_report::verdict::add_verdict(&mut v, &verdict);
-        files.push((j.as_path(), serde_json::to_string_pretty(&v)?.into_bytes()));
+        files.json(j, &v)?;
     }
-    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
+    files.write()?;
     Ok(vs.conclude(&verdict))
 }

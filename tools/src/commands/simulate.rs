@@ -8,7 +8,8 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use ferrocal_calib::verdict::commands as verdict;
 use ferrocal_datasets::import::convert::{import_table, ImportSource};
-use ferrocal_datasets::sim::{simulate, CellConfig};
+use ferrocal_datasets::sim::session::{cell_for_session, session_summary};
+use ferrocal_datasets::sim::simulate;
 use ferrocal_report::recording::{session_json, session_line, session_verdict, tracker_line};
 use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::Outputs;
@@ -32,38 +33,10 @@ pub struct SimulateArgs {
 }
 
 pub fn run_simulate(args: &SimulateArgs) -> Result<ExitCode> {
-    // The session folder must not hold (or be) the cell file: --force replaces the folder.
-    if let (Ok(cfg_path), Ok(out)) = (args.config.canonicalize(), args.out.canonicalize()) {
-        if cfg_path.starts_with(&out) {
-            anyhow::bail!(
-                "--out {} holds the cell file {}; choose another folder",
-                args.out.display(),
-                args.config.display()
-            );
-        }
-    }
-    let mut cfg = CellConfig::from_file(&args.config)?;
-    if let Some(s) = args.seed {
-        cfg.seed = s;
-    }
-    let pb = crate::progress::bar(1, "simulating poses");
-    let manifest = simulate(&cfg, &args.out, args.force, |k, n| {
-        pb.set_length(n as u64);
-        pb.set_position(k as u64);
-    })?;
-    pb.finish_and_clear();
-    eprintln!(
-        "session written to {}: {} poses, {} camera(s){}{}",
-        args.out.display(),
-        manifest.n_poses,
-        manifest.cameras.len(),
-        if manifest.tracker.is_some() { ", laser tracker" } else { "" },
-        if manifest.notes.is_empty() {
-            String::new()
-        } else {
-            format!("; {} note(s) in manifest.json", manifest.notes.len())
-        }
-    );
+    let cfg = cell_for_session(&args.config, &args.out, args.seed)?;
+    let bars = crate::progress::Bars::default();
+    let manifest = simulate(&cfg, &args.out, args.force, |k, n| bars.tick("simulating poses", k as u64, n as u64))?;
+    eprintln!("{}", session_summary(&manifest, &args.out));
     Ok(ExitCode::SUCCESS)
 }
 
@@ -170,23 +143,12 @@ pub struct MeasureArgs {
 /// Runs `ferrocal measure`: every image that cannot be used is named on stderr and in the JSON,
 /// and the batch goes on; the table is written only when at least one pose was measured.
 pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    use ferrocal_datasets::measure::{measure_session, CornerSource, MeasureOptions};
-    if !(args.corner_sigma_px.is_finite() && args.corner_sigma_px > 0.0) {
-        anyhow::bail!("measure: --corner-sigma-px must be positive, got {}", args.corner_sigma_px);
-    }
+    use ferrocal_datasets::measure::{check_out_of_session, measure_session, MeasureOptions};
+    let opts = MeasureOptions::detector(args.corner_sigma_px)?;
     let (Some(session), Some(out)) = (&args.session, &args.out) else {
         return super::recording::run(&args.recording, args.out.as_ref(), args.json.as_ref(), args.corner_sigma_px, vs);
     };
-    let opts = MeasureOptions {
-        corners: CornerSource::Detector,
-        corner_sigma_px: args.corner_sigma_px,
-        calibration: ferrocal_vision::calib::CalibrationOptions::default(),
-    };
-    if let (Ok(out), Ok(session)) = (out.canonicalize(), session.canonicalize()) {
-        if out.starts_with(&session) {
-            anyhow::bail!("measure: refusing to overwrite {}, a file of the session", out.display());
-        }
-    }
+    check_out_of_session(out, session)?;
     let outputs: Vec<&Path> = [Some(out.as_path()), args.json.as_deref()].into_iter().flatten().collect();
     let inputs: Vec<&Path> =
         [args.tracker.as_deref(), args.robot.as_deref().map(Path::new)].into_iter().flatten().collect();
@@ -203,16 +165,12 @@ pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode>
     let mut files = Outputs::default();
     files.text(out, m.table_text(session).with_context(|| format!("writing {}", out.display()))?);
     println!("{}", session_line(&m, out));
-    let comparison = match (&args.tracker, &args.robot) {
-        (Some(t), Some(r)) => Some(m.compare_with_tracker_table(t, r)?),
-        _ => None,
-    };
+    let comparison = args.tracker.as_ref().zip(args.robot.as_ref());
+    let comparison = comparison.map(|(t, r)| m.compare_with_tracker_table(t, r)).transpose()?;
     comparison.iter().for_each(|c| println!("{}", tracker_line(c)));
     let verdict = session_verdict(&vs.thresholds, &m, out);
     if let Some(j) = &args.json {
-        let mut v = session_json(&m, session, comparison.as_ref());
-        ferrocal_report::verdict::add_verdict(&mut v, &verdict);
-        files.json(j, &v)?;
+        files.json(j, &session_json(&m, session, comparison.as_ref(), &verdict))?;
     }
     files.write()?;
     Ok(vs.conclude(&verdict))
