@@ -121,6 +121,13 @@ impl HandEyeInput {
         Ok(Self { pattern, table, robot, paths, skipped_images, skipped, data })
     }
 
+    /// Every image left out while loading, with the reason: those no specification found, then
+    /// those (or the table rows) that could not be used.
+    pub fn skipped_lines(&self) -> Vec<String> {
+        let images = self.skipped_images.iter().map(ToString::to_string);
+        images.chain(self.skipped.iter().map(|s| format!("{}: {}", s.what, s.reason))).collect()
+    }
+
     /// The hand-eye calibration of the recording with `options`, and OpenCV's solvers beside it.
     pub fn fit(&self, options: HandEyeOptions) -> Result<HandEyeFit> {
         let result = calibrate_hand_eye(&self.data, &options).map_err(|e| {

@@ -22,10 +22,8 @@ use serde_json::json;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum MountArg {
     /// Camera on the flange, target fixed.
-    #[value(name = "eye-in-hand")]
     EyeInHand,
     /// Camera fixed, target on the flange.
-    #[value(name = "eye-to-hand")]
     EyeToHand,
 }
 
@@ -198,11 +196,8 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         exact_robot_poses: a.exact_robot_poses,
     };
     let input = HandEyeInput::load(&run)?;
-    for s in &input.skipped_images {
+    for s in input.skipped_lines() {
         eprintln!("ferrocal: skipped {s}");
-    }
-    for s in &input.skipped {
-        eprintln!("ferrocal: skipped {}: {}", s.what, s.reason);
     }
     let fit = input.fit(run.hand_eye_options()?)?;
     print_summary(&fit.result, best_baseline(&fit.baselines), input.table.source.as_deref());
@@ -216,9 +211,7 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         }
         _ => None,
     };
-    let out_text = a.out.as_ref().map(|p| p.display().to_string());
-    let has_heldout = fit.result.figures.heldout_rms_px.is_some();
-    let verdict = verdict::handeye_verdict(checks, mount, has_heldout, out_text.as_deref());
+    let verdict = verdict::run_verdict(checks, &fit.result, a.out.as_deref());
     // Every output is composed first and all are written together at the end: a failing joint
     // adjustment leaves no summary or report of half a run.
     let files = HandeyeFiles { json: a.json.as_deref(), report: a.report.as_deref(), out: a.out.as_deref() };

@@ -109,6 +109,13 @@ pub fn handeye_verdict(checks: Vec<Check>, mount: Mount, has_heldout: bool, join
     })
 }
 
+/// The verdict of a hand-eye run: `checks` ([`fit_checks`], and [`joint_checks`] with a joint
+/// adjustment written to `joint_out`) on the chain of `result`.
+pub fn run_verdict(checks: Vec<Check>, result: &HandEyeResult, joint_out: Option<&std::path::Path>) -> Verdict {
+    let out = joint_out.map(|p| p.display().to_string());
+    handeye_verdict(checks, result.mount, result.figures.heldout_rms_px.is_some(), out.as_deref())
+}
+
 /// The checks of a hand-eye fit: its chain figures against the PnP floor, on the held-out
 /// images when there are any, else on the training ones.
 pub fn fit_checks(t: &Thresholds, data: &HandEyeData, result: &HandEyeResult) -> Vec<Check> {
