@@ -89,6 +89,21 @@ pub enum ProgramFormat {
     Krl,
 }
 
+impl ProgramFormat {
+    /// The programs asked for, each with its file, in the order RAPID, G-code, URScript, KRL.
+    pub fn asked<'a>(
+        rapid: Option<&'a Path>,
+        gcode: Option<&'a Path>,
+        urscript: Option<&'a Path>,
+        krl: Option<&'a Path>,
+    ) -> Vec<(ProgramFormat, &'a Path)> {
+        [(Self::Rapid, rapid), (Self::Gcode, gcode), (Self::Urscript, urscript), (Self::Krl, krl)]
+            .into_iter()
+            .filter_map(|(k, p)| p.map(|p| (k, p)))
+            .collect()
+    }
+}
+
 impl CorrectRun {
     /// The corrected commands as the robot programs `outputs` asks for (path, text), one measure
     /// step per command in the program's order with its approach directions when the program
@@ -143,5 +158,33 @@ impl CorrectRun {
             out.push((p.to_path_buf(), text));
         }
         Ok(out)
+    }
+}
+
+/// The comments that open the written programs: what corrected them and when (`now`), from
+/// which program, calibration and robot, and what the commands are for.
+pub fn program_header(program: &Path, calibration: &Path, robot: &str, now: &str) -> Vec<String> {
+    vec![
+        format!("corrected by ferrocal {} ({now})", env!("CARGO_PKG_VERSION")),
+        format!("program {}; calibration {}; robot {robot}", program.display(), calibration.display()),
+        "joint commands for the calibrated robot to reach the poses the nominal model meant; the path between them is not checked against safety zones".into(),
+    ]
+}
+
+impl CorrectRun {
+    /// The terminal line of the run written to `out`: the commands corrected and how far off the
+    /// calibrated model predicts the uncorrected ones on average.
+    pub fn summary_line(&self, out: &Path) -> String {
+        format!(
+            "{} commands corrected; the calibrated model predicts the uncorrected ones {:.4} mm off on average; written to {}",
+            self.removed_mm.len(),
+            self.mean_removed_mm(),
+            out.display()
+        )
+    }
+
+    /// The mean of the errors the correction removes, mm (0 without commands).
+    pub fn mean_removed_mm(&self) -> f64 {
+        self.removed_mm.iter().sum::<f64>() / self.removed_mm.len().max(1) as f64
     }
 }

@@ -25,6 +25,19 @@ pub fn median_background_of(specs: &[String]) -> Result<Option<GrayImage>> {
     Ok(Some(median_background(&frames).map_err(|e| DatasetError::from(e).context("background median"))?))
 }
 
+/// The terminal line of a batch's results written to `json`: in how many images the pattern
+/// was found, how many failed.
+pub fn summary_line(results: &[ImageResult], json: &std::path::Path) -> String {
+    let failed = results.iter().filter(|r| r.error.is_some()).count();
+    format!(
+        "{} images: pattern found in {}, {} failed; wrote {}",
+        results.len(),
+        results.len() - failed,
+        failed,
+        json.display()
+    )
+}
+
 /// Finds `pattern` in every image of `specs` (files, folders or globs; refused when they name
 /// none) with `options`, against `background` when given: one result per image, in order. A
 /// failed image's reason is also given to `warn`, naming the image, as it happens.

@@ -1,8 +1,12 @@
 //! The `robot` command's workflows: joint values in user units (degrees for revolute joints,
 //! millimetres for prismatic ones) read ([`parse_joints`]) and written ([`format_joints`]), a
 //! tool pose from text ([`parse_pose`]), forward kinematics refused outside the joint limits
-//! ([`forward_within_limits`]) and the start of inverse kinematics ([`mid_limits`]).
+//! ([`forward_within_limits`]), the start of inverse kinematics ([`mid_limits`]) and the safety
+//! check of joint values and a move ([`check_safety`]).
 
+use std::path::Path;
+
+use ferrocal_robot::safety::{SafetyChecker, SafetyConfig};
 use ferrocal_robot::{JointKind, Kinematics, RobotModel};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -116,4 +120,33 @@ pub fn mid_limits(model: &RobotModel) -> Vec<f64> {
         .iter()
         .map(|l| if l.lower.is_finite() && l.upper.is_finite() { 0.5 * (l.lower + l.upper) } else { 0.0 })
         .collect()
+}
+
+/// Checks the joint values `joints` (user units) of `model` against the safety configuration
+/// file `safety`, and with `to` the straight joint-space move to those joint values as
+/// well. Every violation is given to `report` as it is found (`unsafe: ...`, `unsafe move at
+/// ...`); true when there is none.
+pub fn check_safety(
+    model: &RobotModel,
+    safety: &Path,
+    joints: &str,
+    to: Option<&str>,
+    report: &dyn Fn(&str),
+) -> Result<bool> {
+    let cfg = SafetyConfig::from_file(safety)?;
+    let q = parse_joints(joints, model)?;
+    let checker = SafetyChecker::new(model, cfg)?;
+    let v = checker.violations(&q, 0.0);
+    for x in &v {
+        report(&format!("unsafe: {x}"));
+    }
+    let mut ok = v.is_empty();
+    if let Some(to) = to {
+        let qb = parse_joints(to, model)?;
+        if let Err((s, x)) = checker.check_move(&q, &qb) {
+            report(&format!("unsafe move at {:.1} % of the way: {x}", s * 100.0));
+            ok = false;
+        }
+    }
+    Ok(ok)
 }

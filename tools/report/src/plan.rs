@@ -58,6 +58,14 @@ pub struct PlanOutcome {
     pub html: PathBuf,
 }
 
+impl PlanOutcome {
+    /// The terminal line: how many poses were planned, whether the checks passed, the report.
+    pub fn line(&self) -> String {
+        let checks = if self.passed { "checks passed" } else { "a check FAILED" };
+        format!("{} poses planned ({checks}); report {}", self.measurements, self.html.display())
+    }
+}
+
 /// Runs the flow of `ferrocal plan` and writes its files into `args.out`: `log` receives progress
 /// lines, `on_run(k, runs)` the progress of the simulated calibrations.
 pub fn run(args: &PlanRequest, log: &dyn Fn(&str), on_run: &dyn Fn(usize, usize)) -> Result<PlanOutcome> {

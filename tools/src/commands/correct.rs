@@ -6,7 +6,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use ferrocal_datasets::correct::{correct_run, ProgramFormat};
+use ferrocal_datasets::correct::{correct_run, program_header, ProgramFormat};
 use ferrocal_report::verdict::VerdictSettings;
 
 /// `ferrocal correct`.
@@ -54,37 +54,20 @@ pub fn run(a: &CorrectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     // The robot programs asked for; every output is checked before any work (two outputs on
     // one path, or an output that names an input, are refused), all are composed, then written
     // together.
-    let outputs: Vec<(ProgramFormat, &Path)> = [
-        (ProgramFormat::Rapid, &a.rapid),
-        (ProgramFormat::Gcode, &a.gcode),
-        (ProgramFormat::Urscript, &a.urscript),
-        (ProgramFormat::Krl, &a.krl),
-    ]
-    .into_iter()
-    .filter_map(|(k, p)| p.as_deref().map(|p| (k, p)))
-    .collect();
+    let outputs = ProgramFormat::asked(a.rapid.as_deref(), a.gcode.as_deref(), a.urscript.as_deref(), a.krl.as_deref());
     let all_outputs: Vec<&Path> = std::iter::once(a.out.as_path()).chain(outputs.iter().map(|(_, p)| *p)).collect();
     ferrocal_report::check_outputs(&all_outputs, &[a.program.as_path(), a.calibration.as_path(), Path::new(&a.robot)])?;
     let run = correct_run(&a.robot, &a.calibration, &a.program, a.positions_only)?;
-    let header = vec![
-        format!("corrected by ferrocal {} ({})", env!("CARGO_PKG_VERSION"), ferrocal_report::report::now_rfc3339()),
-        format!("program {}; calibration {}; robot {}", a.program.display(), a.calibration.display(), a.robot),
-        "joint commands for the calibrated robot to reach the poses the nominal model meant; the path between them is not checked against safety zones".into(),
-    ];
+    let header = program_header(&a.program, &a.calibration, &a.robot, &ferrocal_report::report::now_rfc3339());
     let programs = run.programs(&outputs, a.dwell_s, &header)?;
-    let mut files: Vec<(&Path, &[u8])> = vec![(a.out.as_path(), run.csv.as_bytes())];
-    files.extend(programs.iter().map(|(p, t)| (p.as_ref(), t.as_bytes())));
-    ferrocal_report::write_all_atomic(&files)?;
+    let mut files = ferrocal_report::Outputs::default();
+    files.text(&a.out, run.csv.as_str());
+    programs.iter().for_each(|(p, t)| files.text(p, t.as_str()));
+    files.write()?;
     for (path, _) in &programs {
         println!("corrected program written to {}", path.display());
     }
-    let removed = &run.removed_mm;
-    let mean = removed.iter().sum::<f64>() / removed.len().max(1) as f64;
-    println!(
-        "{} commands corrected; the calibrated model predicts the uncorrected ones {mean:.4} mm off on average; written to {}",
-        removed.len(),
-        a.out.display()
-    );
+    println!("{}", run.summary_line(&a.out));
     let verdict = ferrocal_report::compensate::correct_verdict(&vs.thresholds, &run, &a.out, &a.calibration);
     Ok(vs.conclude(&verdict))
 }

@@ -14,7 +14,7 @@
 use std::process::ExitCode;
 
 use anyhow::Result;
-use ferrocal_report::demo::pipeline::{demo_report, DemoSettings};
+use ferrocal_report::demo::pipeline::{demo_report, written_line, DemoSettings};
 use ferrocal_report::error::ReportError;
 use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::Provenance;
@@ -36,15 +36,7 @@ pub fn run(args: &DemoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let run = |argv: &[String]| run_command(argv).map_err(|e| ReportError::msg(format!("{e:#}")));
     let report = demo_report(&d, prov, &tick, &run)?;
     let html = report.write(&args.out)?;
-    let n = report.counts();
-    println!(
-        "report written: {} ({} passed, {} failed, {} skipped, {} reported)",
-        html.display(),
-        n.passed,
-        n.failed,
-        n.skipped,
-        n.reported
-    );
+    println!("{}", written_line(&report, &html));
     Ok(ferrocal_report::verdict::conclude_report(vs, &args.out, "demo")?)
 }
 

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use ferrocal_datasets::detect::{detect_images, median_background_of};
+use ferrocal_datasets::detect::{detect_images, median_background_of, summary_line};
 use ferrocal_vision::detect::{AprilTagOptions, DetectOptions, Pattern, TagBackend, TagRefine};
 
 use ferrocal_calib::verdict::commands as verdict;
@@ -80,13 +80,7 @@ pub fn run(args: &DetectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let failed = results.iter().filter(|r| r.error.is_some()).count();
     let json = serde_json::to_vec_pretty(&results)?;
     write_atomic(&args.json, &json).with_context(|| format!("cannot write {}", args.json.display()))?;
-    println!(
-        "{} images: pattern found in {}, {} failed; wrote {}",
-        results.len(),
-        results.len() - failed,
-        failed,
-        args.json.display()
-    );
+    println!("{}", summary_line(&results, &args.json));
     let verdict = verdict::detect(&vs.thresholds, results.len(), failed);
     // The JSON is an array per the spec: the verdict is on the terminal only. Failed images keep
     // their documented exit status 2; a failed verdict has at least one failed image.

@@ -49,7 +49,6 @@ pub struct PlanArgs {
 pub fn run(args: &PlanArgs, vs: &ferrocal_report::verdict::VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let log = |s: &str| eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
-    let pb = std::cell::OnceCell::new();
     let request = PlanRequest {
         plan: args.plan.clone(),
         out: args.out.clone(),
@@ -60,19 +59,10 @@ pub fn run(args: &PlanArgs, vs: &ferrocal_report::verdict::VerdictSettings) -> R
         seed: args.seed,
         force: args.force,
     };
-    let outcome = ferrocal_report::plan::run(&request, &log, &|k, n| {
-        pb.get_or_init(|| crate::progress::bar(n as u64, "simulated calibrations")).set_position(k as u64)
-    });
-    if let Some(b) = pb.get() {
-        b.finish_and_clear();
-    }
-    let outcome = outcome?;
-    println!(
-        "{} poses planned ({}); report {}",
-        outcome.measurements,
-        if outcome.passed { "checks passed" } else { "a check FAILED" },
-        outcome.html.display()
-    );
+    let bars = crate::progress::Bars::default();
+    let outcome =
+        ferrocal_report::plan::run(&request, &log, &|k, n| bars.tick("simulated calibrations", k as u64, n as u64))?;
+    println!("{}", outcome.line());
     // The plan's own checks (selection, sigma ratio, predicted accuracy, path) decide, as its
     // exit status always did; another failed section of the report (the Monte Carlo check of the
     // prediction on few runs) is a warning.

@@ -88,6 +88,20 @@ pub fn demo_report(d: &DemoSettings, mut prov: Provenance, tick: Tick, run: RunC
     Ok(report)
 }
 
+/// The terminal line of the demo's report written to `html`: how many sections passed, failed,
+/// were skipped and were reported.
+pub fn written_line(report: &Report, html: &Path) -> String {
+    let n = report.counts();
+    format!(
+        "report written: {} ({} passed, {} failed, {} skipped, {} reported)",
+        html.display(),
+        n.passed,
+        n.failed,
+        n.skipped,
+        n.reported
+    )
+}
+
 /// Real images: the left and right cameras of the OpenCV sample calibrated and compared with the
 /// reference values, the stereo baseline, and what the default camera model leaves out.
 fn real_camera_sections(d: &DemoSettings, run: RunCommand) -> Result<Vec<Section>> {
