@@ -199,6 +199,9 @@ pub enum DatasetError {
     /// An error of the least-squares layer (a linear fit).
     #[error(transparent)]
     Lsq(#[from] ferrocal_lsq::LsqError),
+    /// An error of the elastostatic identification.
+    #[error(transparent)]
+    Stiffness(#[from] ferrocal_calib::stiffness::StiffnessIdError),
     /// What a workflow was doing when `source` went wrong.
     #[error("{context}")]
     Context {

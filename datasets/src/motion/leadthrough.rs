@@ -86,6 +86,37 @@ impl Default for LeadSettings {
 }
 
 impl LeadSettings {
+    /// The settings of `ferrocal motion leadthrough`: the admittance damping (1 to 100000 N s/m),
+    /// the force low-pass cut-off (0 to 100 Hz) and the sensor noise (0 to 100 N), each refused
+    /// by its flag's name, with the seed and the sensor's place; the rest the defaults.
+    pub fn from_flags(
+        admittance_n_s_m: f64,
+        force_cutoff_hz: f64,
+        sensor_sigma_n: f64,
+        seed: u64,
+        sensor: SensorPlacement,
+    ) -> Result<Self> {
+        if !(admittance_n_s_m.is_finite() && (1.0..=1e5).contains(&admittance_n_s_m)) {
+            return Err(DatasetError::Input(format!(
+                "--admittance-n-s-m {admittance_n_s_m}: give an admittance damping from 1 to 100000 N s/m"
+            )));
+        }
+        if !(0.0..=100.0).contains(&force_cutoff_hz) {
+            return Err(DatasetError::Input(format!(
+                "--force-cutoff-hz {force_cutoff_hz}: give a cut-off from 0 (no filter) to 100 Hz"
+            )));
+        }
+        if !(0.0..=100.0).contains(&sensor_sigma_n) {
+            return Err(DatasetError::Input(format!(
+                "--sensor-sigma-n {sensor_sigma_n}: give a force-sensor noise from 0 to 100 N"
+            )));
+        }
+        let s =
+            LeadSettings { admittance_n_s_m, force_cutoff_hz, sensor_sigma_n, seed, sensor, ..LeadSettings::default() };
+        s.validate()?;
+        Ok(s)
+    }
+
     /// Checks the settings; the error names the first bad field and its value.
     pub fn validate(&self) -> Result<()> {
         let positive = [

@@ -376,3 +376,19 @@ fn camera_frames(tool_m: &[f64], every: usize, sigma_m: f64, seed: u64) -> Vec<O
     let normal = Normal::new(0.0, sigma_m.max(f64::MIN_POSITIVE)).expect("finite sigma");
     tool_m.iter().enumerate().map(|(k, y)| (k % every == 0).then(|| y + normal.sample(&mut rng))).collect()
 }
+
+/// Refuses a contact force (`--contact-force-n`) outside 0 to 1000 N.
+pub fn check_contact_force(f_n: f64) -> Result<()> {
+    if !(0.0..=1000.0).contains(&f_n) {
+        return Err(DatasetError::Input(format!("--contact-force-n {f_n} N: give a force from 0 to 1000 N")));
+    }
+    Ok(())
+}
+
+/// Refuses a number of learning-control trials after the first (`--iterations`) outside 1 to 50.
+pub fn check_iterations(iterations: usize) -> Result<()> {
+    if !(1..=50).contains(&iterations) {
+        return Err(DatasetError::Input(format!("--iterations {iterations}: give 1 to 50 trials after the first")));
+    }
+    Ok(())
+}

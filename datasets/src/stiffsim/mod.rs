@@ -11,9 +11,11 @@
 //! with independent Gaussian noise per coordinate. The measured quantity is each reflector's
 //! displacement from where the rigid (geometrically calibrated) model puts it.
 //!
-//! Everything random comes from one `ChaCha8Rng` seeded by [`StiffSimConfig::seed`].
+//! Everything random comes from one `ChaCha8Rng` seeded by [`StiffSimConfig::seed`]. The
+//! identification of a measured deflection table is [`identify`].
 
 pub mod checks;
+pub mod identify;
 pub mod study;
 pub mod tables;
 

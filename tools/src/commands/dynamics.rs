@@ -206,10 +206,9 @@ fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
     // Composed first (bounds checked before any allocation), then written together.
     let tables = simulated_tables(&settings)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-    let paths: Vec<PathBuf> = tables.iter().map(|(name, _)| a.out.join(name)).collect();
-    ferrocal_report::write_all_atomic(
-        &paths.iter().zip(&tables).map(|(p, (_, t))| (p.as_path(), t.as_bytes())).collect::<Vec<_>>(),
-    )?;
+    let mut files = ferrocal_report::Outputs::default();
+    tables.iter().for_each(|(name, text)| files.text(&a.out.join(name), text.as_str()));
+    files.write()?;
     println!("wrote {}", a.out.display());
     Ok(ExitCode::SUCCESS)
 }
@@ -221,7 +220,5 @@ fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let report = study_report(a.seed, a.quick, repeats, evaluations, &|s| {
         eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64())
     })?;
-    let html = report.write(&a.out)?;
-    println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    Ok(ferrocal_report::verdict::conclude_report(vs, &a.out, "study")?)
+    super::finish_study(&report, &a.out, t0, vs)
 }

@@ -17,10 +17,13 @@ mod robot;
 pub mod simulate;
 pub mod stiffness;
 
+use std::path::Path;
 use std::process::ExitCode;
+use std::time::Instant;
 
 use anyhow::Result;
 use ferrocal_report::verdict::VerdictSettings;
+use ferrocal_report::Report;
 
 use crate::cli::{Cli, Command};
 
@@ -49,4 +52,12 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Stiffness(a) => stiffness::run(&a, vs),
         Command::Motion(a) => motion::run(&a, vs),
     }
+}
+
+/// Ends a study started at `t0`: its report folder written to `out`, where and how long on
+/// stdout, then its verdict from the report's checks (a failed check exits 2).
+pub fn finish_study(report: &Report, out: &Path, t0: Instant, vs: &VerdictSettings) -> Result<ExitCode> {
+    let html = report.write(out)?;
+    println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
+    Ok(ferrocal_report::verdict::conclude_report(vs, out, "study")?)
 }

@@ -6,13 +6,13 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use ferrocal_datasets::motion::leadthrough::{LeadSettings, SensorPlacement};
+use ferrocal_datasets::motion::study::{check_contact_force, check_iterations};
 use ferrocal_report::motion::{
     identify_report, ilc_report, leadthrough_report, study_report, track_report, IlcOptions,
 };
 use ferrocal_report::motion_cell::cell_report;
-use ferrocal_report::report::Report;
 use ferrocal_report::verdict::VerdictSettings;
 
 /// `ferrocal motion`.
@@ -156,61 +156,29 @@ pub fn run(a: &MotionArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let progress = |s: &str| eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
     let (report, common) = match &a.command {
         MotionCommand::Study(s) => {
-            contact_force(s.contact_force_n)?;
+            check_contact_force(s.contact_force_n)?;
             (study_report(s.common.seed, s.quick, s.contact_force_n, &progress)?, &s.common)
         }
         MotionCommand::Identify(s) => (identify_report(s.common.seed, s.quick, &progress)?, &s.common),
         MotionCommand::Ilc(s) => {
-            contact_force(s.contact_force_n)?;
-            if !(1..=50).contains(&s.iterations) {
-                bail!("--iterations {}: give 1 to 50 trials after the first", s.iterations);
-            }
+            check_contact_force(s.contact_force_n)?;
+            check_iterations(s.iterations)?;
             let o = IlcOptions { contact_force_n: s.contact_force_n, iterations: s.iterations };
             (ilc_report(s.common.seed, s.quick, &o, &progress)?, &s.common)
         }
         MotionCommand::Track(s) => (track_report(s.common.seed, s.quick, &progress)?, &s.common),
-        MotionCommand::Leadthrough(s) => (leadthrough_report(&lead_settings(s)?, &progress)?, &s.common),
+        MotionCommand::Leadthrough(s) => {
+            let sensor = match s.sensor {
+                Sensor::Tool => SensorPlacement::Tool,
+                Sensor::Carriage => SensorPlacement::Carriage,
+                Sensor::CarriageCompensated => SensorPlacement::CarriageCompensated,
+            };
+            // Each flag checked by name.
+            let (damping, cutoff, noise) = (s.admittance_n_s_m, s.force_cutoff_hz, s.sensor_sigma_n);
+            let l = LeadSettings::from_flags(damping, cutoff, noise, s.common.seed, sensor)?;
+            (leadthrough_report(&l, &progress)?, &s.common)
+        }
         MotionCommand::Cell(s) => (cell_report(s.common.seed, s.quick, &progress)?, &s.common),
     };
-    write(&report, common, t0, vs)
-}
-
-fn contact_force(f_n: f64) -> Result<()> {
-    if !(0.0..=1000.0).contains(&f_n) {
-        bail!("--contact-force-n {f_n} N: give a force from 0 to 1000 N");
-    }
-    Ok(())
-}
-
-/// The lead-through settings from the flags, each checked by name.
-fn lead_settings(a: &LeadthroughArgs) -> Result<LeadSettings> {
-    if !(a.admittance_n_s_m.is_finite() && (1.0..=1e5).contains(&a.admittance_n_s_m)) {
-        bail!("--admittance-n-s-m {}: give an admittance damping from 1 to 100000 N s/m", a.admittance_n_s_m);
-    }
-    if !(0.0..=100.0).contains(&a.force_cutoff_hz) {
-        bail!("--force-cutoff-hz {}: give a cut-off from 0 (no filter) to 100 Hz", a.force_cutoff_hz);
-    }
-    if !(0.0..=100.0).contains(&a.sensor_sigma_n) {
-        bail!("--sensor-sigma-n {}: give a force-sensor noise from 0 to 100 N", a.sensor_sigma_n);
-    }
-    let s = LeadSettings {
-        admittance_n_s_m: a.admittance_n_s_m,
-        force_cutoff_hz: a.force_cutoff_hz,
-        sensor_sigma_n: a.sensor_sigma_n,
-        seed: a.common.seed,
-        sensor: match a.sensor {
-            Sensor::Tool => SensorPlacement::Tool,
-            Sensor::Carriage => SensorPlacement::Carriage,
-            Sensor::CarriageCompensated => SensorPlacement::CarriageCompensated,
-        },
-        ..LeadSettings::default()
-    };
-    s.validate()?;
-    Ok(s)
-}
-
-fn write(report: &Report, common: &CommonArgs, t0: std::time::Instant, vs: &VerdictSettings) -> Result<ExitCode> {
-    let html = report.write(&common.out)?;
-    println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    Ok(ferrocal_report::verdict::conclude_report(vs, &common.out, "study")?)
+    super::finish_study(&report, &common.out, t0, vs)
 }

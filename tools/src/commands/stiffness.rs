@@ -15,17 +15,13 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use ferrocal_calib::stiffness::problem::LinearProblem;
-use ferrocal_calib::stiffness::reduce::{reduce, ReductionSettings};
-use ferrocal_calib::stiffness::StiffnessIdError;
-use ferrocal_datasets::formats::deflections::{read_deflections, stiffness_model};
+use ferrocal_datasets::stiffsim::identify::identify_deflections;
 use ferrocal_datasets::stiffsim::tables::simulated_deflections;
 use ferrocal_report::stiffness::{
     complete_parameters, identify_lines, identify_report, study_report, trusted_parameters,
 };
 use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::write_atomic;
-use ferrocal_robot::stiffness::WrenchLimits;
 
 /// `ferrocal stiffness`.
 #[derive(Debug, clap::Args)]
@@ -115,9 +111,7 @@ pub fn run(args: &StiffnessArgs, vs: &VerdictSettings) -> Result<ExitCode> {
 fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let report = study_report(a.seed, a.trials, a.quick)?;
-    let html = report.write(&a.out)?;
-    println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    Ok(ferrocal_report::verdict::conclude_report(vs, &a.out, "study")?)
+    super::finish_study(&report, &a.out, t0, vs)
 }
 
 fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
@@ -130,29 +124,23 @@ fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
 }
 
 fn run_identify(a: &IdentifyArgs) -> Result<ExitCode> {
-    let (model, prior) = stiffness_model(&a.model)?;
-    let limits = WrenchLimits::default();
-    let obs = read_deflections(&a.measurements, &model, &limits)?;
-    let problem = LinearProblem::from_observations(&model, &obs, &limits)?;
-    let settings = ReductionSettings { nu_threshold: a.nu_threshold, ..ReductionSettings::default() };
-    let red = match reduce(&problem, None, prior.as_deref(), &settings) {
-        Ok(r) => r,
-        Err(e @ StiffnessIdError::Unexcited { .. }) => {
+    let id = match identify_deflections(&a.model, &a.measurements, a.nu_threshold)? {
+        Ok(id) => id,
+        Err(e) => {
             eprintln!("error: {e}");
             return Ok(ExitCode::from(2));
         }
-        Err(e) => return Err(e.into()),
     };
-    let prior_red = red.param.project(prior.as_deref().unwrap_or(&vec![0.0; problem.layout.len()]));
-    identify_lines(&red, &prior_red).iter().for_each(|l| println!("{l}"));
+    let (red, prior_red) = (&id.reduction, &id.prior);
+    identify_lines(red, prior_red).iter().for_each(|l| println!("{l}"));
     let ok = red.physical_problems.is_empty();
     if !ok {
         eprintln!("error: the estimate is not physical: {}", red.physical_problems.join("; "));
-        eprintln!("parameters that can be trusted: {}", trusted_parameters(&red).join(", "));
+        eprintln!("parameters that can be trusted: {}", trusted_parameters(red).join(", "));
     }
     if let Some(out) = &a.out {
-        let html = identify_report(&a.model, a.nu_threshold, &a.measurements, &red, &prior_red).write(out)?;
-        let params = complete_parameters(&problem, &red);
+        let html = identify_report(&a.model, a.nu_threshold, &a.measurements, red, prior_red).write(out)?;
+        let params = complete_parameters(&id.problem, red);
         write_atomic(&out.join("parameters.json"), serde_json::to_string_pretty(&params)?.as_bytes())?;
         println!("wrote {}", html.display());
     }
