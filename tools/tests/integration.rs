@@ -2,4 +2,5 @@
 //! which keeps the build small and fast (each file is a module, named as before).
 
 mod binary;
+mod cli_docs;
 mod commands;
