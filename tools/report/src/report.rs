@@ -192,6 +192,9 @@ pub struct Report {
     pub open_sections: usize,
 }
 
+/// Reports with more sections than this fold each later section whole under its heading.
+pub const COMPACT_AFTER: usize = 12;
+
 /// Where the verdict box goes in a report written before its verdict was known.
 pub const VERDICT_SLOT: &str = "<!-- ferrocal:verdict -->";
 
@@ -284,18 +287,33 @@ impl Report {
             None => h.push_str(VERDICT_SLOT),
         }
         h.push('\n');
-        h.push_str("<nav><ul>");
-        for s in &self.sections {
-            let _ = write!(h, "<li><a href=\"#{}\">{}</a>{}</li>", esc(&s.id), esc(&s.title), s.badge());
+        // A long report (more than COMPACT_AFTER sections) folds each later section whole under
+        // a one-line heading: the headings are then the table of contents.
+        let compact = self.sections.len() > COMPACT_AFTER;
+        if !compact {
+            h.push_str("<nav><ul>");
+            for s in &self.sections {
+                let _ = write!(h, "<li><a href=\"#{}\">{}</a>{}</li>", esc(&s.id), esc(&s.title), s.badge());
+            }
+            h.push_str("</ul></nav>\n");
         }
-        h.push_str("</ul></nav>\n");
         for (i, s) in self.sections.iter().enumerate() {
-            let _ = writeln!(h, "<section id=\"{}\"><h2>{}{}</h2>", esc(&s.id), esc(&s.title), s.badge());
             let open = i < self.open_sections || s.failed();
-            // A folded section keeps its first paragraph in view.
-            let lead = usize::from(!open && matches!(s.blocks.first(), Some(Block::Text(_))));
+            if open || !compact {
+                let _ = writeln!(h, "<section id=\"{}\"><h2>{}{}</h2>", esc(&s.id), esc(&s.title), s.badge());
+            } else {
+                let _ = writeln!(
+                    h,
+                    "<section id=\"{}\" class=\"folded\"><details><summary><strong>{}</strong>{}</summary>",
+                    esc(&s.id),
+                    esc(&s.title),
+                    s.badge()
+                );
+            }
+            // A folded section of a short report keeps its first paragraph in view.
+            let lead = usize::from(!open && !compact && matches!(s.blocks.first(), Some(Block::Text(_))));
             for (k, b) in s.blocks.iter().enumerate() {
-                if !open && k == lead {
+                if !open && !compact && k == lead {
                     let n = s.blocks.len() - lead;
                     let _ = writeln!(
                         h,
@@ -325,7 +343,11 @@ impl Report {
                         for r in rows {
                             h.push_str("<tr>");
                             for c in r {
-                                let _ = write!(h, "<td>{}</td>", esc(c));
+                                // Numbers (with or without a unit) align right, words left.
+                                let numeric = c.len() < 25
+                                    && c.trim_start().starts_with(|ch: char| ch.is_ascii_digit() || "+-.".contains(ch));
+                                let class = if numeric { " class=\"n\"" } else { "" };
+                                let _ = write!(h, "<td{class}>{}</td>", esc(c));
                             }
                             h.push_str("</tr>");
                         }
@@ -333,7 +355,7 @@ impl Report {
                     }
                 }
             }
-            if !open && s.blocks.len() > lead {
+            if !open && (compact || s.blocks.len() > lead) {
                 h.push_str("</details>\n");
             }
             h.push_str("</section>\n");
@@ -544,14 +566,15 @@ fn folder_parts(path: &Path) -> (&Path, String) {
 
 const CSS: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}\
 h1{border-bottom:2px solid #335}h2{margin-top:2em;border-bottom:1px solid #ccc}\
-table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right;font-variant-numeric:tabular-nums}\
+table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:left;font-variant-numeric:tabular-nums}td.n{text-align:right}\
 th{background:#eef}caption{font-weight:bold;text-align:left;padding:4px 0}\
 figure{margin:1em 0}figcaption{font-size:90%;color:#444}.attr{font-size:80%;color:#666}\
 .ok{color:#fff;background:#2a7;padding:1px 6px;border-radius:3px;font-size:70%}\
 .bad{color:#fff;background:#c33;padding:1px 6px;border-radius:3px;font-size:70%}\
 .note{color:#fff;background:#888;padding:1px 6px;border-radius:3px;font-size:70%}\
 pre{background:#f6f6f6;padding:6px;overflow-x:auto;white-space:pre-wrap}nav ul{columns:2}\
-details>summary{cursor:pointer;color:#335;margin:.5em 0}table{max-width:100%;display:block;overflow-x:auto}\
+details>summary{cursor:pointer;color:#335;margin:.5em 0}section.folded{margin:.2em 0;border-bottom:1px solid #eee}\
+section.folded summary{font-size:110%;padding:.3em 0}.verdict td{text-align:left}table{max-width:100%;display:block;overflow-x:auto}\
 svg,img{max-width:100%;height:auto}\
 .verdict{border:2px solid #888;border-left-width:10px;border-radius:4px;padding:.4em 1em;margin:1em 0}\
 .verdict p{margin:.3em 0}.verdict table{margin:.5em 0}.verdict td.l{text-align:left}\
@@ -656,6 +679,20 @@ mod tests {
         assert!(!body("d").contains("<details>"), "a failed section is shown whole");
         r.open_sections = usize::MAX;
         assert!(!r.to_html().contains("<details>"));
+        // A long report folds its later sections whole, headings as the table of contents.
+        r.open_sections = 2;
+        for k in 0..COMPACT_AFTER {
+            let mut s = Section::new(&format!("x{k}"), "X");
+            s.text("lead").table("t", &["x"], vec![]);
+            r.sections.push(s);
+        }
+        let html = r.to_html();
+        assert!(!html.contains("<nav>"));
+        let x0 = &html[html.find("<section id=\"x0\"").unwrap()..];
+        assert!(x0.starts_with("<section id=\"x0\" class=\"folded\"><details><summary><strong>X</strong>"), "{x0}");
+        assert!(x0.find("lead").unwrap() > x0.find("</summary>").unwrap(), "the lead is folded too");
+        let d = &html[html.find("<section id=\"d\"").unwrap()..];
+        assert!(!d[..d.find("</section>").unwrap()].contains("<details>"), "a failed section is still whole");
     }
 
     #[test]
