@@ -268,6 +268,9 @@ pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCod
     } else {
         rows
     };
+    if scored.is_empty() {
+        bail!("{}: the table has no rows to score; give a table of measured poses", args.measurements.display());
+    }
     let (mut out, stats) = evaluate_json(&cm, &scored)?;
     out["rows_scored"] = json!(if has_split { "test" } else { "all" });
     if let Some(record) = &refit {
