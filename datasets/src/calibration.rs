@@ -1,17 +1,22 @@
 //! The `calibrate` workflow: the table loaded and checked against the model
 //! ([`load_model_and_rows`], [`check_distinct_poses`], [`check_params`]), and its validation protocol: a validation fit on the training rows with
 //! the nominal and calibrated held-out errors, the delivered fit, and a spatially separated
-//! check beside the default one ([`calibrate_table`]). The report crate turns a
-//! [`CalibrationRun`] into the JSON of `ferrocal calibrate` and its report sections.
+//! check beside the default one ([`calibrate_table`]), and whether the result can be delivered
+//! ([`CalibrationRun::deliverable`]). The report crate turns a [`CalibrationRun`] into the JSON
+//! of `ferrocal calibrate` and its report sections. Also the `evaluate` workflow (a calibration
+//! file applied, [`apply_calibration`], and scored on a table, [`evaluate_rows`]) and the
+//! `export` workflow ([`export_calibration`]).
 
 use ferrocal_calib::kinematic::{
-    calibrate, split_rows, split_rows_by_plane, ErrorStats, KinematicCalibration, KinematicOptions, ModelParams,
-    SplitPlane,
+    calibrate, refit_frame, split_rows, split_rows_by_plane, CalibratedModel, ErrorStats, FrameRefit,
+    KinematicCalibration, KinematicOptions, ModelParams, SplitPlane,
 };
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
+use ferrocal_calib::export::{export_mdh, export_urdf};
+use ferrocal_calib::file::CalibrationFile;
 use ferrocal_calib::lsq::Loss;
-use ferrocal_calib::PoseMeasurement;
+use ferrocal_calib::{PoseMeasurement, Split};
 use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
 
 use crate::error::{DatasetError, Result};
@@ -226,4 +231,170 @@ pub fn check_params(params: &ModelParams, model: &RobotModel) -> Result<()> {
         }
     }
     Ok(())
+}
+
+impl CalibrationRun<'_> {
+    /// Whether the calibration can be delivered, with what stderr should say about it: refused
+    /// when the distinct poses of the delivered fit give no more equations than identified
+    /// parameters (repeated rows of one pose add equations but no information), or when a fit
+    /// did not converge (unless `accept_unconverged`, then with a warning). The lines name
+    /// `measurements` where a row is meant: the solver's noise note, the rows the outlier screen
+    /// dropped, its note.
+    pub fn deliverable(&self, measurements: &Path, accept_unconverged: bool) -> Result<Vec<String>> {
+        let (cal, rows) = (&self.cal, &self.final_rows);
+        let distinct = crate::import::plausible::distinct_poses(rows.iter().copied());
+        let block = if cal.used_orientation { 6 } else { 3 };
+        if distinct * block <= cal.free.len() {
+            return Err(DatasetError::Input(format!(
+                "{}: the {} rows hold only {distinct} independent poses ({} equations) for {} identified parameters: the pose set is rank-deficient; measure more distinct poses; nothing was written",
+                measurements.display(),
+                rows.len(),
+                distinct * block,
+                cal.free.len()
+            )));
+        }
+        let mut lines = Vec::new();
+        let fits =
+            std::iter::once(("calibration", cal)).chain(self.validation.iter().map(|(v, _, _)| ("validation fit", v)));
+        for (what, fit) in fits {
+            if let Some(problem) = fit.convergence_problem() {
+                if !accept_unconverged {
+                    return Err(DatasetError::Input(format!("{what}: {problem}; nothing was written (raise --max-iterations, check the data, or accept it with --accept-unconverged)")));
+                }
+                lines.push(format!("warning: {what}: {problem}; delivered because of --accept-unconverged"));
+            }
+        }
+        lines.extend(cal.noise_warning().map(|w| format!("note: {w}")));
+        lines.extend(cal.dropped_rows.iter().map(|d| format!("warning: {}: {}", measurements.display(), d.describe())));
+        lines.extend(cal.outlier_note.iter().map(|n| format!("warning: {}: {n}", measurements.display())));
+        Ok(lines)
+    }
+}
+
+/// Reads the calibration file `path`, checks that it was made for `robot` (its model `model`)
+/// and applies it.
+pub fn apply_calibration(robot: &str, model: &RobotModel, path: &Path) -> Result<CalibratedModel> {
+    let file = CalibrationFile::read(path)?;
+    file.check_robot(robot, model).map_err(|e| DatasetError::from(e).context(format!("{}", path.display())))?;
+    file.apply(model).map_err(|e| DatasetError::from(e).context(format!("applying {}", path.display())))
+}
+
+/// A calibrated model scored on a table (`ferrocal evaluate`).
+#[derive(Clone, Debug)]
+pub struct EvaluateRun {
+    /// The model, its device frame and tool point refitted on the table when asked.
+    pub model: CalibratedModel,
+    /// What the frame refit changed.
+    pub refit: Option<FrameRefit>,
+    /// The rows scored: the `test` rows of a table with a split column, else every row.
+    pub scored: Vec<PoseMeasurement>,
+    /// True when only the `test` rows are scored.
+    pub test_only: bool,
+    /// True when the table has a split column that marks no row `test` (every row is scored).
+    pub no_test_marked: bool,
+}
+
+impl EvaluateRun {
+    /// Which rows were scored, in words (`n` of them).
+    pub fn scored_words(&self, n: usize) -> String {
+        if self.test_only {
+            format!("the {n} held-out (test) rows")
+        } else {
+            format!("all {n} rows")
+        }
+    }
+}
+
+/// Scores `cm` on `rows`: first, when `refit_sigma_mm` is given (the position standard
+/// deviation of rows without a sigma column, mm), the device frame and the measured point on
+/// the tool refitted on the whole table; then a table with a split column is scored on its
+/// `test` rows only (shared/spec/cli.md).
+pub fn evaluate_rows(
+    cm: CalibratedModel,
+    rows: Vec<PoseMeasurement>,
+    refit_sigma_mm: Option<f64>,
+) -> Result<EvaluateRun> {
+    let (mut model, mut refit) = (cm, None);
+    if let Some(sigma_mm) = refit_sigma_mm {
+        if !(sigma_mm.is_finite() && sigma_mm > 0.0) {
+            return Err(DatasetError::Input("--sigma-mm must be positive".into()));
+        }
+        let refs: Vec<&PoseMeasurement> = rows.iter().collect();
+        let (m, record) =
+            refit_frame(&model, &refs, sigma_mm * 1e-3).map_err(|e| DatasetError::from(e).context("--refit-frame"))?;
+        model = m;
+        refit = Some(record);
+    }
+    let n_test = rows.iter().filter(|r| r.split == Some(Split::Test)).count();
+    let no_test_marked = n_test == 0 && rows.iter().any(|r| r.split.is_some());
+    let test_only = n_test > 0;
+    let scored = if test_only { rows.into_iter().filter(|r| r.split == Some(Split::Test)).collect() } else { rows };
+    Ok(EvaluateRun { model, refit, scored, test_only, no_test_marked })
+}
+
+/// A calibration exported (`ferrocal export`): the files composed, not written.
+#[derive(Clone, Debug)]
+pub struct ExportRun {
+    /// The files in writing order: the DH table, the URDF and its companion calibration file.
+    pub files: Vec<(PathBuf, String)>,
+    /// The URDF's companion calibration file (`<name>.calibration.json`).
+    pub companion: Option<PathBuf>,
+    /// How far the DH table's forward kinematics are from the calibrated model, mm and degrees.
+    pub dh_roundtrip_mm_deg: Option<(f64, f64)>,
+    /// How far the URDF read back is from the calibrated model, mm and degrees.
+    pub urdf_roundtrip_mm_deg: Option<(f64, f64)>,
+}
+
+impl ExportRun {
+    /// The largest read-back difference of the files, mm and degrees (zero without any).
+    pub fn roundtrip_mm_deg(&self) -> (f64, f64) {
+        let dh = self.dh_roundtrip_mm_deg.unwrap_or((0.0, 0.0));
+        self.urdf_roundtrip_mm_deg.map_or(dh, |(mm, deg)| (dh.0.max(mm), dh.1.max(deg)))
+    }
+}
+
+/// The URDF's companion calibration file beside `urdf` (`<name>.calibration.json`).
+pub fn companion_path(urdf: &Path) -> PathBuf {
+    urdf.with_extension("calibration.json")
+}
+
+/// Exports the calibrated serial robot `cm` (from the calibration file `calibration`, made for
+/// `robot`) as a modified DH table at `dh` and as a URDF at `urdf` with its companion
+/// calibration file, each checked by reading it back.
+pub fn export_calibration(
+    cm: &CalibratedModel,
+    robot: &str,
+    calibration: &Path,
+    urdf: Option<&Path>,
+    dh: Option<&Path>,
+) -> Result<ExportRun> {
+    let version = env!("CARGO_PKG_VERSION");
+    let mut run =
+        ExportRun { files: Vec::new(), companion: None, dh_roundtrip_mm_deg: None, urdf_roundtrip_mm_deg: None };
+    if let Some(dh) = dh {
+        let ex = export_mdh(cm)?;
+        let (mm, deg) = (ex.roundtrip_m_rad.0 * 1e3, ex.roundtrip_m_rad.1.to_degrees());
+        let comment = vec![
+            format!("written by ferrocal {version} from {} (robot {robot})", calibration.display()),
+            "the measuring device's frame is in 'base', the measured target in 'tool'; effects (if any) stay in the calibration file".into(),
+            format!(
+                "checked: the table's forward kinematics differ from the calibrated model by at most {mm:.2e} mm and {deg:.2e} deg over 200 configurations"
+            ),
+        ];
+        run.files.push((dh.to_path_buf(), ex.table.to_csv(&comment)));
+        run.dh_roundtrip_mm_deg = Some((mm, deg));
+    }
+    if let Some(urdf) = urdf {
+        let comment = format!(
+            "written by ferrocal {version} from {} (robot {robot}); joint origins include the calibrated corrections and zero offsets; the measured target is link 'target', the measuring device's frame is link 'device'",
+            calibration.display()
+        );
+        let ex = export_urdf(cm, robot, &urdf.display().to_string(), &comment)?;
+        let companion = companion_path(urdf);
+        run.files.push((urdf.to_path_buf(), ex.urdf));
+        run.files.push((companion.clone(), serde_json::to_string_pretty(&ex.companion)?));
+        run.companion = Some(companion);
+        run.urdf_roundtrip_mm_deg = Some((ex.roundtrip_m_rad.0 * 1e3, ex.roundtrip_m_rad.1.to_degrees()));
+    }
+    Ok(run)
 }

@@ -4,7 +4,6 @@
 
 use std::path::{Path, PathBuf};
 
-use ferrocal_calib::file::CalibrationFile;
 use ferrocal_calib::kinematic::correct::{correct_program, CorrectOptions, CorrectedCommand};
 use ferrocal_robot::program::{gcode, krl, rapid_module, urscript, PathStep, PlannedPath, ProgramSettings, StepKind};
 use ferrocal_robot::{Kinematics, RobotModel};
@@ -38,10 +37,7 @@ pub struct CorrectRun {
 /// only. A command the calibrated model cannot reach is an error naming its pose id and line.
 pub fn correct_run(robot: &str, calibration: &Path, program_path: &Path, positions_only: bool) -> Result<CorrectRun> {
     let model = RobotModel::load(robot)?;
-    let file = CalibrationFile::read(calibration)?;
-    file.check_robot(robot, &model).map_err(|e| DatasetError::from(e).context(format!("{}", calibration.display())))?;
-    let cm =
-        file.apply(&model).map_err(|e| DatasetError::from(e).context(format!("applying {}", calibration.display())))?;
+    let cm = crate::calibration::apply_calibration(robot, &model, calibration)?;
     let program = read_joint_program(program_path)?;
     // Readings in another unit (degrees under `_rad`) or beyond the limits are refused by row.
     if program.joint_units.len() == Kinematics::dof(&model) {

@@ -3,8 +3,13 @@
 //! Entry points:
 //! - [`import`]: the measurement CSV of `shared/spec/measurements.md`, the UR5 and UR10
 //!   laser-tracker recordings, image folders; export to the measurement CSV.
+//! - [`camera`]: the `camera calibrate` and `camera stereo` workflows (views, held-out split,
+//!   calibration, held-out scoring, the rectified row check).
+//! - [`detect`]: the `detect` workflow (a pattern found in a batch of images).
 //! - [`handeye`]: hand-eye recordings (poses table, industrial_calibration importer, images
 //!   to a recording, simulation and the Monte Carlo study of the covariance).
+//! - [`kinematics`]: the `robot` command's joint values in user units, poses from text, forward
+//!   kinematics within the limits.
 //! - [`measure`]: from a session's images to metric target poses (camera rig calibrated from the
 //!   plate views, one pose with covariance per robot pose).
 //! - [`render`]: the physically modelled camera renderer of the synthetic cell.
@@ -28,13 +33,16 @@
 
 pub mod atomic;
 pub mod calibration;
+pub mod camera;
 pub mod checks;
 pub mod correct;
+pub mod detect;
 pub mod dynsim;
 pub mod error;
 pub mod formats;
 pub mod handeye;
 pub mod import;
+pub mod kinematics;
 pub mod measure;
 pub mod motion;
 pub mod recording;

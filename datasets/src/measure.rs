@@ -555,3 +555,34 @@ pub fn compare_with_tracker(
         nominal_model: nominal.calibrated.evaluate(&tracker_test).map_err(cal_err)?,
     })
 }
+
+impl SessionMeasurement {
+    /// The measurement table of the session in `session` as text: lengths in mm, each pose's
+    /// covariance in the `cov_*` columns, with comments that say where it came from.
+    pub fn table_text(&self, session: &Path) -> Result<String, DatasetError> {
+        let mut wopts = crate::import::WriteOptions::si(&self.joint_kinds);
+        wopts.length_unit = crate::import::LengthUnit::Mm;
+        wopts.comments = vec![
+            format!("measured by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), session.display()),
+            "positions and orientations of the target in the first camera's frame; cov_*: each pose's covariance"
+                .into(),
+        ];
+        crate::import::measurements_to_string(&self.rows, &wopts)
+    }
+
+    /// The median of the rows' position standard deviations, mm (NaN without any).
+    pub fn median_sigma_mm(&self) -> f64 {
+        let mut s: Vec<f64> = self.rows.rows.iter().filter_map(|r| r.sigma_m.map(|s| s * 1e3)).collect();
+        s.sort_by(f64::total_cmp);
+        s.get(s.len() / 2).copied().unwrap_or(f64::NAN)
+    }
+
+    /// [`compare_with_tracker`] against the tracker's measurement table `tracker` with the robot
+    /// model `robot` (preset, URDF or TOML) and the default calibration options.
+    pub fn compare_with_tracker_table(&self, tracker: &Path, robot: &str) -> Result<TrackerComparison, DatasetError> {
+        let tracker = crate::import::read_measurements(tracker)?.set;
+        let model = ferrocal_robot::RobotModel::load(robot)?;
+        let kopts = ferrocal_calib::kinematic::KinematicOptions::default();
+        compare_with_tracker(&model, &self.rows, &tracker, &self.poses, &kopts)
+    }
+}

@@ -1,5 +1,5 @@
 //! The verdicts of the commands (`camera calibrate`, `camera stereo`, `calibrate`, `evaluate`,
-//! `export`, `diagnose`, `import`): which numbers each holds against which limit of
+//! `export`, `diagnose`, `import`, `detect`, `corner-study`, `plan`): which numbers each holds against which limit of
 //! [`Thresholds`], and the next step in words (`docs/verdicts.md`).
 
 use serde_json::Value;
@@ -317,4 +317,82 @@ pub fn stereo(t: &Thresholds, rms_px: f64, pairs: usize, row_rms_px: Option<f64>
             other: "look at the per-view RMS of both cameras in the JSON and retake or drop the worst pairs",
         },
     )
+}
+
+/// `detect`: the fraction of the `n` images in which the pattern was found (`failed` were not).
+pub fn detect(t: &Thresholds, n: usize, failed: usize) -> Verdict {
+    let l = &t.detect;
+    let found = (n - failed) as f64 / n as f64;
+    let checks = vec![Check::at_least(
+        "detect.found_fraction",
+        &format!("pattern found in {} of {} images, fraction", n - failed, n),
+        "",
+        found,
+        l.found_fraction_warn,
+        l.found_fraction_fail,
+    )];
+    Verdict::with_next(checks, |c| {
+        match c {
+            None => "calibrate with these images: ferrocal camera calibrate --images ... --pattern ...",
+            Some(_) => "read the failed images' reasons above (and in the JSON's error fields): check the --pattern string (inner corners for a chessboard), focus and lighting, or leave those images out",
+        }
+        .to_string()
+    })
+}
+
+/// `corner-study`: the worst ratio of the corner RMS error to the Cramer-Rao bound (`ratio`),
+/// a warning only; `table` is the study's Markdown table.
+pub fn corner_study(t: &Thresholds, ratio: f64, table: &std::path::Path) -> Verdict {
+    let checks = vec![Check::at_most(
+        "study.corner_over_crb",
+        "largest corner RMS error over the Cramer-Rao bound",
+        "",
+        ratio,
+        t.study.corner_over_crb_warn,
+        f64::INFINITY,
+    )];
+    Verdict::with_next(checks, |c| {
+        match c {
+        None => format!("read the table: {}", table.display()),
+        Some(_) => "look at the rows far above the bound in corner_study.md (blur and noise levels) before trusting corners there".into(),
+    }
+    })
+}
+
+/// `plan`: the plan's own checks (selection, sigma ratio, predicted accuracy, path; `passed`)
+/// decide; another failed section of its report (`failed`, by name; the Monte Carlo check of
+/// the prediction on few runs) is a warning. `html` is the report.
+pub fn plan(t: &Thresholds, passed: bool, failed: &[String], html: &str) -> Verdict {
+    let l = &t.plan;
+    let design_failed = if passed { 0.0 } else { failed.len().max(1) as f64 };
+    let others = if failed.is_empty() {
+        "report sections failed".to_string()
+    } else {
+        format!("report sections failed ({})", failed.join(", "))
+    };
+    let checks = vec![
+        Check::at_most(
+            "plan.failed_checks",
+            "the plan's checks failed",
+            "",
+            design_failed,
+            l.failed_checks_fail,
+            l.failed_checks_fail,
+        ),
+        Check::at_most(
+            "plan.other_checks",
+            &others,
+            "",
+            if passed { failed.len() as f64 } else { 0.0 },
+            0.0,
+            f64::INFINITY,
+        ),
+    ];
+    Verdict::with_next(checks, |c| {
+        match c.map(|c| c.name.as_str()) {
+        None => format!("measure the poses: {} (poses.csv and the programs beside it)", html),
+        Some("plan.other_checks") => format!("the plan passed, but read the failed section of {html}; more simulations (--simulations) settle a Monte Carlo check"),
+        _ => format!("read the failed checks of {html}: widen the workspace, add poses (--wanted) or change the criterion"),
+    }
+    })
 }

@@ -1,10 +1,12 @@
 //! The `dynamics identify` workflows on recorded tables: a dynamic model (force-sensor models 6
 //! to 9, or the hexapod's rigid-body and friction parameters) from synchronised leg-position and
 //! force streams ([`identify_streams`]), and a quasi-static force-sensor model from averaged
-//! forces at poses ([`identify_static`]), on the rig's geometry ([`PlatformSim::preset`]).
+//! forces at poses ([`identify_static`]), on the rig's geometry ([`PlatformSim::preset`]); and
+//! the missing-physics diagnosis of the sensor from such a table ([`diagnose_static_table`]).
 
 use std::path::{Path, PathBuf};
 
+use ferrocal_calib::diagnose::force::{diagnose_force_sensor, ForceDiagnoseOptions, ForceDiagnoseReport};
 use ferrocal_calib::dynamics::force_sensor::{SensorModel, SensorRegressor};
 use ferrocal_calib::dynamics::identify::{identify_from_streams, DynamicFit, RowModel};
 use ferrocal_calib::dynamics::{Differentiation, NoiseModel, SensorRows};
@@ -91,4 +93,16 @@ pub fn identify_static(model: u8, poses_path: &Path) -> Result<(SensorModel, usi
         DatasetError::from(e).context(format!("{m} from {} poses of {}", poses.len(), poses_path.display()))
     })?;
     Ok((m, poses.len(), f))
+}
+
+/// The missing-physics diagnosis of a force-sensing end-effector from a quasi-static table
+/// (`ferrocal dynamics simulate`'s static.csv) on the rig's sensor framework
+/// ([`rig_sensor_regressor`]): the rigid body and offsets identified, the deformation terms
+/// tested on held-out poses. With the number of poses.
+pub fn diagnose_static_table(path: &Path, opts: &ForceDiagnoseOptions) -> Result<(usize, ForceDiagnoseReport)> {
+    let (poses, forces) = dynamics_tables::read_static_table(path)?;
+    let reg = rig_sensor_regressor()?;
+    let rep = diagnose_force_sensor(&reg, &poses, &forces, opts)
+        .map_err(|e| DatasetError::from(e).context(format!("force-sensor diagnosis of {}", path.display())))?;
+    Ok((poses.len(), rep))
 }

@@ -23,4 +23,7 @@ pub use sim::{
     coverage_study, simulate_hand_eye, write_rendered_recording, CoverageSummary, HandEyeSimConfig, HandEyeTruth,
     RenderedRecording, StudyMode,
 };
-pub use workflow::{HandEyeFit, HandEyeInput, HandEyeRunOptions};
+pub use workflow::{
+    check_simulated_images, huber_sigmas_of_loss, write_simulated_recording, HandEyeFit, HandEyeInput,
+    HandEyeRunOptions,
+};

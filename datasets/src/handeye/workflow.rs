@@ -1,17 +1,19 @@
 //! The `handeye` workflow: a recording (images, the poses table, the target, the mount) loaded
 //! ([`HandEyeInput::load`]), the hand-eye calibration with OpenCV's solvers beside it on the
 //! same corners ([`HandEyeInput::fit`]) and, with a robot model and joint readings, the joint
-//! adjustment of robot and camera ([`HandEyeInput::joint_adjustment`]). The binary turns its
+//! adjustment of robot and camera ([`HandEyeInput::joint_adjustment`]); and `handeye simulate`'s
+//! recordings ([`write_simulated_recording`]). The binary turns its
 //! arguments into [`HandEyeRunOptions`]; the report crate turns the results into JSON and HTML.
 
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use ferrocal_calib::handeye::opencv::{opencv_baselines, BaselineReport};
 use ferrocal_calib::handeye::{
     calibrate_hand_eye, calibrate_joint_from, HandEyeData, HandEyeOptions, HandEyeResult, IntrinsicsMode,
     JointCalibration, JointOptions, Mount,
 };
+use ferrocal_lsq::Loss;
 use ferrocal_robot::RobotModel;
 use ferrocal_vision::calib::corners::SkippedImage;
 use ferrocal_vision::calib::CalibrationOptions;
@@ -162,4 +164,65 @@ impl HandEyeInput {
         calibrate_joint_from(model, &scaled, &joints, fit.result.clone(), &joint_options)
             .map_err(|e| DatasetError::from(e).context("handeye: the joint adjustment of robot and camera"))
     }
+}
+
+/// The Huber threshold of the hand-eye fit for a `--loss` string: `none` (plain least squares,
+/// 0) or `huber:<sigmas>` (robust standard deviations of the first solve).
+pub fn huber_sigmas_of_loss(loss: &str) -> Result<f64> {
+    match crate::calibration::parse_loss(loss)? {
+        Loss::Squared => Ok(0.0),
+        Loss::Huber { delta } => Ok(delta),
+        _ => Err(DatasetError::Input(format!("--loss {loss}: the hand-eye fit takes none or huber:<sigmas>"))),
+    }
+}
+
+/// The most images one simulated recording renders (about 1 MB each).
+pub const MAX_SIMULATED_IMAGES: usize = 2000;
+
+/// Refuses a simulated recording of more than [`MAX_SIMULATED_IMAGES`] images, before anything
+/// is allocated.
+pub fn check_simulated_images(train: usize, test: usize) -> Result<()> {
+    if train + test > MAX_SIMULATED_IMAGES {
+        return Err(DatasetError::Input(format!(
+            "handeye simulate: --train {train} and --test {test} ask for {} images; at most {MAX_SIMULATED_IMAGES} are rendered",
+            train + test
+        )));
+    }
+    Ok(())
+}
+
+/// Writes a simulated recording with rendered chessboard images into `dir`: `train` + `test`
+/// images of the default cell of `mount`, or with `robot` (`ur5`, eye-to-hand only) the joint
+/// study's UR5 with true kinematic errors. Returns what was written, in words, naming the folder
+/// as `shown` (where `dir` will be moved).
+pub fn write_simulated_recording(
+    mount: Mount,
+    robot: Option<&str>,
+    (train, test, seed): (usize, usize, u64),
+    dir: &Path,
+    shown: &Path,
+) -> Result<String> {
+    if let Some(robot) = robot {
+        if robot != "ur5" || mount != Mount::EyeToHand {
+            return Err(DatasetError::Input(format!(
+                "handeye simulate --robot: only the ur5 cell, eye-to-hand, is simulated (got {robot})"
+            )));
+        }
+        let config = super::joint_record::rendered_ur5_cell(train, test);
+        let r = super::joint_record::write_joint_recording(&config, dir, seed)?;
+        return Ok(format!(
+            "{} + {} images written to {} (pattern {}); nominal {} held out: mean {:.4} mm after the frame refit",
+            r.n_train,
+            r.n_test,
+            shown.display(),
+            r.pattern,
+            r.robot,
+            r.nominal_heldout.mean_mm
+        ));
+    }
+    let mut config = super::HandEyeSimConfig::default_for(mount);
+    config.n_train = train;
+    config.n_test = test;
+    let r = super::write_rendered_recording(&config, dir, seed)?;
+    Ok(format!("{} images written to {} (pattern {})", r.n_images, shown.display(), r.pattern))
 }

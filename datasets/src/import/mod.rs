@@ -10,11 +10,13 @@
 //! - [`images`]: image folders with an optional joints table.
 //! - [`plausible`]: plausibility checks at the boundary (joint values against the model's
 //!   limits, a table cut short, repeated poses) and the cutting of long cells in messages.
+//! - [`convert`]: the `ferrocal import` workflow (a recording to a measurement table).
 //! - [`geometry`]: Euler conventions of the recordings and rigid registration (Kabsch / Horn).
 //!
 //! All values are converted to SI (metres, radians) on import. Every error about file content
 //! names the file, the 1-based line (comment lines count) and the column.
 
+pub mod convert;
 pub mod geometry;
 pub mod images;
 pub mod measurements;

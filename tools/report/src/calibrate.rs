@@ -1,14 +1,21 @@
 //! Report sections and the JSON summary of a kinematic calibration (`ferrocal calibrate`, the
-//! demo).
+//! demo), the output files of `ferrocal calibrate` ([`calibrate_outputs`]) and the JSON of
+//! `ferrocal evaluate` ([`evaluate_run_json`]).
 
+use std::path::Path;
+
+use ferrocal_calib::file::CalibrationFile;
 use ferrocal_calib::kinematic::{CalibratedModel, ErrorStats, KinematicCalibration};
+use ferrocal_calib::verdict::Verdict;
 use ferrocal_calib::PoseMeasurement;
-use ferrocal_datasets::calibration::SpatialCheck;
+use ferrocal_datasets::calibration::{CalibrationRun, EvaluateRun, SpatialCheck};
 use serde_json::json;
 
 use crate::error::Result;
+use crate::outputs::Outputs;
 use crate::plot::{self, Series};
-use crate::report::Section;
+use crate::report::{Provenance, Report, Section};
+use crate::verdict::add_verdict;
 
 pub use ferrocal_datasets::calibration::Validation;
 
@@ -236,4 +243,79 @@ pub fn physical_summary(cal: &KinematicCalibration) -> Vec<String> {
         out.extend(trades.into_iter().map(|t| format!("  {t}")));
     }
     out
+}
+
+/// Where `ferrocal calibrate` writes.
+#[derive(Clone, Copy, Debug)]
+pub struct CalibrateFiles<'a> {
+    /// The calibration file (what `ferrocal evaluate` reads).
+    pub out: &'a Path,
+    /// The JSON summary.
+    pub json: Option<&'a Path>,
+    /// The HTML report.
+    pub report: Option<&'a Path>,
+}
+
+/// The files of `ferrocal calibrate`, composed (not written): the calibration file of the model
+/// `robot` (as given on the command line), the JSON summary with the spatial check, the dropped
+/// rows and the verdict, and the HTML report of the model named `model`, with the settings
+/// `settings` and the table `measurements` in its provenance.
+pub fn calibrate_outputs(
+    run: &CalibrationRun,
+    robot: &str,
+    model: &str,
+    measurements: &Path,
+    settings: serde_json::Value,
+    verdict: &Verdict,
+    files: &CalibrateFiles,
+) -> Result<Outputs> {
+    let (cal, mut out) = (&run.cal, Outputs::default());
+    out.json(files.out, &CalibrationFile::new(robot, &cal.calibrated))?;
+    let mut summary = report_json(cal, &run.validation, run.final_rows.len(), run.fixed_split);
+    if let Some(spatial) = &run.heldout_spatial {
+        summary["heldout_spatial"] = spatial_json(spatial);
+    }
+    summary["dropped_rows"] = json!(cal.dropped_rows);
+    summary["outlier_note"] = json!(cal.outlier_note);
+    add_verdict(&mut summary, verdict);
+    if let Some(j) = files.json {
+        out.json(j, &summary)?;
+    }
+    if let Some(h) = files.report {
+        let mut prov = Provenance::new(settings);
+        prov.add_input(measurements);
+        let sections = calibration_sections(cal, &run.validation, &run.final_rows);
+        out.html(h, Report::of(&format!("Calibration of {model}"), prov, sections), verdict);
+    }
+    Ok(out)
+}
+
+/// The terminal summary of `ferrocal calibrate` on the model named `model`: the RMS before and
+/// after, the held-out errors, then the [`physical_summary`].
+pub fn summary_lines(run: &CalibrationRun, model: &str) -> Vec<String> {
+    let cal = &run.cal;
+    let mut out = vec![format!(
+        "calibrated {model} on {} poses: RMS {:.4} mm -> {:.4} mm (mean {:.4} mm){}",
+        run.final_rows.len(),
+        cal.train_before.rms_mm,
+        cal.train_after.rms_mm,
+        cal.train_after.mean_mm,
+        run.validation
+            .as_ref()
+            .map(|(_, b, a)| format!("; held out ({} poses): mean {:.4} -> {:.4} mm", a.n, b.mean_mm, a.mean_mm))
+            .unwrap_or_default()
+    )];
+    out.extend(physical_summary(cal));
+    out
+}
+
+/// The JSON of `ferrocal evaluate` ([`evaluate_json`] with which rows were scored and the frame
+/// refit) and the statistics.
+pub fn evaluate_run_json(run: &EvaluateRun) -> Result<(serde_json::Value, ErrorStats)> {
+    let (mut out, stats) = evaluate_json(&run.model, &run.scored)?;
+    out["rows_scored"] = json!(if run.test_only { "test" } else { "all" });
+    if let Some(record) = &run.refit {
+        out["refit_frame"] = serde_json::to_value(record)?;
+    }
+    Ok((out, stats))
 }

@@ -1,11 +1,24 @@
 //! The JSON of `ferrocal camera calibrate` and `ferrocal camera stereo` (keys per
-//! `shared/spec/cli.md`, plus extras) and their terminal summary.
+//! `shared/spec/cli.md`, plus extras), all their output files ([`camera_outputs`],
+//! [`stereo_outputs`]) and their terminal summary.
 
+use std::path::Path;
+
+use ferrocal_calib::verdict::Verdict;
+use ferrocal_datasets::camera::{CameraRun, StereoRun};
 use ferrocal_vision::calib::corners::SkippedImage;
-use ferrocal_vision::calib::{CameraCalibration, StereoCalibration};
+use ferrocal_vision::calib::heldout::HeldOut;
+use ferrocal_vision::calib::{CameraCalibration, RectifiedCorner, StereoCalibration};
+use ferrocal_vision::camera::io::{self, StereoPair};
 use ferrocal_vision::camera::DistortionKind;
 use ferrocal_vision::detect::Pattern;
 use serde_json::{json, Value};
+
+use crate::camera_report::{camera_report, stereo_report, CameraReportInput, StereoReportInput};
+use crate::error::Result;
+use crate::outputs::Outputs;
+use crate::report::Provenance;
+use crate::verdict::add_verdict;
 
 /// The skipped images with their reasons.
 pub fn skipped_json(skipped: &[SkippedImage]) -> Value {
@@ -155,4 +168,186 @@ pub fn rectification_json(pair: &ferrocal_vision::camera::io::StereoPair, row_rm
         "n_corner_pairs": n_corners,
         "method": "Bouguet (OpenCV stereoRectify, alpha = -1, CALIB_ZERO_DISPARITY); T, P2 and Q in metres",
     })
+}
+
+/// Where `ferrocal camera calibrate` writes (each file only when asked for).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CameraFiles<'a> {
+    /// The JSON report.
+    pub json: Option<&'a Path>,
+    /// The camera as OpenCV FileStorage YAML.
+    pub opencv_yaml: Option<&'a Path>,
+    /// The camera as ROS camera_info YAML.
+    pub ros_yaml: Option<&'a Path>,
+    /// The HTML report.
+    pub report: Option<&'a Path>,
+    /// The camera's name in the ROS file.
+    pub camera_name: &'a str,
+}
+
+/// The files of `ferrocal camera calibrate`, composed (not written): the JSON with the verdict,
+/// the pattern, the corner method, the held-out scores and the skipped images; the OpenCV and
+/// ROS camera files; the HTML report opening with the verdict. `test_every` is recorded in the
+/// report's provenance.
+pub fn camera_outputs(
+    run: &CameraRun,
+    held_out: Option<&HeldOut>,
+    test_every: Option<usize>,
+    verdict: &Verdict,
+    files: &CameraFiles,
+) -> Result<Outputs> {
+    let (cal, mut out) = (&run.fit.calibration, Outputs::default());
+    if let Some(p) = files.json {
+        let mut v = camera_json(cal);
+        add_verdict(&mut v, verdict);
+        v["circle_bias"] = json!(run.fit.circle_bias);
+        v["pattern"] = json!(run.pattern.to_string());
+        v["fix_aspect"] = json!(run.options.fix_aspect);
+        v["corners"] = json!(run.method);
+        v["held_out"] = json!(held_out);
+        v["skipped"] = skipped_json(&run.skipped);
+        out.json(p, &v)?;
+    }
+    if let Some(p) = files.opencv_yaml {
+        out.text(p, io::to_opencv_yaml(&cal.camera)?);
+    }
+    if let Some(p) = files.ros_yaml {
+        out.text(p, io::to_ros_yaml(&cal.camera, files.camera_name)?);
+    }
+    if let Some(p) = files.report {
+        let mut prov = Provenance::new(json!({"pattern": run.pattern.to_string(), "corners": run.method,
+            "fix_aspect": run.options.fix_aspect, "model": format!("{:?}", run.options.model), "test_every": test_every}));
+        run.paths.iter().for_each(|i| prov.add_input(i));
+        let target = run.pattern.target();
+        let pattern = run.pattern.to_string();
+        let input =
+            CameraReportInput { pattern: &pattern, views: &run.views, target: &target, held_out, provenance: prov };
+        out.html(p, camera_report(cal, input), verdict);
+    }
+    Ok(out)
+}
+
+/// Where `ferrocal camera stereo` writes (each file only when asked for).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StereoFiles<'a> {
+    /// The JSON report.
+    pub json: Option<&'a Path>,
+    /// The left camera as OpenCV FileStorage YAML.
+    pub left_opencv_yaml: Option<&'a Path>,
+    /// The right camera as OpenCV FileStorage YAML.
+    pub right_opencv_yaml: Option<&'a Path>,
+    /// The left camera as ROS camera_info YAML with the rectification.
+    pub left_ros_yaml: Option<&'a Path>,
+    /// The right camera as ROS camera_info YAML with the rectification.
+    pub right_ros_yaml: Option<&'a Path>,
+    /// The pair as one OpenCV FileStorage YAML file (the stereo_calib sample's names).
+    pub opencv_stereo_yaml: Option<&'a Path>,
+    /// The HTML report.
+    pub report: Option<&'a Path>,
+}
+
+impl StereoFiles<'_> {
+    /// Every output asked for, in the order of the arguments.
+    pub fn all(&self) -> Vec<&Path> {
+        [
+            self.json,
+            self.left_opencv_yaml,
+            self.right_opencv_yaml,
+            self.left_ros_yaml,
+            self.right_ros_yaml,
+            self.opencv_stereo_yaml,
+            self.report,
+        ]
+        .into_iter()
+        .flatten()
+        .collect()
+    }
+
+    /// True when an output needs the rectification (the ROS files, the OpenCV stereo file, the
+    /// report).
+    pub fn need_rectification(&self) -> bool {
+        self.left_ros_yaml.is_some()
+            || self.right_ros_yaml.is_some()
+            || self.opencv_stereo_yaml.is_some()
+            || self.report.is_some()
+    }
+}
+
+/// A pair's rectification with the corners seen in both images, rectified, and the RMS of
+/// their row difference, pixels.
+pub type Rectified<'a> = (&'a StereoPair, &'a [RectifiedCorner], f64);
+
+/// The files of `ferrocal camera stereo`, composed (not written): the JSON with the verdict and
+/// the rectification, both cameras' OpenCV files and, when the pair could be rectified, the ROS
+/// files, the OpenCV stereo file and the HTML report opening with the verdict.
+pub fn stereo_outputs(
+    run: &StereoRun,
+    rectified: Option<Rectified>,
+    verdict: &Verdict,
+    files: &StereoFiles,
+) -> Result<Outputs> {
+    let (st, mut out) = (&run.calibration, Outputs::default());
+    if let Some(p) = files.json {
+        let pattern = run.pattern.pattern();
+        let mut v = stereo_json(st, run.n_pairs, &pattern, run.options.fix_aspect, &run.views.skipped);
+        add_verdict(&mut v, verdict);
+        v["rectification"] =
+            rectified.map_or(Value::Null, |(pair, corners, rms)| rectification_json(pair, rms, corners.len()));
+        out.json(p, &v)?;
+    }
+    for (cal, path) in [(st.left(), files.left_opencv_yaml), (st.right(), files.right_opencv_yaml)] {
+        if let Some(p) = path {
+            out.text(p, io::to_opencv_yaml(&cal.camera)?);
+        }
+    }
+    let Some((pair, corners, _)) = rectified else {
+        return Ok(out);
+    };
+    if files.left_ros_yaml.is_some() || files.right_ros_yaml.is_some() {
+        let (l, r) = io::to_ros_stereo_yaml(pair, "left", "right")?;
+        for (text, path) in [(l, files.left_ros_yaml), (r, files.right_ros_yaml)] {
+            if let Some(p) = path {
+                out.text(p, text);
+            }
+        }
+    }
+    if let Some(p) = files.opencv_stereo_yaml {
+        out.text(p, io::to_opencv_stereo_yaml(pair)?);
+    }
+    if let Some(p) = files.report {
+        let mut prov = Provenance::new(json!({"pattern": run.pattern.to_string(), "corners": run.views.method,
+            "fix_aspect": run.options.fix_aspect, "model": format!("{:?}", run.options.model)}));
+        run.inputs().iter().for_each(|i| prov.add_input(i));
+        let pattern = run.pattern.to_string();
+        let (left, right, target) = (&run.views.left, &run.views.right, &run.target);
+        let input = StereoReportInput { pattern: &pattern, left, right, target, pair, corners, provenance: prov };
+        out.html(p, stereo_report(st, input), verdict);
+    }
+    Ok(out)
+}
+
+/// The terminal line of a stereo calibration: `T_right_left` with its standard deviations, the
+/// baseline and the RMS over the pairs.
+pub fn stereo_line(st: &StereoCalibration, n_pairs: usize) -> String {
+    format!(
+        "T_right_left: rotation {:.4?} deg (std {:.4?}), translation {:.3?} mm (std {:.3?}), baseline {:.3} +- {:.3} mm; RMS {:.4} px ({n_pairs} pairs)",
+        st.rotation_deg.as_slice(),
+        st.rotation_std_deg.as_slice(),
+        st.translation_mm.as_slice(),
+        st.translation_std_mm.as_slice(),
+        st.baseline_mm,
+        st.baseline_std_mm,
+        st.calibration.rms_px
+    )
+}
+
+/// The terminal line of the rectification check: the common focal length, the baseline and the
+/// row difference RMS over the corner pairs.
+pub fn rectified_line(pair: &StereoPair, row_rms_px: f64, n_corners: usize) -> String {
+    let rect = &pair.rectification;
+    format!(
+        "rectified: f' {:.3} px, baseline {:.3} mm, row difference RMS {row_rms_px:.4} px over {n_corners} corner pairs",
+        rect.focal_px(),
+        rect.baseline() * 1e3
+    )
 }

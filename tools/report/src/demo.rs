@@ -4,7 +4,7 @@
 //!
 //! The sections that run other commands (the plan, the real-camera calibration, the UR5
 //! diagnosis) are built here from those commands' JSON by [`plan`], [`camera_real`] and
-//! [`camera_diagnose`].
+//! [`camera_diagnose`]; [`pipeline::demo_report`] runs every stage in order.
 
 use std::path::Path;
 
@@ -21,6 +21,7 @@ use crate::plot::{self, Series};
 use crate::report::{inline_png, Block, Section};
 
 mod camera;
+pub mod pipeline;
 pub use camera::{camera_diagnose, camera_own_corners, camera_real, camera_real_skipped};
 
 /// Progress of a long step: `(label, position, length)`.

@@ -1,13 +1,86 @@
 //! Report sections of `ferrocal diagnose`: the robot variant (fits, findings with their
 //! evidence plots, candidates, untestable candidates, the screening of every input), the camera
-//! and the force-sensor variants.
+//! and the force-sensor variants; their JSON with the verdict ([`diagnose_json`]) and their
+//! terminal summaries.
 
 use ferrocal_calib::diagnose::camera::CameraDiagnoseReport;
 use ferrocal_calib::diagnose::force::ForceDiagnoseReport;
 use ferrocal_calib::diagnose::{DiagnoseReport, Evidence, InputStructure};
+use ferrocal_calib::verdict::{Thresholds, Verdict};
+use serde::Serialize;
+use serde_json::Value;
 
+use crate::error::Result;
 use crate::plot::{self, Series};
 use crate::report::Section;
+use crate::verdict::add_verdict;
+
+/// The JSON of a diagnosis (any variant) with its verdict added, and the verdict
+/// ([`ferrocal_calib::verdict::commands::diagnose`]; `unit`: `mm`, `px` or `n`; `next`: the next
+/// step when effects were found).
+pub fn diagnose_json(t: &Thresholds, rep: &impl Serialize, unit: &str, next: &str) -> Result<(Value, Verdict)> {
+    let mut v = serde_json::to_value(rep)?;
+    let verdict = ferrocal_calib::verdict::commands::diagnose(t, &v, unit, next);
+    add_verdict(&mut v, &verdict);
+    Ok((v, verdict))
+}
+
+/// The terminal summary of the robot variant on the model named `model`: why it declined (if
+/// it did), the held-out RMS before and after, the summary and every finding.
+pub fn summary_lines(rep: &DiagnoseReport, model: &str) -> Vec<String> {
+    let mut out: Vec<String> = rep.declined.iter().map(|d| format!("diagnose: {d}")).collect();
+    out.push(format!(
+        "diagnosed {model} on {} poses in {:.1} s: held-out RMS {:.4} mm (geometric model) -> {:.4} mm; {} finding(s){}",
+        rep.n_poses,
+        rep.elapsed_s,
+        rep.nominal.heldout_rms_mm,
+        rep.final_fit.heldout_rms_mm,
+        rep.findings.len(),
+        if rep.unexplained.structure_found {
+            format!("; unexplained structure against {}", rep.unexplained.depends_on.join(", "))
+        } else {
+            String::new()
+        }
+    ));
+    out.push(format!("  {}", rep.summary));
+    out.extend(rep.findings.iter().map(|f| format!("  {}: {}", f.effect, f.statement)));
+    out
+}
+
+/// The terminal summary of the camera variant: why it declined (if it did), the held-out
+/// reprojection RMS before and after, every finding and the unexplained structure.
+pub fn camera_summary_lines(rep: &CameraDiagnoseReport) -> Vec<String> {
+    let mut out: Vec<String> = rep.declined.iter().map(|d| format!("diagnose: {d}")).collect();
+    out.push(format!(
+        "diagnosed a camera from {} views: held-out reprojection RMS {:.4} px -> {:.4} px; {} finding(s)",
+        rep.n_views,
+        rep.nominal.heldout_rms_px,
+        rep.final_fit.heldout_rms_px,
+        rep.findings.len()
+    ));
+    out.extend(rep.findings.iter().map(|f| format!("  {}: {}", f.effect, f.statement)));
+    if rep.unexplained.structure_found {
+        out.push(format!("  unexplained structure, depending on {}:", rep.unexplained.depends_on.join(" and ")));
+        out.extend(rep.unexplained.evidence.iter().map(|e| format!("    {e}")));
+    }
+    out
+}
+
+/// The terminal summary of the force-sensor variant on `n_poses` poses: why it declined (if it
+/// did), the held-out force RMS and the mass before and after, every finding.
+pub fn force_summary_lines(rep: &ForceDiagnoseReport, n_poses: usize) -> Vec<String> {
+    let mut out: Vec<String> = rep.declined.iter().map(|d| format!("diagnose: {d}")).collect();
+    out.push(format!(
+        "diagnosed a force-sensing end-effector from {n_poses} poses: held-out force RMS {:.3} N -> {:.3} N; {} finding(s); mass {:.2} -> {:.2} kg",
+        rep.nominal.heldout_rms_n,
+        rep.final_fit.heldout_rms_n,
+        rep.findings.len(),
+        rep.mass_kg[0],
+        rep.mass_kg[1]
+    ));
+    out.extend(rep.findings.iter().map(|f| format!("  {}: {}", f.effect, f.statement)));
+    out
+}
 
 /// The camera variant's section (`folds`: of the cross-validation).
 pub fn camera_section(rep: &CameraDiagnoseReport, folds: usize, attribution: Option<&str>) -> Section {

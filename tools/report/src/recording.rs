@@ -1,13 +1,15 @@
 //! `ferrocal measure --images ... --poses P.csv --pattern P`'s presentation: a user's own
 //! recording (a folder of images and the poses table of `handeye`, no session manifest, no
 //! truth) measured by one camera (`ferrocal_datasets::recording`) into its JSON, its verdict and
-//! its summary; and the demo's section on the real recordings.
+//! its summary; `ferrocal measure --session`'s JSON, verdict and summary lines
+//! ([`session_json`]); and the demo's section on the real recordings.
 
 use std::path::Path;
 
 use ferrocal_calib::handeye::Mount;
 use ferrocal_datasets::handeye::read_handeye_poses;
 use ferrocal_datasets::import::images::expand_image_specs;
+use ferrocal_datasets::measure::{SessionMeasurement, TrackerComparison};
 use ferrocal_datasets::recording::{frame_note, measure_recording, RecordingMeasurement, RecordingOptions};
 use ferrocal_vision::calib::corners::SkippedImage;
 use ferrocal_vision::calib::CalibrationOptions;
@@ -103,6 +105,60 @@ pub fn print_summary(m: &RecordingMeasurement) {
             r[r.len() / 2]
         }
     );
+}
+
+/// The JSON of `ferrocal measure --session ... --json` (without its verdict): the session
+/// `m` measured from the folder `session`, and its comparison with a tracker when there is one.
+pub fn session_json(
+    m: &SessionMeasurement,
+    session: &Path,
+    comparison: Option<&TrackerComparison>,
+) -> serde_json::Value {
+    json!({
+        "tracker_comparison": comparison,
+        "session": session.display().to_string(),
+        "n_measured": m.rows.rows.len(),
+        "skipped": m.skipped,
+        "rig_rms_px": m.rig.rms_px,
+        "median_position_sigma_mm": m.median_sigma_mm(),
+        "poses": m.poses.iter().map(|p| json!({
+            "pose_id": p.pose_id,
+            "cameras": p.cameras,
+            "sigma_position_mm": p.estimate.sigma_position_mm().as_slice(),
+            "sigma_rotation_deg": p.estimate.sigma_rotation_deg().as_slice(),
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// The verdict of `ferrocal measure --session`: how many poses were measured and the rig
+/// calibration's RMS; `out`: the table written.
+pub fn session_verdict(
+    t: &ferrocal_calib::verdict::Thresholds,
+    m: &SessionMeasurement,
+    out: &Path,
+) -> ferrocal_calib::verdict::Verdict {
+    let n = m.rows.rows.len();
+    crate::verdict::measure_verdict(t, n, n + m.skipped.len(), "rig calibration RMS", m.rig.rms_px, Some(out))
+}
+
+/// The terminal line of a session's measurement written to the table `out`.
+pub fn session_line(m: &SessionMeasurement, out: &Path) -> String {
+    format!(
+        "{} poses measured, {} skipped; rig calibration RMS {:.4} px; median position sigma {:.4} mm; table {}",
+        m.rows.rows.len(),
+        m.skipped.len(),
+        m.rig.rms_px,
+        m.median_sigma_mm(),
+        out.display()
+    )
+}
+
+/// The terminal line of the cameras against a laser tracker.
+pub fn tracker_line(c: &TrackerComparison) -> String {
+    format!(
+        "against the tracker ({} common poses): cameras {:.4} mm mean after registration; held-out tracker error of the model calibrated from the cameras {:.4} mm, from the tracker {:.4} mm, nominal {:.4} mm",
+        c.n_common, c.camera_mean_mm, c.camera_model.mean_mm, c.tracker_model.mean_mm, c.nominal_model.mean_mm
+    )
 }
 
 /// The demo's section: both real recordings of the ROS-Industrial industrial_calibration example

@@ -237,6 +237,11 @@ impl Report {
         Self { title: title.to_string(), provenance, sections: Vec::new(), verdict: None, open_sections: 2 }
     }
 
+    /// A report of `sections`.
+    pub fn of(title: &str, provenance: Provenance, sections: Vec<Section>) -> Self {
+        Self { sections, ..Self::new(title, provenance) }
+    }
+
     /// True when a section's check failed.
     pub fn failed(&self) -> bool {
         self.sections.iter().any(Section::failed)

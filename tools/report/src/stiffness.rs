@@ -1,11 +1,16 @@
 //! Report of `ferrocal stiffness`: elastostatic identification of serial robots by the virtual
 //! joint method with practical identifiability (Klimchik et al. 2015): the source's one-link and
-//! 6-DOF studies on the simulator beside the source's numbers, and the identification report.
+//! 6-DOF studies on the simulator beside the source's numbers, and the identification's report,
+//! terminal table and parameters.
 //! The checks are `ferrocal_datasets::stiffsim::checks`.
+
+use std::collections::BTreeMap;
+use std::path::Path;
 
 use crate::error::Result;
 use ferrocal_calib::check::Check;
 use ferrocal_calib::stiffness::onelink::SOURCE_NU;
+use ferrocal_calib::stiffness::problem::LinearProblem;
 use ferrocal_calib::stiffness::reduce::Reduction;
 use ferrocal_datasets::stiffsim::checks;
 use ferrocal_datasets::stiffsim::study::{arm_study, one_link_study, ArmStudy, ArmStudySettings, OneLinkStudy};
@@ -324,6 +329,51 @@ pub fn identify_section(red: &Reduction, prior: &[f64]) -> Section {
         if ok { "physical".to_string() } else { red.physical_problems.join("; ") },
     ));
     sec
+}
+
+/// The terminal table of an identification: every reduction step, then every identified
+/// parameter beside its design estimate `prior` (reduced parameters).
+pub fn identify_lines(red: &Reduction, prior: &[f64]) -> Vec<String> {
+    let mut out = vec![format!("{:4} {:>5} {:>5} {:>10} {:>6}  what", "step", "n", "rank", "cond", "s0")];
+    for s in &red.steps {
+        out.push(format!(
+            "{:4} {:>5} {:>5} {:>10.3e} {:>6.2}  {}",
+            s.code, s.n_params, s.rank, s.condition_number, s.s0, s.title
+        ));
+    }
+    out.push(format!("\n{:32} {:>12} {:>10} {:>8} {:>12}", "parameter", "estimate", "std", "nu", "prior"));
+    let f = &red.fit;
+    for (i, p0) in prior.iter().enumerate() {
+        out.push(format!(
+            "{:32} {:>12.4e} {:>10.2e} {:>8.1} {:>12.4e}  {}",
+            f.names[i], f.values[i], f.std[i], f.nu[i], p0, f.units[i]
+        ));
+    }
+    out
+}
+
+/// The identified parameters that can be trusted when the estimate is not physical: those of
+/// the groups no physical problem names.
+pub fn trusted_parameters(red: &Reduction) -> Vec<String> {
+    let f = &red.fit;
+    (0..red.param.len())
+        .filter(|&i| !red.physical_problems.iter().any(|p| p.starts_with(f.names[i].split('.').next().unwrap_or(""))))
+        .map(|i| f.names[i].clone())
+        .collect()
+}
+
+/// The report of `ferrocal stiffness identify --out` of the model named `model` from the table
+/// `measurements` with the threshold `nu_threshold`: the [`identify_section`].
+pub fn identify_report(model: &str, nu_threshold: f64, measurements: &Path, red: &Reduction, prior: &[f64]) -> Report {
+    let mut prov = Provenance::new(json!({"model": model, "nu_threshold": nu_threshold}));
+    prov.add_input(measurements);
+    Report::of(&format!("Compliance identification of {model}"), prov, vec![identify_section(red, prior)])
+}
+
+/// Every parameter of the complete model (`problem`'s layout) by name with its value after the
+/// reduction `red`: the `parameters.json` of `ferrocal stiffness identify --out`.
+pub fn complete_parameters(problem: &LinearProblem, red: &Reduction) -> BTreeMap<String, f64> {
+    problem.layout.names().into_iter().zip(red.complete_values.iter().copied()).collect()
 }
 
 /// The demo's section: the one-link ratios and the 6-DOF reduction and compensation beside the

@@ -186,3 +186,13 @@ pub fn conclude_report(vs: &VerdictSettings, dir: &Path, name: &str) -> Result<E
     }
     Ok(vs.conclude_with(&v, ExitCode::SUCCESS, 2))
 }
+
+/// The sections whose check failed in the report JSON `path` (`report.json` of a report
+/// folder), by name.
+pub fn failed_sections(path: &Path) -> Result<Vec<String>> {
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(path)?)?;
+    Ok(report["sections"]
+        .as_object()
+        .map(|m| m.iter().filter(|(_, v)| v["check"] == "fail").map(|(k, _)| k.clone()).collect())
+        .unwrap_or_default())
+}

@@ -10,21 +10,17 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use ferrocal_calib::verdict::commands as verdict;
+use ferrocal_datasets::camera::{CameraViews, StereoViews};
 use ferrocal_datasets::import::images::expand_image_specs;
-use ferrocal_report::camera::{camera_json, skipped_json, stereo_json};
-use ferrocal_report::camera_report::{camera_report, stereo_report, CameraReportInput, StereoReportInput};
-use ferrocal_report::report::{check_outputs, write_all_atomic, Provenance};
-use ferrocal_report::verdict::{add_verdict, VerdictSettings};
-use ferrocal_vision::calib::corners::{
-    detect_pattern_views, detect_view_slots, CornerMethod, SkippedImage, SubpixWindow,
-};
-use ferrocal_vision::calib::heldout::held_out_reprojection;
+use ferrocal_report::camera::{camera_outputs, rectified_line, stereo_line, stereo_outputs, CameraFiles, StereoFiles};
+use ferrocal_report::report::check_outputs;
+use ferrocal_report::verdict::VerdictSettings;
+use ferrocal_vision::calib::corners::{CornerMethod, SkippedImage, SubpixWindow};
 use ferrocal_vision::calib::{
-    calibrate_pattern, calibrate_stereo, compare::compare_with_opencv, rectified_row_rms_px, CalibrationOptions,
-    CalibrationPattern, CovarianceMethod, PlanarTarget, RobustLoss, MIN_VIEWS,
+    compare::compare_with_opencv, CalibrationOptions, CalibrationPattern, CovarianceMethod, RobustLoss,
 };
-use ferrocal_vision::camera::{io, DistortionKind};
-use serde_json::{json, Value};
+use ferrocal_vision::camera::DistortionKind;
 
 /// `ferrocal camera ...`.
 #[derive(Debug, Subcommand)]
@@ -163,9 +159,8 @@ impl SolveArgs {
         }
     }
 
-    fn options(&self) -> Result<(CalibrationPattern, PlanarTarget, CalibrationOptions)> {
+    fn options(&self) -> Result<(CalibrationPattern, CalibrationOptions)> {
         let pattern: CalibrationPattern = self.pattern.parse()?;
-        let target = pattern.target();
         let options = CalibrationOptions {
             model: self.model.kind(),
             fix_aspect: self.fix_aspect,
@@ -175,7 +170,7 @@ impl SolveArgs {
             ..CalibrationOptions::default()
         };
         options.validate()?;
-        Ok((pattern, target, options))
+        Ok((pattern, options))
     }
 }
 
@@ -267,76 +262,33 @@ fn report_skipped(skipped: &[SkippedImage]) {
     }
 }
 
-fn too_few(what: &str, usable: usize, total: usize, skipped: &[SkippedImage]) -> anyhow::Error {
-    let reasons: Vec<String> = skipped.iter().map(ToString::to_string).collect();
-    anyhow::anyhow!(
-        "{what}: {usable} usable view(s) of {total} image(s), at least {MIN_VIEWS} needed{}",
-        if reasons.is_empty() { String::new() } else { format!("; skipped: {}", reasons.join("; ")) }
-    )
-}
-
-/// The outputs of one command, composed first and written together (`write_all_atomic`): a
-/// failure on the way writes none of them.
-#[derive(Default)]
-struct Outputs(Vec<(PathBuf, Vec<u8>)>);
-
-impl Outputs {
-    fn json(&mut self, path: &Path, v: &Value) -> Result<()> {
-        self.0.push((path.to_path_buf(), serde_json::to_string_pretty(v)?.into_bytes()));
-        Ok(())
-    }
-
-    fn text(&mut self, path: &Path, text: &str) {
-        self.0.push((path.to_path_buf(), text.as_bytes().to_vec()));
-    }
-
-    fn write(&self) -> Result<()> {
-        write_all_atomic(&self.0.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect::<Vec<_>>())?;
-        Ok(())
-    }
-}
-
 fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    let (pattern, _, options) = a.solve.options()?;
+    let (pattern, options) = a.solve.options()?;
     let mut skipped = Vec::new();
     let paths = expand_image_specs(&a.images, &mut skipped);
-    let outputs: Vec<&Path> =
-        [&a.json, &a.opencv_yaml, &a.ros_yaml, &a.report].into_iter().flatten().map(PathBuf::as_path).collect();
-    check_outputs(&outputs, &paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
-    let mut out = Outputs::default();
-    let found = detect_pattern_views(&paths, &pattern, a.solve.corner_method());
-    skipped.extend(found.skipped);
-    report_skipped(&skipped);
-    let k = match a.test_every {
-        Some(0) => bail!("camera calibrate: --test-every must be at least 1"),
-        Some(k) => k,
-        None => usize::MAX,
+    let files = CameraFiles {
+        json: a.json.as_deref(),
+        opencv_yaml: a.opencv_yaml.as_deref(),
+        ros_yaml: a.ros_yaml.as_deref(),
+        report: a.report.as_deref(),
+        camera_name: &a.camera_name,
     };
-    let (mut views, mut test_views) = (Vec::new(), Vec::new());
-    for (i, slot) in found.slots.into_iter().enumerate() {
-        match slot {
-            Some(v) if (i + 1) % k == 0 => test_views.push(v),
-            Some(v) => views.push(v),
-            None => {}
-        }
-    }
-    if views.len() < MIN_VIEWS {
-        return Err(too_few("camera calibrate", views.len(), paths.len(), &skipped));
-    }
-    let pc = calibrate_pattern(&views, &pattern, found.circle_radii_m, &options).map_err(|e| {
-        anyhow::anyhow!("camera calibrate: {e} ({} usable views of {} images)", views.len(), paths.len())
-    })?;
-    let cal = &pc.calibration;
-    ferrocal_report::camera::print_camera("camera", cal);
-    if let Some(b) = &pc.circle_bias {
+    let outputs: Vec<&Path> =
+        [files.json, files.opencv_yaml, files.ros_yaml, files.report].into_iter().flatten().collect();
+    check_outputs(&outputs, &paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    let found = CameraViews::detect(paths, skipped, &pattern, a.solve.corner_method());
+    report_skipped(&found.skipped);
+    let run = found.calibrate(&pattern, &options, a.test_every)?;
+    ferrocal_report::camera::print_camera("camera", &run.fit.calibration);
+    if let Some(b) = &run.fit.circle_bias {
         println!("{b}");
     }
     let held_out = match a.test_every {
         Some(_) => {
-            let h = held_out_reprojection(&cal.camera, &pattern.target(), &test_views)?;
+            let h = run.held_out()?;
             match h.rms_px {
-                Some(r) => println!("held out: RMS {r:.4} px over {} views", test_views.len()),
-                None => println!("held out: no view usable ({} held out)", test_views.len()),
+                Some(r) => println!("held out: RMS {r:.4} px over {} views", run.test_views.len()),
+                None => println!("held out: no view usable ({} held out)", run.test_views.len()),
             }
             for v in h.views.iter().filter(|v| v.error.is_some()) {
                 eprintln!("ferrocal: held-out view {}: {}", v.name, v.error.as_deref().unwrap_or(""));
@@ -346,53 +298,17 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         None => None,
     };
     if a.compare_opencv {
-        println!("{}", compare_with_opencv(&paths, &pattern, &options)?);
+        println!("{}", compare_with_opencv(&run.paths, &pattern, &options)?);
     }
-    let n_used = cal.views.iter().filter(|v| v.used).count();
-    let verdict = ferrocal_calib::verdict::commands::camera(
-        &vs.thresholds.camera,
-        cal.rms_px,
-        n_used,
-        held_out.as_ref().and_then(|h| h.rms_px),
-    );
-    if let Some(p) = &a.json {
-        let mut v = camera_json(cal);
-        add_verdict(&mut v, &verdict);
-        v["circle_bias"] = json!(pc.circle_bias);
-        v["pattern"] = json!(pattern.to_string());
-        v["fix_aspect"] = json!(a.solve.fix_aspect);
-        v["corners"] = json!(a.solve.corner_method());
-        v["held_out"] = json!(held_out);
-        v["skipped"] = skipped_json(&skipped);
-        out.json(p, &v)?;
-    }
-    if let Some(p) = &a.opencv_yaml {
-        out.text(p, &io::to_opencv_yaml(&cal.camera)?);
-    }
-    if let Some(p) = &a.ros_yaml {
-        out.text(p, &io::to_ros_yaml(&cal.camera, &a.camera_name)?);
-    }
-    if let Some(p) = &a.report {
-        let mut prov = Provenance::new(json!({"pattern": pattern.to_string(), "corners": a.solve.corner_method(),
-            "fix_aspect": a.solve.fix_aspect, "model": format!("{:?}", a.solve.model), "test_every": a.test_every}));
-        paths.iter().for_each(|i| prov.add_input(i));
-        let input = CameraReportInput {
-            pattern: &pattern.to_string(),
-            views: &views,
-            target: &pattern.target(),
-            held_out: held_out.as_ref(),
-            provenance: prov,
-        };
-        let mut rep = camera_report(cal, input);
-        rep.verdict = Some(verdict.clone());
-        out.text(p, &rep.to_html());
-    }
-    out.write()?;
+    let rms = run.fit.calibration.rms_px;
+    let heldout_rms = held_out.as_ref().and_then(|h| h.rms_px);
+    let verdict = verdict::camera(&vs.thresholds.camera, rms, run.n_used(), heldout_rms);
+    camera_outputs(&run, held_out.as_ref(), a.test_every, &verdict, &files)?.write()?;
     Ok(vs.conclude(&verdict))
 }
 
 fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    let (pattern, target, options) = a.solve.options()?;
+    let (pattern, options) = a.solve.options()?;
     let mut skipped = Vec::new();
     let left_paths = expand_image_specs(&a.left, &mut skipped);
     let right_paths = expand_image_specs(&a.right, &mut skipped);
@@ -404,61 +320,29 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
             right_paths.len()
         );
     }
-    let inputs: Vec<&PathBuf> = left_paths.iter().chain(&right_paths).collect();
-    let outputs: Vec<&PathBuf> = [
-        &a.json,
-        &a.left_opencv_yaml,
-        &a.right_opencv_yaml,
-        &a.left_ros_yaml,
-        &a.right_ros_yaml,
-        &a.opencv_stereo_yaml,
-        &a.report,
-    ]
-    .into_iter()
-    .flatten()
-    .collect();
-    check_outputs(
-        &outputs.iter().map(|p| p.as_path()).collect::<Vec<_>>(),
-        &inputs.iter().map(|p| p.as_path()).collect::<Vec<_>>(),
-    )?;
-    let mut out = Outputs::default();
-    let method = a.solve.corner_method();
-    let (left, ls) = detect_view_slots(&left_paths, &pattern, method);
-    let (right, rs) = detect_view_slots(&right_paths, &pattern, method);
-    skipped.extend(ls);
-    skipped.extend(rs);
-    report_skipped(&skipped);
-    let n_left = left.iter().flatten().count();
-    let n_right = right.iter().flatten().count();
-    if n_left < MIN_VIEWS || n_right < MIN_VIEWS {
-        let (side, n, total) =
-            if n_left < MIN_VIEWS { ("left", n_left, left_paths.len()) } else { ("right", n_right, right_paths.len()) };
-        return Err(too_few(&format!("camera stereo ({side} camera)"), n, total, &skipped));
-    }
-    let n_pairs = left.iter().zip(&right).filter(|(l, r)| l.is_some() && r.is_some()).count();
-    if n_pairs == 0 {
-        bail!("camera stereo: the pattern was never found in both images of a pair");
-    }
-    let st = calibrate_stereo(&left, &right, &target, &options).map_err(|e| anyhow::anyhow!("camera stereo: {e}"))?;
+    let files = StereoFiles {
+        json: a.json.as_deref(),
+        left_opencv_yaml: a.left_opencv_yaml.as_deref(),
+        right_opencv_yaml: a.right_opencv_yaml.as_deref(),
+        left_ros_yaml: a.left_ros_yaml.as_deref(),
+        right_ros_yaml: a.right_ros_yaml.as_deref(),
+        opencv_stereo_yaml: a.opencv_stereo_yaml.as_deref(),
+        report: a.report.as_deref(),
+    };
+    let inputs: Vec<&Path> = left_paths.iter().chain(&right_paths).map(PathBuf::as_path).collect();
+    check_outputs(&files.all(), &inputs)?;
+    let found = StereoViews::detect(left_paths, right_paths, skipped, &pattern, a.solve.corner_method());
+    report_skipped(&found.skipped);
+    let run = found.calibrate(&pattern, &options)?;
+    let st = &run.calibration;
     ferrocal_report::camera::print_camera("left", st.left());
     ferrocal_report::camera::print_camera("right", st.right());
-    println!(
-        "T_right_left: rotation {:.4?} deg (std {:.4?}), translation {:.3?} mm (std {:.3?}), baseline {:.3} +- {:.3} mm; RMS {:.4} px ({n_pairs} pairs)",
-        st.rotation_deg.as_slice(),
-        st.rotation_std_deg.as_slice(),
-        st.translation_mm.as_slice(),
-        st.translation_std_mm.as_slice(),
-        st.baseline_mm,
-        st.baseline_std_mm,
-        st.calibration.rms_px
-    );
+    println!("{}", stereo_line(st, run.n_pairs));
     // The rectification; a pair that cannot be rectified (a wide fisheye whose image corners
     // lie beyond 90 degrees) is an error only for the outputs that need it.
-    let needs_rectification =
-        a.left_ros_yaml.is_some() || a.right_ros_yaml.is_some() || a.opencv_stereo_yaml.is_some() || a.report.is_some();
     let pair = match st.pair() {
         Ok(p) => Some(p),
-        Err(e) if !needs_rectification => {
+        Err(e) if !files.need_rectification() => {
             eprintln!("ferrocal: warning: the pair cannot be rectified: {e}");
             None
         }
@@ -466,72 +350,13 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
             "camera stereo: the pair cannot be rectified ({e}); the ROS and OpenCV stereo files and the report need it"
         ),
     };
-    let (corners, row_rms_px) = match &pair {
-        Some(pair) => {
-            let rect = pair.rectification;
-            let corners = st.rectified_corners(&rect, &left, &right, &target);
-            let rms = rectified_row_rms_px(&corners, rect.vertical());
-            println!(
-                "rectified: f' {:.3} px, baseline {:.3} mm, row difference RMS {rms:.4} px over {} corner pairs",
-                rect.focal_px(),
-                rect.baseline() * 1e3,
-                corners.len()
-            );
-            (corners, rms)
-        }
-        None => (Vec::new(), f64::NAN),
-    };
-    let verdict = ferrocal_calib::verdict::commands::stereo(
-        &vs.thresholds,
-        st.calibration.rms_px,
-        n_pairs,
-        pair.as_ref().map(|_| row_rms_px),
-    );
-    if let Some(p) = &a.json {
-        let mut v = stereo_json(&st, n_pairs, &pattern.pattern(), a.solve.fix_aspect, &skipped);
-        add_verdict(&mut v, &verdict);
-        v["rectification"] = pair
-            .as_ref()
-            .map_or(Value::Null, |pair| ferrocal_report::camera::rectification_json(pair, row_rms_px, corners.len()));
-        out.json(p, &v)?;
+    let rectified = pair.as_ref().map(|p| run.rectified(p));
+    if let (Some(pair), Some((corners, rms))) = (&pair, &rectified) {
+        println!("{}", rectified_line(pair, *rms, corners.len()));
     }
-    for (cal, path) in [(st.left(), &a.left_opencv_yaml), (st.right(), &a.right_opencv_yaml)] {
-        if let Some(p) = path {
-            out.text(p, &io::to_opencv_yaml(&cal.camera)?);
-        }
-    }
-    let Some(pair) = &pair else {
-        out.write()?;
-        return Ok(vs.conclude(&verdict));
-    };
-    if a.left_ros_yaml.is_some() || a.right_ros_yaml.is_some() {
-        let (l, r) = io::to_ros_stereo_yaml(pair, "left", "right")?;
-        for (text, path) in [(l, &a.left_ros_yaml), (r, &a.right_ros_yaml)] {
-            if let Some(p) = path {
-                out.text(p, &text);
-            }
-        }
-    }
-    if let Some(p) = &a.opencv_stereo_yaml {
-        out.text(p, &io::to_opencv_stereo_yaml(pair)?);
-    }
-    if let Some(p) = &a.report {
-        let mut prov = Provenance::new(json!({"pattern": pattern.to_string(), "corners": a.solve.corner_method(),
-            "fix_aspect": a.solve.fix_aspect, "model": format!("{:?}", a.solve.model)}));
-        inputs.iter().for_each(|i| prov.add_input(i));
-        let input = StereoReportInput {
-            pattern: &pattern.to_string(),
-            left: &left,
-            right: &right,
-            target: &target,
-            pair,
-            corners: &corners,
-            provenance: prov,
-        };
-        let mut rep = stereo_report(&st, input);
-        rep.verdict = Some(verdict.clone());
-        out.text(p, &rep.to_html());
-    }
-    out.write()?;
+    let row_rms = rectified.as_ref().map(|(_, rms)| *rms);
+    let verdict = verdict::stereo(&vs.thresholds, st.calibration.rms_px, run.n_pairs, row_rms);
+    let rect = pair.as_ref().zip(rectified.as_ref()).map(|(p, (c, rms))| (p, c.as_slice(), *rms));
+    stereo_outputs(&run, rect, &verdict, &files)?.write()?;
     Ok(vs.conclude(&verdict))
 }

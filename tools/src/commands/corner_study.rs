@@ -7,8 +7,8 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use ferrocal_calib::verdict::{Check, Verdict};
-use ferrocal_datasets::render::corner_study::{corner_study, rows_csv, CornerStudySettings};
+use ferrocal_calib::verdict::commands as verdict;
+use ferrocal_datasets::render::corner_study::{corner_study, rows_csv, worst_crb_ratio, CornerStudySettings};
 use ferrocal_report::corner_study::markdown;
 use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::write_atomic;
@@ -38,25 +38,7 @@ pub fn run(args: &CornerStudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
     write_atomic(&args.out.join("corner_study.md"), md.as_bytes())?;
     // The worst ratio of the project's corner error to the Cramer-Rao bound where there is noise.
-    let ratio = rows
-        .iter()
-        .filter(|r| r.crb_rms_px > 0.0 && r.crb_rms_px.is_finite() && r.ours_rms_px.is_finite())
-        .map(|r| r.ours_rms_px / r.crb_rms_px)
-        .fold(f64::NAN, f64::max);
-    let checks = vec![Check::at_most(
-        "study.corner_over_crb",
-        "largest corner RMS error over the Cramer-Rao bound",
-        "",
-        ratio,
-        vs.thresholds.study.corner_over_crb_warn,
-        f64::INFINITY,
-    )];
-    let verdict = Verdict::with_next(checks, |c| {
-        match c {
-        None => format!("read the table: {}", args.out.join("corner_study.md").display()),
-        Some(_) => "look at the rows far above the bound in corner_study.md (blur and noise levels) before trusting corners there".into(),
-    }
-    });
+    let verdict = verdict::corner_study(&vs.thresholds, worst_crb_ratio(&rows), &args.out.join("corner_study.md"));
     // The study's JSON is an array of rows (its format since it was written): the verdict is
     // written beside it.
     write_atomic(&args.out.join("corner_study.json"), &serde_json::to_vec_pretty(&rows)?)?;

@@ -1,20 +1,19 @@
 //! `ferrocal detect`: find a pattern in images and write the corners as JSON
 //! (`shared/spec/cli.md`).
 //!
-//! Glue only: image lists come from `ferrocal_datasets::import::list_images`, detection and the
-//! per-image results from `ferrocal_vision::detect::Detector`.
+//! Glue only: the batch is detected by `ferrocal_datasets::detect` (image lists from
+//! `ferrocal_datasets::import::list_images`, the per-image results from
+//! `ferrocal_vision::detect::Detector`).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
-use ferrocal_datasets::import::images::image_entries;
-use ferrocal_vision::detect::{
-    load_gray, median_background, AprilTagOptions, DetectOptions, Detector, ImageResult, Pattern, TagBackend, TagRefine,
-};
+use ferrocal_datasets::detect::{detect_images, median_background_of};
+use ferrocal_vision::detect::{AprilTagOptions, DetectOptions, Pattern, TagBackend, TagRefine};
 
-use ferrocal_calib::verdict::{Check, Verdict};
+use ferrocal_calib::verdict::commands as verdict;
 use ferrocal_report::verdict::VerdictSettings;
 
 use crate::report::write_atomic;
@@ -76,39 +75,8 @@ pub fn run(args: &DetectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         refine: if args.tag_edge_refine && !args.no_refine { TagRefine::EdgeModel } else { TagRefine::Backend },
         ..AprilTagOptions::default()
     };
-    let background = if args.background.is_empty() {
-        None
-    } else {
-        let mut frames = Vec::new();
-        for entry in image_entries(&args.background) {
-            match entry {
-                Ok(p) => frames.push(load_gray(&p)?),
-                Err((name, reason)) => bail!("background image {name}: {reason}"),
-            }
-        }
-        Some(median_background(&frames).context("background median")?)
-    };
-    let entries = image_entries(&args.images);
-    if entries.is_empty() {
-        bail!("no images given");
-    }
-    let mut detector = Detector::new(pattern, options, background)?;
-    let mut results: Vec<ImageResult> = Vec::with_capacity(entries.len());
-    for entry in entries {
-        let r = match entry {
-            Ok(path) => detector.detect_file(&path),
-            Err((name, reason)) => ImageResult::failed(name, reason),
-        };
-        if let Some(e) = &r.error {
-            // The vision crate's messages already name the file; list_images' do not.
-            if e.contains(&r.image) {
-                eprintln!("ferrocal: {e}");
-            } else {
-                eprintln!("ferrocal: {}: {e}", r.image);
-            }
-        }
-        results.push(r);
-    }
+    let background = median_background_of(&args.background)?;
+    let results = detect_images(&args.images, pattern, options, background, &|e| eprintln!("ferrocal: {e}"))?;
     let failed = results.iter().filter(|r| r.error.is_some()).count();
     let json = serde_json::to_vec_pretty(&results)?;
     write_atomic(&args.json, &json).with_context(|| format!("cannot write {}", args.json.display()))?;
@@ -119,23 +87,7 @@ pub fn run(args: &DetectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         failed,
         args.json.display()
     );
-    let l = &vs.thresholds.detect;
-    let found = (results.len() - failed) as f64 / results.len() as f64;
-    let checks = vec![Check::at_least(
-        "detect.found_fraction",
-        &format!("pattern found in {} of {} images, fraction", results.len() - failed, results.len()),
-        "",
-        found,
-        l.found_fraction_warn,
-        l.found_fraction_fail,
-    )];
-    let verdict = Verdict::with_next(checks, |c| {
-        match c {
-            None => "calibrate with these images: ferrocal camera calibrate --images ... --pattern ...",
-            Some(_) => "read the failed images' reasons above (and in the JSON's error fields): check the --pattern string (inner corners for a chessboard), focus and lighting, or leave those images out",
-        }
-        .to_string()
-    });
+    let verdict = verdict::detect(&vs.thresholds, results.len(), failed);
     // The JSON is an array per the spec: the verdict is on the terminal only. Failed images keep
     // their documented exit status 2; a failed verdict has at least one failed image.
     let ok = if failed == 0 { ExitCode::SUCCESS } else { ExitCode::from(2) };

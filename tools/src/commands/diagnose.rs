@@ -7,11 +7,15 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions};
-use ferrocal_report::diagnose::{camera_section, force_section, sections};
+use ferrocal_datasets::camera::target_point_views;
+use ferrocal_datasets::dynsim::identify::diagnose_static_table;
+use ferrocal_report::diagnose::{
+    camera_section, camera_summary_lines, diagnose_json, force_section, force_summary_lines, sections, summary_lines,
+};
 use serde_json::json;
 
-use ferrocal_report::verdict::{add_verdict, VerdictSettings};
-use ferrocal_report::{Provenance, Report};
+use ferrocal_report::verdict::VerdictSettings;
+use ferrocal_report::{Outputs, Provenance, Report};
 
 /// `ferrocal diagnose`.
 #[derive(Debug, Args)]
@@ -105,28 +109,24 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         None => None,
     };
     // Composed first, then written together (no half-set outputs).
-    let mut rep_json = serde_json::to_value(&rep)?;
     let rerun = format!(
         "ferrocal calibrate --robot {robot} --measurements {} --effects {} --out <calibration.json>",
         meas.display(),
         args.json.display()
     );
-    let verdict = super::verdicts::diagnose(&vs.thresholds, &rep_json, "mm", &rerun);
-    add_verdict(&mut rep_json, &verdict);
-    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.json, serde_json::to_string_pretty(&rep_json)?.into_bytes())];
+    let (rep_json, verdict) = diagnose_json(&vs.thresholds, &rep, "mm", &rerun)?;
+    let mut out = Outputs::default();
+    out.json(&args.json, &rep_json)?;
     if let (Some(path), Some(cal)) = (&args.out, &compensated) {
-        let file = ferrocal_calib::file::CalibrationFile::new(robot, &cal.calibrated);
-        files.push((path, serde_json::to_string_pretty(&file)?.into_bytes()));
+        out.json(path, &ferrocal_calib::file::CalibrationFile::new(robot, &cal.calibrated))?;
     }
     if let Some(h) = &args.report {
         let mut prov = Provenance::new(json!({"robot": robot, "options": opts}));
         prov.add_input(meas);
-        let mut r = Report::new(&format!("Missing physics: {} on {}", model.name(), meas.display()), prov);
-        r.sections = sections(&rep, args.attribution.as_deref());
-        r.verdict = Some(verdict.clone());
-        files.push((h, r.to_html().into_bytes()));
+        let title = format!("Missing physics: {} on {}", model.name(), meas.display());
+        out.html(h, Report::of(&title, prov, sections(&rep, args.attribution.as_deref())), &verdict);
     }
-    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
+    out.write()?;
     if let (Some(path), Some(cal)) = (&args.out, &compensated) {
         println!(
             "wrote {} ({} effect(s) with the geometry; training RMS {:.4} mm)",
@@ -135,27 +135,7 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
             cal.train_after.rms_mm
         );
     }
-    if let Some(d) = &rep.declined {
-        println!("diagnose: {d}");
-    }
-    println!(
-        "diagnosed {} on {} poses in {:.1} s: held-out RMS {:.4} mm (geometric model) -> {:.4} mm; {} finding(s){}",
-        model.name(),
-        rep.n_poses,
-        rep.elapsed_s,
-        rep.nominal.heldout_rms_mm,
-        rep.final_fit.heldout_rms_mm,
-        rep.findings.len(),
-        if rep.unexplained.structure_found {
-            format!("; unexplained structure against {}", rep.unexplained.depends_on.join(", "))
-        } else {
-            String::new()
-        }
-    );
-    println!("  {}", rep.summary);
-    for f in &rep.findings {
-        println!("  {}: {}", f.effect, f.statement);
-    }
+    summary_lines(&rep, model.name()).iter().for_each(|l| println!("{l}"));
     Ok(vs.conclude(&verdict))
 }
 
@@ -163,167 +143,53 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
 /// and a flat target, test what the images show beyond it.
 fn run_camera(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     use ferrocal_calib::diagnose::camera::{diagnose_camera, CameraDiagnoseOptions};
-    use ferrocal_vision::calib::{PlanarTarget, View};
-    use ferrocal_vision::camera::ImageSize;
-    use ferrocal_vision::detect::{load_gray, DetectOptions, Detector, Pattern};
     let Some(pattern_text) = &args.pattern else {
         bail!("diagnose --images needs --pattern (e.g. chessboard:9x6:25mm)");
     };
     if args.images.is_empty() {
         bail!("diagnose --pattern needs --images");
     }
-    let pattern: Pattern = pattern_text.parse()?;
-    let mut detector = Detector::new(pattern, DetectOptions::default(), None)?;
-    let mut files = Vec::new();
-    for spec in &args.images {
-        let folder = ferrocal_datasets::import::list_images(spec, &Default::default())?;
-        for s in &folder.skipped {
-            eprintln!("ferrocal: skipped {}: {}", s.path.display(), s.reason);
-        }
-        files.extend(folder.images.into_iter().map(|e| e.path));
-    }
-    // Target points by their position on the target (1 um grid), views by image.
-    let mut points: Vec<nalgebra::Point3<f64>> = Vec::new();
-    let mut key_of = std::collections::HashMap::new();
-    let mut views = Vec::new();
-    let pb = crate::progress::bar(files.len() as u64, "detecting");
-    for f in &files {
-        pb.inc(1);
-        let found = load_gray(f).and_then(|img| {
-            let size = ImageSize { width_px: img.width(), height_px: img.height() };
-            detector.detect(&img).map(|d| (d, size))
-        });
-        let (dets, size) = match found {
-            Ok(x) => x,
-            Err(e) => {
-                eprintln!("ferrocal: {}: {e}", f.display());
-                continue;
-            }
-        };
-        let mut ids = Vec::new();
-        let mut px = Vec::new();
-        for c in dets.iter().filter(|d| d.anchored).flat_map(|d| &d.corners) {
-            let Some(t) = c.target_m else { continue };
-            let key = ((t.x * 1e6).round() as i64, (t.y * 1e6).round() as i64, (t.z * 1e6).round() as i64);
-            let id = *key_of.entry(key).or_insert_with(|| {
-                points.push(t);
-                points.len() - 1
-            });
-            ids.push(id);
-            px.push(c.position_px);
-        }
-        if px.len() < 4 {
-            eprintln!(
-                "ferrocal: {}: the pattern was not found whole (or has no size in the pattern string)",
-                f.display()
-            );
-            continue;
-        }
-        let mut v = View::new(f.display().to_string(), size, px);
-        v.point_ids = ids;
-        views.push(v);
-    }
-    pb.finish_and_clear();
-    if let Some(first) = views.first() {
-        let size = first.image_size;
-        if let Some(bad) = views.iter().find(|v| v.image_size != size) {
-            bail!(
-                "{} is {}x{} px but {} is {}x{}: one camera, one image size",
-                bad.name,
-                bad.image_size.width_px,
-                bad.image_size.height_px,
-                first.name,
-                size.width_px,
-                size.height_px
-            );
-        }
-    }
-    let target = PlanarTarget { points_m: points, reversible: false };
+    let bars = crate::progress::Bars::default();
+    let (views, target) = target_point_views(&args.images, pattern_text, &|m| eprintln!("ferrocal: {m}"), &|k, n| {
+        bars.tick("detecting", k as u64, n as u64)
+    })?;
     let opts = CameraDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..CameraDiagnoseOptions::default() };
     let rep = diagnose_camera(&views, &target, &opts).context("camera diagnosis")?;
-    let mut rep_json = serde_json::to_value(&rep)?;
-    let verdict = super::verdicts::diagnose(
-        &vs.thresholds,
-        &rep_json,
-        "px",
-        "calibrate with the lens model or target shape the findings name (ferrocal camera calibrate --model ...)",
-    );
-    add_verdict(&mut rep_json, &verdict);
+    let next =
+        "calibrate with the lens model or target shape the findings name (ferrocal camera calibrate --model ...)";
+    let (rep_json, verdict) = diagnose_json(&vs.thresholds, &rep, "px", next)?;
     // Both files together: no report without its JSON.
-    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.json, serde_json::to_string_pretty(&rep_json)?.into_bytes())];
+    let mut out = Outputs::default();
+    out.json(&args.json, &rep_json)?;
     if let Some(h) = &args.report {
         let prov = Provenance::new(json!({"images": args.images, "pattern": pattern_text, "options": opts}));
-        let mut r =
-            Report::new(&format!("Missing physics of a camera ({} views of {pattern_text})", views.len()), prov);
-        r.sections.push(camera_section(&rep, opts.folds, args.attribution.as_deref()));
-        r.verdict = Some(verdict.clone());
-        files.push((h, r.to_html().into_bytes()));
+        let title = format!("Missing physics of a camera ({} views of {pattern_text})", views.len());
+        let section = camera_section(&rep, opts.folds, args.attribution.as_deref());
+        out.html(h, Report::of(&title, prov, vec![section]), &verdict);
     }
-    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
-    if let Some(d) = &rep.declined {
-        println!("diagnose: {d}");
-    }
-    println!(
-        "diagnosed a camera from {} views: held-out reprojection RMS {:.4} px -> {:.4} px; {} finding(s)",
-        rep.n_views,
-        rep.nominal.heldout_rms_px,
-        rep.final_fit.heldout_rms_px,
-        rep.findings.len()
-    );
-    for f in &rep.findings {
-        println!("  {}: {}", f.effect, f.statement);
-    }
-    if rep.unexplained.structure_found {
-        println!("  unexplained structure, depending on {}:", rep.unexplained.depends_on.join(" and "));
-        for e in &rep.unexplained.evidence {
-            println!("    {e}");
-        }
-    }
+    out.write()?;
+    camera_summary_lines(&rep).iter().for_each(|l| println!("{l}"));
     Ok(vs.conclude(&verdict))
 }
 
 /// The force-sensor variant: identify the rigid body and offsets, test the deformation terms on
 /// held-out poses.
-fn run_forces(args: &DiagnoseArgs, path: &std::path::Path, vs: &VerdictSettings) -> Result<ExitCode> {
-    use ferrocal_calib::diagnose::force::{diagnose_force_sensor, ForceDiagnoseOptions};
-    let (poses, forces) = super::dynamics::read_static_table(path)?;
-    let reg = super::dynamics::rig_sensor_regressor()?;
+fn run_forces(args: &DiagnoseArgs, path: &Path, vs: &VerdictSettings) -> Result<ExitCode> {
+    use ferrocal_calib::diagnose::force::ForceDiagnoseOptions;
     let opts = ForceDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..ForceDiagnoseOptions::default() };
-    let rep = diagnose_force_sensor(&reg, &poses, &forces, &opts)
-        .with_context(|| format!("force-sensor diagnosis of {}", path.display()))?;
-    let mut rep_json = serde_json::to_value(&rep)?;
-    let verdict = super::verdicts::diagnose(
-        &vs.thresholds,
-        &rep_json,
-        "n",
-        "identify the sensor with the terms the findings name (docs/dynamics.md)",
-    );
-    add_verdict(&mut rep_json, &verdict);
+    let (n_poses, rep) = diagnose_static_table(path, &opts)?;
+    let next = "identify the sensor with the terms the findings name (docs/dynamics.md)";
+    let (rep_json, verdict) = diagnose_json(&vs.thresholds, &rep, "n", next)?;
     // Both files together: no report without its JSON.
-    let mut files: Vec<(&Path, Vec<u8>)> = vec![(&args.json, serde_json::to_string_pretty(&rep_json)?.into_bytes())];
+    let mut out = Outputs::default();
+    out.json(&args.json, &rep_json)?;
     if let Some(h) = &args.report {
         let prov = Provenance::new(json!({"forces": path.display().to_string(), "options": opts}));
-        let mut r =
-            Report::new(&format!("Missing physics of a force-sensing end-effector ({} poses)", poses.len()), prov);
-        r.sections.push(force_section(&rep, opts.folds, args.attribution.as_deref()));
-        r.verdict = Some(verdict.clone());
-        files.push((h, r.to_html().into_bytes()));
+        let title = format!("Missing physics of a force-sensing end-effector ({n_poses} poses)");
+        let section = force_section(&rep, opts.folds, args.attribution.as_deref());
+        out.html(h, Report::of(&title, prov, vec![section]), &verdict);
     }
-    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
-    if let Some(d) = &rep.declined {
-        println!("diagnose: {d}");
-    }
-    println!(
-        "diagnosed a force-sensing end-effector from {} poses: held-out force RMS {:.3} N -> {:.3} N; {} finding(s); mass {:.2} -> {:.2} kg",
-        poses.len(),
-        rep.nominal.heldout_rms_n,
-        rep.final_fit.heldout_rms_n,
-        rep.findings.len(),
-        rep.mass_kg[0],
-        rep.mass_kg[1]
-    );
-    for f in &rep.findings {
-        println!("  {}: {}", f.effect, f.statement);
-    }
+    out.write()?;
+    force_summary_lines(&rep, n_poses).iter().for_each(|l| println!("{l}"));
     Ok(vs.conclude(&verdict))
 }

@@ -8,19 +8,15 @@
 //!
 //! File formats: `docs/dynamics.md`, `ferrocal_datasets::formats::dynamics_tables`.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use ferrocal_calib::dynamics::force_sensor::SensorRegressor;
 use ferrocal_datasets::dynsim::identify::{identify_static, identify_streams, StreamIdentifyOptions};
 use ferrocal_datasets::dynsim::tables::{simulated_tables, Rig, TableSettings};
-use ferrocal_datasets::formats::dynamics_tables;
 use ferrocal_report::dynamics::{fit_json, print_fit, study_report};
 use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::write_atomic;
-use ferrocal_robot::Pose;
-use nalgebra::DMatrix;
 use serde_json::json;
 
 /// `ferrocal dynamics`.
@@ -191,17 +187,6 @@ fn run_identify_static(a: &IdentifyStaticArgs) -> Result<ExitCode> {
         write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())?;
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Reads a quasi-static table (`ferrocal dynamics simulate`'s static.csv): the poses and the
-/// forces (poses x 6, N).
-pub(crate) fn read_static_table(path: &Path) -> Result<(Vec<Pose>, DMatrix<f64>)> {
-    Ok(dynamics_tables::read_static_table(path)?)
-}
-
-/// The sensor framework of the rig (`PlatformSim::preset`), for the diagnosis.
-pub(crate) fn rig_sensor_regressor() -> Result<SensorRegressor> {
-    Ok(ferrocal_datasets::dynsim::identify::rig_sensor_regressor()?)
 }
 
 fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {

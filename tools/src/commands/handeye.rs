@@ -10,11 +10,13 @@ use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_calib::handeye::opencv::best_baseline;
 use ferrocal_calib::handeye::Mount;
-use ferrocal_datasets::handeye::{coverage_study, HandEyeInput, HandEyeRunOptions};
-use ferrocal_report::handeye::{html, json, print_summary, verdict};
-use ferrocal_report::report::{Provenance, Report};
+use ferrocal_datasets::handeye::{
+    check_simulated_images, coverage_study, huber_sigmas_of_loss, write_simulated_recording, HandEyeInput,
+    HandEyeRunOptions,
+};
+use ferrocal_report::handeye::{handeye_outputs, joint_line, print_summary, verdict, HandeyeFiles};
 use ferrocal_report::verdict::VerdictSettings;
-use serde_json::{json, Value};
+use serde_json::json;
 
 /// The mount on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -176,9 +178,6 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     inputs.extend(a.robot.as_deref().map(Path::new));
     inputs.extend(a.images.iter().map(PathBuf::as_path));
     ferrocal_report::check_outputs(&outputs, &inputs)?;
-    // Every output is composed first and all are written together at the end: a failing joint
-    // adjustment leaves no summary or report of half a run.
-    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     let mount = mount_of(mount);
     let run = HandEyeRunOptions {
         images: a.images.clone(),
@@ -193,14 +192,7 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         // robot, whose length errors a free scale would take up, and the adjustment holds the
         // scale of its start.
         fit_target_scale: a.target_scale || (!a.nominal_target_scale && a.out.is_none()),
-        huber_sigmas: match a.loss.as_deref() {
-            None => a.huber,
-            Some(l) => match ferrocal_datasets::calibration::parse_loss(l)? {
-                ferrocal_lsq::Loss::Squared => 0.0,
-                ferrocal_lsq::Loss::Huber { delta } => delta,
-                _ => anyhow::bail!("--loss {l}: the hand-eye fit takes none or huber:<sigmas>"),
-            },
-        },
+        huber_sigmas: a.loss.as_deref().map_or(Ok(a.huber), huber_sigmas_of_loss)?,
         robot_poses_as_measurements: a.robot_poses_as_measurements,
         robot_sigma_mm_deg: a.robot_sigma_mm.zip(a.robot_sigma_deg),
         exact_robot_poses: a.exact_robot_poses,
@@ -213,104 +205,37 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         eprintln!("ferrocal: skipped {}: {}", s.what, s.reason);
     }
     let fit = input.fit(run.hand_eye_options()?)?;
-    let (result, baselines, options) = (&fit.result, &fit.baselines, &fit.options);
-    let mut skipped_json: Vec<Value> = input
-        .skipped_images
-        .iter()
-        .map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason}))
-        .collect();
-    skipped_json.extend(input.skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
-    skipped_json.extend(result.skipped.iter().map(|s| json!({"image": s.name, "reason": s.reason})));
-    let source = input.table.source.as_deref();
-    print_summary(result, best_baseline(baselines), source);
-    let has_heldout = result.figures.heldout_rms_px.is_some();
-    let split = if has_heldout { ferrocal_calib::Split::Test } else { ferrocal_calib::Split::Train };
-    let pnp = verdict::pnp_rms_px(&input.data, result, split);
-    let mut checks = verdict::chain_checks(&vs.thresholds, &result.figures, pnp, "handeye");
-    if let (Some(out), Some(spec)) = (&a.out, &a.robot) {
-        let joint = input.joint_adjustment(&fit)?;
-        files.push((out, serde_json::to_string_pretty(&joint.file(spec))?.into_bytes()));
-        // The joint adjustment's chain, scored as the hand-eye fit's (no PnP floor: its camera
-        // is the adjustment's own).
-        checks.extend(
-            verdict::chain_checks(&vs.thresholds, &joint.figures, None, "handeye.joint")
-                .into_iter()
-                .filter(|c| c.name.ends_with("chain_rms_px")),
-        );
-        let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
-        println!(
-            "joint adjustment: {} robot parameters, chain RMS train {:.4} px, held-out {} px, s0 {:.3}; calibration written to {}",
-            joint.free.len(),
-            joint.figures.train_rms_px,
-            opt(joint.figures.heldout_rms_px),
-            joint.s0,
-            out.display()
-        );
-    }
+    print_summary(&fit.result, best_baseline(&fit.baselines), input.table.source.as_deref());
+    let mut checks = verdict::fit_checks(&vs.thresholds, &input.data, &fit.result);
+    let joint = match (&a.out, &a.robot) {
+        (Some(out), Some(_)) => {
+            let joint = input.joint_adjustment(&fit)?;
+            checks.extend(verdict::joint_checks(&vs.thresholds, &joint));
+            println!("{}", joint_line(&joint, out));
+            Some(joint)
+        }
+        _ => None,
+    };
     let out_text = a.out.as_ref().map(|p| p.display().to_string());
+    let has_heldout = fit.result.figures.heldout_rms_px.is_some();
     let verdict = verdict::handeye_verdict(checks, mount, has_heldout, out_text.as_deref());
-    if let Some(h) = &a.report {
-        let mut prov =
-            Provenance::new(json!({"pattern": pattern_text, "mount": mount.name(), "options": format!("{options:?}")}));
-        prov.add_input(poses_path);
-        let mut rep = Report::new(&format!("Hand-eye calibration ({}, {})", mount.name(), pattern_text), prov);
-        rep.sections.extend(html::handeye_sections(result, baselines, source));
-        rep.verdict = Some(verdict.clone());
-        files.push((h, rep.to_html().into_bytes()));
-    }
-    if let Some(p) = &a.json {
-        let mut v = json::handeye_json(result, baselines, Value::Array(skipped_json), source);
-        ferrocal_report::verdict::add_verdict(&mut v, &verdict);
-        files.insert(0, (p, serde_json::to_string_pretty(&v)?.into_bytes()));
-    }
-    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
+    // Every output is composed first and all are written together at the end: a failing joint
+    // adjustment leaves no summary or report of half a run.
+    let files = HandeyeFiles { json: a.json.as_deref(), report: a.report.as_deref(), out: a.out.as_deref() };
+    handeye_outputs(&run, &input, &fit, joint.as_ref(), &verdict, &files)?.write()?;
     Ok(vs.conclude(&verdict))
 }
 
-/// The most images one `handeye simulate` renders (about 1 MB each).
-const MAX_SIMULATED_IMAGES: usize = 2000;
-
 fn run_simulate(s: &SimulateArgs) -> Result<ExitCode> {
-    if s.train + s.test > MAX_SIMULATED_IMAGES {
-        bail!(
-            "handeye simulate: --train {} and --test {} ask for {} images; at most {MAX_SIMULATED_IMAGES} are rendered",
-            s.train,
-            s.test,
-            s.train + s.test
-        );
-    }
+    check_simulated_images(s.train, s.test)?;
     // Written aside and moved into place: a run that is stopped leaves no folder of images
     // without its poses.csv.
     ferrocal_report::StagedFolder::check(&s.out, false)?;
     let staged = ferrocal_report::StagedFolder::create(&s.out)?;
-    let code = simulate_into(s, staged.path())?;
+    let counts = (s.train, s.test, s.seed);
+    let written = write_simulated_recording(mount_of(s.mount), s.robot.as_deref(), counts, staged.path(), &s.out)?;
+    eprintln!("{written}");
     staged.commit()?;
-    Ok(code)
-}
-
-fn simulate_into(s: &SimulateArgs, dir: &std::path::Path) -> Result<ExitCode> {
-    if let Some(robot) = &s.robot {
-        if robot != "ur5" || s.mount != MountArg::EyeToHand {
-            bail!("handeye simulate --robot: only the ur5 cell, eye-to-hand, is simulated (got {robot})");
-        }
-        let config = ferrocal_datasets::handeye::joint_record::rendered_ur5_cell(s.train, s.test);
-        let r = ferrocal_datasets::handeye::joint_record::write_joint_recording(&config, dir, s.seed)?;
-        eprintln!(
-            "{} + {} images written to {} (pattern {}); nominal {} held out: mean {:.4} mm after the frame refit",
-            r.n_train,
-            r.n_test,
-            s.out.display(),
-            r.pattern,
-            r.robot,
-            r.nominal_heldout.mean_mm
-        );
-        return Ok(ExitCode::SUCCESS);
-    }
-    let mut config = ferrocal_datasets::handeye::HandEyeSimConfig::default_for(mount_of(s.mount));
-    config.n_train = s.train;
-    config.n_test = s.test;
-    let r = ferrocal_datasets::handeye::write_rendered_recording(&config, dir, s.seed)?;
-    eprintln!("{} images written to {} (pattern {})", r.n_images, s.out.display(), r.pattern);
     Ok(ExitCode::SUCCESS)
 }
 

@@ -16,13 +16,11 @@ pub mod recording;
 mod robot;
 pub mod simulate;
 pub mod stiffness;
-mod verdicts;
 
 use std::process::ExitCode;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use ferrocal_report::verdict::VerdictSettings;
-use ferrocal_robot::{JointKind, Kinematics};
 
 use crate::cli::{Cli, Command};
 
@@ -51,41 +49,4 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Stiffness(a) => stiffness::run(&a, vs),
         Command::Motion(a) => motion::run(&a, vs),
     }
-}
-
-/// Parses comma-separated joint values given in user units (degrees for revolute joints,
-/// millimetres for prismatic ones) into SI values for `model`.
-pub fn parse_joints(text: &str, model: &dyn Kinematics) -> Result<Vec<f64>> {
-    let kinds = model.joint_kinds();
-    let parts: Vec<&str> = text.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
-    if parts.len() != kinds.len() {
-        bail!("the robot has {} joints but {} values were given ('{text}')", kinds.len(), parts.len());
-    }
-    parts
-        .iter()
-        .zip(&kinds)
-        .enumerate()
-        .map(|(i, (p, k))| {
-            let v: f64 = p.parse().map_err(|_| anyhow::anyhow!("joint {}: '{p}' is not a number", i + 1))?;
-            if !v.is_finite() {
-                bail!("joint {}: '{p}' is not finite", i + 1);
-            }
-            Ok(match k {
-                JointKind::Revolute => v.to_radians(),
-                JointKind::Prismatic => v * 1e-3,
-            })
-        })
-        .collect()
-}
-
-/// Formats SI joint values in user units.
-pub fn format_joints(q: &[f64], model: &dyn Kinematics) -> String {
-    q.iter()
-        .zip(model.joint_kinds())
-        .map(|(v, k)| match k {
-            JointKind::Revolute => format!("{:.6}", v.to_degrees()),
-            JointKind::Prismatic => format!("{:.6}", v * 1e3),
-        })
-        .collect::<Vec<_>>()
-        .join(",")
 }

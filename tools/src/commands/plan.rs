@@ -6,8 +6,9 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use ferrocal_calib::design::criteria::Criterion;
-use ferrocal_calib::verdict::{Check, Verdict};
+use ferrocal_calib::verdict::commands as verdict;
 use ferrocal_report::plan::PlanRequest;
+use ferrocal_report::verdict::{add_verdict_to_file, add_verdict_to_html, failed_sections};
 
 /// `ferrocal plan`.
 #[derive(Debug, clap::Args)]
@@ -76,44 +77,9 @@ pub fn run(args: &PlanArgs, vs: &ferrocal_report::verdict::VerdictSettings) -> R
     // exit status always did; another failed section of the report (the Monte Carlo check of the
     // prediction on few runs) is a warning.
     let report_path = args.out.join("report.json");
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report_path)?)?;
-    let failed: Vec<String> = report["sections"]
-        .as_object()
-        .map(|m| m.iter().filter(|(_, v)| v["check"] == "fail").map(|(k, _)| k.clone()).collect())
-        .unwrap_or_default();
-    let l = &vs.thresholds.plan;
-    let design_failed = if outcome.passed { 0.0 } else { failed.len().max(1) as f64 };
-    let checks = vec![
-        Check::at_most(
-            "plan.failed_checks",
-            "the plan's checks failed",
-            "",
-            design_failed,
-            l.failed_checks_fail,
-            l.failed_checks_fail,
-        ),
-        Check::at_most(
-            "plan.other_checks",
-            &if failed.is_empty() {
-                "report sections failed".to_string()
-            } else {
-                format!("report sections failed ({})", failed.join(", "))
-            },
-            "",
-            if outcome.passed { failed.len() as f64 } else { 0.0 },
-            0.0,
-            f64::INFINITY,
-        ),
-    ];
-    let html = outcome.html.display().to_string();
-    let verdict = Verdict::with_next(checks, |c| {
-        match c.map(|c| c.name.as_str()) {
-        None => format!("measure the poses: {} (poses.csv and the programs beside it)", html),
-        Some("plan.other_checks") => format!("the plan passed, but read the failed section of {html}; more simulations (--simulations) settle a Monte Carlo check"),
-        _ => format!("read the failed checks of {html}: widen the workspace, add poses (--wanted) or change the criterion"),
-    }
-    });
-    ferrocal_report::verdict::add_verdict_to_file(&report_path, &verdict)?;
-    ferrocal_report::verdict::add_verdict_to_html(&outcome.html, &verdict)?;
+    let failed = failed_sections(&report_path)?;
+    let verdict = verdict::plan(&vs.thresholds, outcome.passed, &failed, &outcome.html.display().to_string());
+    add_verdict_to_file(&report_path, &verdict)?;
+    add_verdict_to_html(&outcome.html, &verdict)?;
     Ok(vs.conclude_with(&verdict, ExitCode::SUCCESS, 2))
 }

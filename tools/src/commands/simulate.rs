@@ -6,10 +6,12 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use ferrocal_datasets::import::{self, LengthUnit, WriteOptions};
+use ferrocal_calib::verdict::commands as verdict;
+use ferrocal_datasets::import::convert::{import_table, ImportSource};
 use ferrocal_datasets::sim::{simulate, CellConfig};
+use ferrocal_report::recording::{session_json, session_line, session_verdict, tracker_line};
 use ferrocal_report::verdict::VerdictSettings;
-use ferrocal_robot::JointKind;
+use ferrocal_report::Outputs;
 
 /// `ferrocal simulate`.
 #[derive(Debug, Args)]
@@ -113,58 +115,28 @@ pub fn run_import(args: &ImportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     outputs.extend(args.robot_out.as_deref());
     outputs.extend(args.intrinsics_out.as_deref());
     ferrocal_report::check_outputs(&outputs, &[&args.input])?;
-    // Every output is composed first and all are written as one commit at the end.
-    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
-    let (set, kinds) = match args.kind {
+    let source = match args.kind {
         ImportKind::IcHandeye => {
             let cam = args.intrinsics_out.as_deref();
             let set = ferrocal_datasets::handeye::import_ic_handeye(&args.input, &args.out, args.test_every, cam)?;
             return Ok(ferrocal_report::handeye::import_ic_summary(&set, &args.input, &args.out, vs));
         }
-        ImportKind::IcKinematic => {
-            let s = ferrocal_datasets::handeye::read_ic_kinematic(&args.input, args.test_every)?;
-            if let Some(p) = &args.robot_out {
-                let urdf = ferrocal_datasets::handeye::ic_kinematic::ic_positioner_urdf(&args.input)?;
-                files.push((p.as_path(), urdf.into_bytes()));
-            }
-            let n = s.n_joints();
-            (s, vec![JointKind::Revolute; n])
-        }
-        ImportKind::Ur5 => {
-            let s = import::import_ur5_grid(&args.input)?;
-            let n = s.n_joints();
-            (s, vec![JointKind::Revolute; n])
-        }
-        ImportKind::Ur10 => {
-            let s = import::import_ur10_measurements(&args.input)?;
-            let n = s.n_joints();
-            (s, vec![JointKind::Revolute; n])
-        }
-        ImportKind::Table => {
-            let t = import::read_measurements(&args.input)?;
-            let k = t.joint_kinds();
-            (t.set, k)
-        }
+        ImportKind::IcKinematic => ImportSource::IcKinematic,
+        ImportKind::Ur5 => ImportSource::Ur5,
+        ImportKind::Ur10 => ImportSource::Ur10,
+        ImportKind::Table => ImportSource::Table,
     };
-    let mut opts = WriteOptions::si(&kinds);
-    if args.user_units {
-        opts.joint_units = kinds
-            .iter()
-            .map(|k| match k {
-                JointKind::Revolute => import::JointUnit::Deg,
-                JointKind::Prismatic => import::JointUnit::Mm,
-            })
-            .collect();
+    let (robot_out, units) = (args.robot_out.is_some(), args.user_units);
+    let t = import_table(source, &args.input, &args.out, args.test_every, robot_out, units)?;
+    // Every output is composed first and all are written as one commit at the end.
+    let mut out = Outputs::default();
+    out.text(&args.out, t.table.as_str());
+    if let (Some(p), Some(urdf)) = (&args.robot_out, &t.urdf) {
+        out.text(p, urdf.as_str());
     }
-    opts.length_unit = LengthUnit::Mm;
-    opts.comments = vec![format!("imported by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), args.input.display())];
-    let table =
-        import::measurements_to_string(&set, &opts).with_context(|| format!("writing {}", args.out.display()))?;
-    files.insert(0, (args.out.as_path(), table.into_bytes()));
-    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
-    let n_test = set.rows.iter().filter(|r| r.split == Some(ferrocal_calib::Split::Test)).count();
-    println!("{} rows written to {}", set.rows.len(), args.out.display());
-    Ok(vs.conclude(&super::verdicts::import(&vs.thresholds, set.rows.len(), n_test, &args.out)))
+    out.write()?;
+    println!("{} rows written to {}", t.set.rows.len(), args.out.display());
+    Ok(vs.conclude(&verdict::import(&vs.thresholds, t.set.rows.len(), t.n_test(), &args.out)))
 }
 
 /// `ferrocal measure`.
@@ -227,70 +199,21 @@ pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode>
     if m.rows.rows.is_empty() {
         anyhow::bail!("measure: no pose of {} could be measured ({} skipped)", session.display(), m.skipped.len());
     }
-    let mut wopts = WriteOptions::si(&m.joint_kinds);
-    wopts.length_unit = LengthUnit::Mm;
-    wopts.comments = vec![
-        format!("measured by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), session.display()),
-        "positions and orientations of the target in the first camera's frame; cov_*: each pose's covariance".into(),
-    ];
     // The table and the summary are composed first and written together at the end.
-    let table_text =
-        import::measurements_to_string(&m.rows, &wopts).with_context(|| format!("writing {}", out.display()))?;
-    let mut files: Vec<(&Path, Vec<u8>)> = vec![(out.as_path(), table_text.into_bytes())];
-    let sigmas: Vec<f64> = m.rows.rows.iter().filter_map(|r| r.sigma_m.map(|s| s * 1e3)).collect();
-    let median_sigma_mm = {
-        let mut s = sigmas;
-        s.sort_by(f64::total_cmp);
-        s.get(s.len() / 2).copied().unwrap_or(f64::NAN)
-    };
-    println!(
-        "{} poses measured, {} skipped; rig calibration RMS {:.4} px; median position sigma {:.4} mm; table {}",
-        m.rows.rows.len(),
-        m.skipped.len(),
-        m.rig.rms_px,
-        median_sigma_mm,
-        out.display()
-    );
+    let mut files = Outputs::default();
+    files.text(out, m.table_text(session).with_context(|| format!("writing {}", out.display()))?);
+    println!("{}", session_line(&m, out));
     let comparison = match (&args.tracker, &args.robot) {
-        (Some(t), Some(r)) => {
-            let tracker = import::read_measurements(t)?.set;
-            let model = ferrocal_robot::RobotModel::load(r)?;
-            let kopts = ferrocal_calib::kinematic::KinematicOptions::default();
-            let c = ferrocal_datasets::measure::compare_with_tracker(&model, &m.rows, &tracker, &m.poses, &kopts)?;
-            println!(
-                "against the tracker ({} common poses): cameras {:.4} mm mean after registration; held-out tracker error of the model calibrated from the cameras {:.4} mm, from the tracker {:.4} mm, nominal {:.4} mm",
-                c.n_common, c.camera_mean_mm, c.camera_model.mean_mm, c.tracker_model.mean_mm, c.nominal_model.mean_mm
-            );
-            Some(c)
-        }
+        (Some(t), Some(r)) => Some(m.compare_with_tracker_table(t, r)?),
         _ => None,
     };
-    let verdict = ferrocal_report::verdict::measure_verdict(
-        &vs.thresholds,
-        m.rows.rows.len(),
-        m.rows.rows.len() + m.skipped.len(),
-        "rig calibration RMS",
-        m.rig.rms_px,
-        Some(out),
-    );
+    comparison.iter().for_each(|c| println!("{}", tracker_line(c)));
+    let verdict = session_verdict(&vs.thresholds, &m, out);
     if let Some(j) = &args.json {
-        let mut v = serde_json::json!({
-            "tracker_comparison": comparison,
-            "session": session.display().to_string(),
-            "n_measured": m.rows.rows.len(),
-            "skipped": m.skipped,
-            "rig_rms_px": m.rig.rms_px,
-            "median_position_sigma_mm": median_sigma_mm,
-            "poses": m.poses.iter().map(|p| serde_json::json!({
-                "pose_id": p.pose_id,
-                "cameras": p.cameras,
-                "sigma_position_mm": p.estimate.sigma_position_mm().as_slice(),
-                "sigma_rotation_deg": p.estimate.sigma_rotation_deg().as_slice(),
-            })).collect::<Vec<_>>(),
-        });
+        let mut v = session_json(&m, session, comparison.as_ref());
         ferrocal_report::verdict::add_verdict(&mut v, &verdict);
-        files.push((j.as_path(), serde_json::to_string_pretty(&v)?.into_bytes()));
+        files.json(j, &v)?;
     }
-    ferrocal_report::write_all_atomic(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
+    files.write()?;
     Ok(vs.conclude(&verdict))
 }

@@ -11,21 +11,21 @@
 //!
 //! File format: `docs/stiffness.md`.
 
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use ferrocal_calib::stiffness::problem::LinearProblem;
-use ferrocal_calib::stiffness::reduce::{reduce, Reduction, ReductionSettings};
+use ferrocal_calib::stiffness::reduce::{reduce, ReductionSettings};
 use ferrocal_calib::stiffness::StiffnessIdError;
 use ferrocal_datasets::formats::deflections::{read_deflections, stiffness_model};
 use ferrocal_datasets::stiffsim::tables::simulated_deflections;
-use ferrocal_report::stiffness::{identify_section, study_report};
+use ferrocal_report::stiffness::{
+    complete_parameters, identify_lines, identify_report, study_report, trusted_parameters,
+};
 use ferrocal_report::verdict::VerdictSettings;
-use ferrocal_report::{write_atomic, Provenance, Report};
+use ferrocal_report::write_atomic;
 use ferrocal_robot::stiffness::WrenchLimits;
-use serde_json::json;
 
 /// `ferrocal stiffness`.
 #[derive(Debug, clap::Args)]
@@ -143,46 +143,18 @@ fn run_identify(a: &IdentifyArgs) -> Result<ExitCode> {
         }
         Err(e) => return Err(e.into()),
     };
-    println!("{:4} {:>5} {:>5} {:>10} {:>6}  what", "step", "n", "rank", "cond", "s0");
-    for s in &red.steps {
-        println!(
-            "{:4} {:>5} {:>5} {:>10.3e} {:>6.2}  {}",
-            s.code, s.n_params, s.rank, s.condition_number, s.s0, s.title
-        );
-    }
-    println!("\n{:32} {:>12} {:>10} {:>8} {:>12}", "parameter", "estimate", "std", "nu", "prior");
-    let f = &red.fit;
     let prior_red = red.param.project(prior.as_deref().unwrap_or(&vec![0.0; problem.layout.len()]));
-    for (i, p0) in prior_red.iter().enumerate() {
-        println!(
-            "{:32} {:>12.4e} {:>10.2e} {:>8.1} {:>12.4e}  {}",
-            f.names[i], f.values[i], f.std[i], f.nu[i], p0, f.units[i]
-        );
-    }
+    identify_lines(&red, &prior_red).iter().for_each(|l| println!("{l}"));
     let ok = red.physical_problems.is_empty();
     if !ok {
         eprintln!("error: the estimate is not physical: {}", red.physical_problems.join("; "));
-        let trusted: Vec<String> = (0..red.param.len())
-            .filter(|&i| {
-                !red.physical_problems.iter().any(|p| p.starts_with(f.names[i].split('.').next().unwrap_or("")))
-            })
-            .map(|i| f.names[i].clone())
-            .collect();
-        eprintln!("parameters that can be trusted: {}", trusted.join(", "));
+        eprintln!("parameters that can be trusted: {}", trusted_parameters(&red).join(", "));
     }
     if let Some(out) = &a.out {
-        let mut prov = Provenance::new(json!({"model": a.model, "nu_threshold": a.nu_threshold}));
-        prov.add_input(&a.measurements);
-        let mut report = Report::new(&format!("Compliance identification of {}", a.model), prov);
-        report.sections.push(identify_section(&red, &prior_red));
-        let html = report.write(out)?;
-        let params: BTreeMap<String, f64> = layout_values(&problem, &red);
+        let html = identify_report(&a.model, a.nu_threshold, &a.measurements, &red, &prior_red).write(out)?;
+        let params = complete_parameters(&problem, &red);
         write_atomic(&out.join("parameters.json"), serde_json::to_string_pretty(&params)?.as_bytes())?;
         println!("wrote {}", html.display());
     }
     Ok(if ok { ExitCode::SUCCESS } else { ExitCode::from(2) })
-}
-
-fn layout_values(problem: &LinearProblem, red: &Reduction) -> BTreeMap<String, f64> {
-    problem.layout.names().into_iter().zip(red.complete_values.iter().copied()).collect()
 }

@@ -1,5 +1,6 @@
 //! `ferrocal handeye`'s presentation: its JSON ([`json`], keys per `shared/spec/cli.md`), its
-//! HTML report ([`html`]), its verdict ([`verdict`]), the terminal summary, and the demo's
+//! HTML report ([`html`]), all its output files ([`handeye_outputs`]), its verdict ([`verdict`]),
+//! the terminal summary, and the demo's
 //! hand-eye sections ([`demo`], [`joint_demo`]). The workflow lives in
 //! `ferrocal_datasets::handeye::workflow`, the method in `ferrocal_calib::handeye`.
 
@@ -12,7 +13,14 @@ pub mod verdict;
 use std::path::Path;
 use std::process::ExitCode;
 
-use ferrocal_datasets::handeye::CoverageSummary;
+use ferrocal_calib::handeye::JointCalibration;
+use ferrocal_calib::verdict::Verdict;
+use ferrocal_datasets::handeye::{CoverageSummary, HandEyeFit, HandEyeInput, HandEyeRunOptions};
+use serde_json::{json, Value};
+
+use crate::error::Result;
+use crate::outputs::Outputs;
+use crate::report::{Provenance, Report};
 
 /// Prints the hand-eye calibration's summary on stdout (its warnings on stderr).
 pub fn print_summary(
@@ -118,4 +126,67 @@ pub fn import_ic_summary(
     }
     });
     vs.conclude(&verdict)
+}
+
+/// The terminal line of the joint adjustment whose calibration is written to `out`.
+pub fn joint_line(joint: &JointCalibration, out: &Path) -> String {
+    let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
+    format!(
+        "joint adjustment: {} robot parameters, chain RMS train {:.4} px, held-out {} px, s0 {:.3}; calibration written to {}",
+        joint.free.len(),
+        joint.figures.train_rms_px,
+        opt(joint.figures.heldout_rms_px),
+        joint.s0,
+        out.display()
+    )
+}
+
+/// Where `ferrocal handeye` writes (each file only when asked for).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct HandeyeFiles<'a> {
+    /// The JSON result.
+    pub json: Option<&'a Path>,
+    /// The HTML report.
+    pub report: Option<&'a Path>,
+    /// The joint adjustment's calibration file (the format `evaluate` reads).
+    pub out: Option<&'a Path>,
+}
+
+/// The files of `ferrocal handeye` for the run `run` on `input`, composed (not written): the
+/// JSON with every image left out and the verdict, the joint adjustment's calibration file of
+/// the robot `run.robot`, the HTML report opening with the verdict.
+pub fn handeye_outputs(
+    run: &HandEyeRunOptions,
+    input: &HandEyeInput,
+    fit: &HandEyeFit,
+    joint: Option<&JointCalibration>,
+    verdict: &Verdict,
+    files: &HandeyeFiles,
+) -> Result<Outputs> {
+    let (result, baselines, source) = (&fit.result, &fit.baselines, input.table.source.as_deref());
+    let mut out = Outputs::default();
+    if let (Some(p), Some(joint), Some(spec)) = (files.out, joint, &run.robot) {
+        out.json(p, &joint.file(spec))?;
+    }
+    if let Some(h) = files.report {
+        let (mount, pattern) = (run.mount.name(), &run.pattern);
+        let settings = json!({"pattern": pattern, "mount": mount, "options": format!("{:?}", fit.options)});
+        let mut prov = Provenance::new(settings);
+        prov.add_input(&run.poses);
+        let sections = html::handeye_sections(result, baselines, source);
+        out.html(h, Report::of(&format!("Hand-eye calibration ({mount}, {pattern})"), prov, sections), verdict);
+    }
+    if let Some(p) = files.json {
+        let mut skipped: Vec<Value> = input
+            .skipped_images
+            .iter()
+            .map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason}))
+            .collect();
+        skipped.extend(input.skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
+        skipped.extend(result.skipped.iter().map(|s| json!({"image": s.name, "reason": s.reason})));
+        let mut v = json::handeye_json(result, baselines, Value::Array(skipped), source);
+        crate::verdict::add_verdict(&mut v, verdict);
+        out.json_first(p, &v)?;
+    }
+    Ok(out)
 }

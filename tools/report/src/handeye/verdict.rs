@@ -3,7 +3,7 @@
 //! and camera (a wrong `--mount` or a wrong pose convention shows a chain residual far above
 //! PnP's), and the chain's agreement with PnP in position and orientation.
 
-use ferrocal_calib::handeye::{ChainFigures, HandEyeData, HandEyeResult, Mount};
+use ferrocal_calib::handeye::{ChainFigures, HandEyeData, HandEyeResult, JointCalibration, Mount};
 use ferrocal_calib::verdict::{fmt_num, Check, Status, Thresholds, Verdict};
 use ferrocal_calib::Split;
 use ferrocal_vision::pose::{estimate_pose, CornerNoise};
@@ -107,4 +107,20 @@ pub fn handeye_verdict(checks: Vec<Check>, mount: Mount, has_heldout: bool, join
             _ => "the chain and the single-image poses disagree: check the camera (--intrinsics, or more varied views) and the target's size in --pattern".into(),
         }
     })
+}
+
+/// The checks of a hand-eye fit: its chain figures against the PnP floor, on the held-out
+/// images when there are any, else on the training ones.
+pub fn fit_checks(t: &Thresholds, data: &HandEyeData, result: &HandEyeResult) -> Vec<Check> {
+    let split = if result.figures.heldout_rms_px.is_some() { Split::Test } else { Split::Train };
+    chain_checks(t, &result.figures, pnp_rms_px(data, result, split), "handeye")
+}
+
+/// The checks of the joint adjustment's chain, scored as the hand-eye fit's (no PnP floor: its
+/// camera is the adjustment's own).
+pub fn joint_checks(t: &Thresholds, joint: &JointCalibration) -> Vec<Check> {
+    chain_checks(t, &joint.figures, None, "handeye.joint")
+        .into_iter()
+        .filter(|c| c.name.ends_with("chain_rms_px"))
+        .collect()
 }

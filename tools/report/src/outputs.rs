@@ -1,0 +1,50 @@
+//! The output files of one command, composed first and written together
+//! ([`write_all_atomic`]): a failure on the way writes none of them, and no output is half-set.
+
+use std::path::{Path, PathBuf};
+
+use ferrocal_calib::verdict::Verdict;
+use serde::Serialize;
+
+use crate::error::Result;
+use crate::report::{write_all_atomic, Report};
+
+/// Files composed in memory, in the order they were added, written as one commit by
+/// [`Outputs::write`].
+#[derive(Clone, Debug, Default)]
+pub struct Outputs(Vec<(PathBuf, Vec<u8>)>);
+
+impl Outputs {
+    /// Adds `value` as pretty-printed JSON at `path`.
+    pub fn json(&mut self, path: &Path, value: &impl Serialize) -> Result<()> {
+        self.text(path, serde_json::to_string_pretty(value)?);
+        Ok(())
+    }
+
+    /// Adds `value` as pretty-printed JSON at `path`, before every file added so far.
+    pub fn json_first(&mut self, path: &Path, value: &impl Serialize) -> Result<()> {
+        self.0.insert(0, (path.to_path_buf(), serde_json::to_string_pretty(value)?.into_bytes()));
+        Ok(())
+    }
+
+    /// Adds `text` (or any bytes) at `path`.
+    pub fn text(&mut self, path: &Path, text: impl Into<Vec<u8>>) {
+        self.0.push((path.to_path_buf(), text.into()));
+    }
+
+    /// Adds `report` as HTML at `path`, opening with the box of `verdict`.
+    pub fn html(&mut self, path: &Path, mut report: Report, verdict: &Verdict) {
+        report.verdict = Some(verdict.clone());
+        self.text(path, report.to_html());
+    }
+
+    /// The paths, in order.
+    pub fn paths(&self) -> impl Iterator<Item = &Path> {
+        self.0.iter().map(|(p, _)| p.as_path())
+    }
+
+    /// Writes every file as one commit ([`write_all_atomic`]).
+    pub fn write(&self) -> Result<()> {
+        write_all_atomic(&self.0.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect::<Vec<_>>())
+    }
+}

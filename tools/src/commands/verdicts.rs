@@ -1,3 +1,0 @@
-//! The verdicts of the commands, from their library home ([`ferrocal_calib::verdict::commands`]).
-
-pub use ferrocal_calib::verdict::commands::{calibrate, diagnose, evaluate, export, import};
