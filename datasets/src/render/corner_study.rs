@@ -241,6 +241,15 @@ pub fn rows_csv(rows: &[StudyRow]) -> Result<String> {
     String::from_utf8(bytes).map_err(|e| DatasetError::Input(format!("corner study CSV: {e}")))
 }
 
+/// The worst ratio of the project's corner RMS error to the Cramer-Rao bound over the rows with
+/// noise (NaN without any).
+pub fn worst_crb_ratio(rows: &[StudyRow]) -> f64 {
+    rows.iter()
+        .filter(|r| r.crb_rms_px > 0.0 && r.crb_rms_px.is_finite() && r.ours_rms_px.is_finite())
+        .map(|r| r.ours_rms_px / r.crb_rms_px)
+        .fold(f64::NAN, f64::max)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -254,13 +263,4 @@ mod tests {
         assert!((rms(&d) - 0.5).abs() < 1e-12);
         assert!(rms(&[]).is_nan());
     }
-}
-
-/// The worst ratio of the project's corner RMS error to the Cramer-Rao bound over the rows with
-/// noise (NaN without any).
-pub fn worst_crb_ratio(rows: &[StudyRow]) -> f64 {
-    rows.iter()
-        .filter(|r| r.crb_rms_px > 0.0 && r.crb_rms_px.is_finite() && r.ours_rms_px.is_finite())
-        .map(|r| r.ours_rms_px / r.crb_rms_px)
-        .fold(f64::NAN, f64::max)
 }
