@@ -109,6 +109,7 @@ def make_reports(ferrocal, data, work):
         "--report", work / "handeye.html")
     out.append(work / "handeye.html")
     demo = work / "demo"
+    shutil.rmtree(demo, ignore_errors=True)
     run("--keep", "demo", "--quick", "--data", data, "--out", demo)
     out.append(demo / "index.html")
     return [p for p in out if p.exists()] + [Path(f"missing: {p}") for p in out if not p.exists()]

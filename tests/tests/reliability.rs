@@ -147,6 +147,20 @@ fn evaluate_refuses_calibration_missing_parameters_for_another_robot_or_duplicat
         cmd
     };
     assert!(run(&mut evaluate("ur5", &cal)).status.success());
+    // A table of headers only is refused, not scored as "RMS 0 mm, pass".
+    let empty = edited(tmp.path(), "empty.csv", Some(0), |_, _| {});
+    let err = fails_within(
+        ferrocal()
+            .args(["evaluate", "--robot", "ur5", "--calibration"])
+            .arg(&cal)
+            .arg("--measurements")
+            .arg(&empty)
+            .arg("--json")
+            .arg(tmp.path().join("empty.json")),
+        Duration::from_secs(30),
+    );
+    assert!(err.contains("empty.csv: the table has no rows to score"), "{err}");
+    assert!(!tmp.path().join("empty.json").exists());
     let err = fails_within(&mut evaluate("ur10", &cal), Duration::from_secs(30));
     assert!(err.contains("made for robot 'ur5', not 'ur10'"), "{err}");
     let write = |name: &str, v: &serde_json::Value| {

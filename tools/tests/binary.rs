@@ -30,3 +30,15 @@ fn robot_info_lists_the_ur5_joints() {
     assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
     assert!(text.contains("ur5") || text.contains("UR5"), "stdout: {text}");
 }
+
+#[test]
+fn doctor_finds_every_library_answering_and_ends_with_the_verdict() {
+    let out = ferrocal().arg("doctor").output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "stdout: {text}\nstderr: {}", String::from_utf8_lossy(&out.stderr));
+    let last = text.lines().last().unwrap_or_default();
+    assert!(last.starts_with("verdict: pass: ") && last.contains("; next: "), "{last}");
+    for lib in ["opencv", "apriltag", "ceres"] {
+        assert!(text.to_lowercase().contains(lib), "{lib} probed: {text}");
+    }
+}

@@ -588,6 +588,7 @@ pub fn diagnose_camera(
                         heldout_rms_px: r.heldout_after,
                         p_value: r.p_corrected,
                         verdict: best_verdict(r, opts.alpha, opts.min_improvement, "rejected: implausible size"),
+                        status: r.verdict.status().to_string(),
                     })
                     .collect()
             })

@@ -598,6 +598,7 @@ pub fn diagnose_force_sensor(
                             opts.min_improvement,
                             "rejected as physically implausible",
                         ),
+                        status: r.verdict.status().to_string(),
                     })
                     .collect()
             })

@@ -95,6 +95,31 @@ pub enum Verdict {
     },
 }
 
+impl Verdict {
+    /// The outcome as one machine-readable word, written beside the words in every report's
+    /// JSON (`status`): `accepted`, `rejected` (significant, then refused: overlap, implausible,
+    /// unstable, refit failed, not confirmed, explained by a look-alike), `not_separable`,
+    /// `not_significant`, `too_small`, `not_best`, `not_examined`, `unscored`, `pending`.
+    pub fn status(&self) -> &'static str {
+        match self {
+            Verdict::Pending => "pending",
+            Verdict::Unscored(_) => "unscored",
+            Verdict::TooSmall => "too_small",
+            Verdict::NotSignificant => "not_significant",
+            Verdict::NotBest => "not_best",
+            Verdict::NotExamined => "not_examined",
+            Verdict::Overlap(_)
+            | Verdict::Implausible(_)
+            | Verdict::Unstable(_)
+            | Verdict::RefitFailed(_)
+            | Verdict::NotConfirmed { .. }
+            | Verdict::Explained { .. } => "rejected",
+            Verdict::NotSeparable { .. } => "not_separable",
+            Verdict::Accepted { .. } => "accepted",
+        }
+    }
+}
+
 /// One candidate of one step.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CandidateRow {

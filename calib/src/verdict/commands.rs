@@ -188,9 +188,24 @@ pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verd
         "no structure left unexplained",
         structure,
     ));
-    let rejected: Vec<&str> = report["notes"]
+    // The last step's candidates (`steps[-1].candidates` of a robot, `candidates[-1]` of a
+    // camera or force sensor), by their structured `status`.
+    let last_step = report["steps"]
         .as_array()
-        .map(|a| a.iter().filter_map(Value::as_str).filter(|n| n.contains(": rejected")).collect())
+        .and_then(|s| s.last())
+        .map(|s| &s["candidates"])
+        .or_else(|| report["candidates"].as_array().and_then(|s| s.last()));
+    let rejected: Vec<String> = last_step
+        .and_then(Value::as_array)
+        .map(|cs| {
+            cs.iter()
+                .filter(|c| c["status"] == "rejected")
+                .map(|c| {
+                    let label = c["label"].as_str().or_else(|| c["candidate"].as_str()).unwrap_or("a candidate");
+                    format!("{label}: {}", c["verdict"].as_str().unwrap_or("rejected"))
+                })
+                .collect()
+        })
         .unwrap_or_default();
     checks.push(Check::at_most(
         "diagnose.rejected",
@@ -201,7 +216,7 @@ pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verd
         f64::INFINITY,
     ));
     let n_findings = report["findings"].as_array().map_or(0, Vec::len);
-    let first_rejected = rejected.first().map(|s| s.to_string()).unwrap_or_default();
+    let first_rejected = rejected.first().cloned().unwrap_or_default();
     // The robot report's top sentence (why nothing was claimed, when the residuals show strong
     // structure).
     let summary = report["summary"].as_str().unwrap_or_default().to_string();

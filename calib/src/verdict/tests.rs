@@ -104,3 +104,37 @@ fn unknown_keys_and_bad_values_are_refused_by_name() {
     let e = Thresholds::from_toml("[camera\n", Path::new("limits.toml")).unwrap_err();
     assert!(matches!(e, ThresholdsError::Parse { .. }) && e.to_string().starts_with("limits.toml: "), "{e}");
 }
+
+#[test]
+fn diagnose_counts_rejected_candidates_by_their_status_in_every_family() {
+    let t = Thresholds::default();
+    let robot = serde_json::json!({
+        "nominal": {"heldout_rms_mm": 1.0}, "final": {"heldout_rms_mm": 0.5},
+        "unexplained": {"structure_found": false, "depends_on": []},
+        "findings": [{"effect": "joint_compliance"}],
+        // A note that merely mentions the word is not a rejection.
+        "notes": ["x: rejected by nobody, a remark"],
+        "steps": [
+            {"candidates": [{"label": "old", "status": "rejected", "verdict": "rejected: earlier step"}]},
+            {"candidates": [
+                {"label": "backlash[3]", "status": "rejected", "verdict": "rejected as unstable across the folds: why"},
+                {"label": "scale[2]", "status": "not_significant", "verdict": "not significant"}
+            ]}
+        ]
+    });
+    let v = commands::diagnose(&t, &robot, "mm", "rerun");
+    let c = v.checks.iter().find(|c| c.name == "diagnose.rejected").unwrap();
+    assert_eq!(c.value, 1.0, "only the last step's rejected candidate counts");
+    assert_eq!(v.status, Status::Warning);
+    assert!(v.next.contains("backlash[3]: rejected as unstable"), "{}", v.next);
+    // A camera's report: `candidates` per step, labelled `candidate`.
+    let camera = serde_json::json!({
+        "nominal": {"heldout_rms_px": 0.3}, "final": {"heldout_rms_px": 0.2},
+        "unexplained": {"structure_found": false}, "findings": [],
+        "candidates": [[{"candidate": "lens_distortion", "status": "accepted", "verdict": "accepted"}],
+                       [{"candidate": "target_nonflatness", "status": "not_significant", "verdict": "not significant"}]]
+    });
+    let v = commands::diagnose(&t, &camera, "px", "rerun");
+    assert_eq!(v.checks.iter().find(|c| c.name == "diagnose.rejected").unwrap().value, 0.0);
+    assert_eq!(v.status, Status::Pass);
+}

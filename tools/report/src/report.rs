@@ -192,6 +192,9 @@ pub struct Report {
     pub open_sections: usize,
 }
 
+/// Reports with more sections than this fold each later section whole under its heading.
+pub const COMPACT_AFTER: usize = 12;
+
 /// Where the verdict box goes in a report written before its verdict was known.
 pub const VERDICT_SLOT: &str = "<!-- ferrocal:verdict -->";
 
@@ -289,18 +292,33 @@ impl Report {
             None => h.push_str(VERDICT_SLOT),
         }
         h.push('\n');
-        h.push_str("<nav><ul>");
-        for s in &self.sections {
-            let _ = write!(h, "<li><a href=\"#{}\">{}</a>{}</li>", esc(&s.id), esc(&s.title), s.badge());
+        // A long report (more than COMPACT_AFTER sections) folds each later section whole under
+        // a one-line heading: the headings are then the table of contents.
+        let compact = self.sections.len() > COMPACT_AFTER;
+        if !compact {
+            h.push_str("<nav><ul>");
+            for s in &self.sections {
+                let _ = write!(h, "<li><a href=\"#{}\">{}</a>{}</li>", esc(&s.id), esc(&s.title), s.badge());
+            }
+            h.push_str("</ul></nav>\n");
         }
-        h.push_str("</ul></nav>\n");
         for (i, s) in self.sections.iter().enumerate() {
-            let _ = writeln!(h, "<section id=\"{}\"><h2>{}{}</h2>", esc(&s.id), esc(&s.title), s.badge());
             let open = i < self.open_sections || s.failed();
-            // A folded section keeps its first paragraph in view.
-            let lead = usize::from(!open && matches!(s.blocks.first(), Some(Block::Text(_))));
+            if open || !compact {
+                let _ = writeln!(h, "<section id=\"{}\"><h2>{}{}</h2>", esc(&s.id), esc(&s.title), s.badge());
+            } else {
+                let _ = writeln!(
+                    h,
+                    "<section id=\"{}\" class=\"folded\"><details><summary><strong>{}</strong>{}</summary>",
+                    esc(&s.id),
+                    esc(&s.title),
+                    s.badge()
+                );
+            }
+            // A folded section of a short report keeps its first paragraph in view.
+            let lead = usize::from(!open && !compact && matches!(s.blocks.first(), Some(Block::Text(_))));
             for (k, b) in s.blocks.iter().enumerate() {
-                if !open && k == lead {
+                if !open && !compact && k == lead {
                     let n = s.blocks.len() - lead;
                     let _ = writeln!(
                         h,
@@ -330,7 +348,11 @@ impl Report {
                         for r in rows {
                             h.push_str("<tr>");
                             for c in r {
-                                let _ = write!(h, "<td>{}</td>", esc(c));
+                                // Numbers (with or without a unit) align right, words left.
+                                let numeric = c.len() < 25
+                                    && c.trim_start().starts_with(|ch: char| ch.is_ascii_digit() || "+-.".contains(ch));
+                                let class = if numeric { " class=\"n\"" } else { "" };
+                                let _ = write!(h, "<td{class}>{}</td>", esc(c));
                             }
                             h.push_str("</tr>");
                         }
@@ -338,7 +360,7 @@ impl Report {
                     }
                 }
             }
-            if !open && s.blocks.len() > lead {
+            if !open && (compact || s.blocks.len() > lead) {
                 h.push_str("</details>\n");
             }
             h.push_str("</section>\n");
@@ -549,14 +571,15 @@ fn folder_parts(path: &Path) -> (&Path, String) {
 
 const CSS: &str = "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}\
 h1{border-bottom:2px solid #335}h2{margin-top:2em;border-bottom:1px solid #ccc}\
-table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right;font-variant-numeric:tabular-nums}\
+table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:left;font-variant-numeric:tabular-nums}td.n{text-align:right}\
 th{background:#eef}caption{font-weight:bold;text-align:left;padding:4px 0}\
 figure{margin:1em 0}figcaption{font-size:90%;color:#444}.attr{font-size:80%;color:#666}\
 .ok{color:#fff;background:#2a7;padding:1px 6px;border-radius:3px;font-size:70%}\
 .bad{color:#fff;background:#c33;padding:1px 6px;border-radius:3px;font-size:70%}\
 .note{color:#fff;background:#888;padding:1px 6px;border-radius:3px;font-size:70%}\
 pre{background:#f6f6f6;padding:6px;overflow-x:auto;white-space:pre-wrap}nav ul{columns:2}\
-details>summary{cursor:pointer;color:#335;margin:.5em 0}table{max-width:100%;display:block;overflow-x:auto}\
+details>summary{cursor:pointer;color:#335;margin:.5em 0}section.folded{margin:.2em 0;border-bottom:1px solid #eee}\
+section.folded summary{font-size:110%;padding:.3em 0}.verdict td{text-align:left}table{max-width:100%;display:block;overflow-x:auto}\
 svg,img{max-width:100%;height:auto}\
 .verdict{border:2px solid #888;border-left-width:10px;border-radius:4px;padding:.4em 1em;margin:1em 0}\
 .verdict p{margin:.3em 0}.verdict table{margin:.5em 0}.verdict td.l{text-align:left}\
@@ -581,103 +604,4 @@ pub fn inline_png(img: &image::GrayImage, alt: &str) -> String {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn report() -> Report {
-        let mut r = Report::new("t", Provenance::new(Value::Null));
-        let mut a = Section::new("a", "A");
-        a.status(true, "within 1 mm");
-        let mut b = Section::new("b", "B");
-        b.skipped("x.csv is not present");
-        let mut c = Section::new("c", "C");
-        c.reported("numbers only");
-        r.sections = vec![a, b, c];
-        r
-    }
-
-    #[test]
-    fn skipped_and_reported_sections_are_not_ok_and_say_so() {
-        let r = report();
-        let j = r.to_json();
-        let s = &j["sections"];
-        assert_eq!(s["a"]["ok"], Value::Bool(true));
-        assert_eq!(s["a"]["status"], "within 1 mm");
-        assert_eq!(s["a"]["check"], "pass");
-        for (k, want) in [("b", "skipped: x.csv is not present"), ("c", "reported: numbers only")] {
-            assert!(s[k].get("ok").is_none(), "{k}: {}", s[k]);
-            assert_eq!(s[k]["status"], want);
-        }
-        let html = r.to_html();
-        assert!(html.contains("<span class=\"note\">skipped: x.csv is not present</span>"), "{html}");
-        assert!(html.contains("x.csv is not present: section skipped."));
-        assert!(!r.failed());
-    }
-
-    #[test]
-    fn the_verdict_box_opens_the_report_and_its_slot_is_filled_later() {
-        use ferrocal_calib::verdict::Check as VCheck;
-        let v = Verdict::new(
-            vec![
-                VCheck::at_most("camera.rms_px", "reprojection RMS", "px", 0.7, 0.5, 1.0),
-                VCheck::at_least("camera.views", "views", "", 12.0, 10.0, 5.0),
-            ],
-            "retake the blurred views <3>",
-        );
-        let mut r = report();
-        let without = r.to_html();
-        assert!(without.contains(VERDICT_SLOT), "a report without its verdict keeps the slot");
-        r.verdict = Some(v.clone());
-        let html = r.to_html();
-        let (box_at, nav_at) = (html.find("class=\"verdict v-warning\"").unwrap(), html.find("<nav>").unwrap());
-        assert!(box_at < nav_at, "the box comes before everything else");
-        assert!(html.contains("Verdict: WARNING"));
-        assert!(html.contains("retake the blurred views &lt;3&gt;"), "escaped");
-        assert!(html.contains("reprojection RMS 0.7 px &gt; 0.5 px (warning)"));
-        assert!(!html.contains(VERDICT_SLOT));
-        assert_eq!(r.to_json()["verdict"]["status"], "warning");
-        assert_eq!(without.replacen(VERDICT_SLOT, &verdict_box(&v), 1), html, "filling the slot gives the same page");
-    }
-
-    #[test]
-    fn sections_after_the_first_fold_their_details_unless_they_failed() {
-        let mut r = Report::new("t", Provenance::new(Value::Null));
-        for (id, ok) in [("a", true), ("b", true), ("c", true), ("d", false)] {
-            let mut s = Section::new(id, id);
-            s.text(format!("lead of {id}")).table("numbers", &["x"], vec![vec!["1".into()]]).status(ok, "x");
-            r.sections.push(s);
-        }
-        let html = r.to_html();
-        let body = |id: &str| {
-            let from = html.find(&format!("<section id=\"{id}\"")).unwrap();
-            let to = from + html[from..].find("</section>").unwrap();
-            html[from..to].to_string()
-        };
-        assert!(!body("a").contains("<details>") && !body("b").contains("<details>"), "the first two are whole");
-        let c = body("c");
-        let (lead, fold) = (c.find("lead of c").unwrap(), c.find("<details>").unwrap());
-        assert!(lead < fold && c.find("<table>").unwrap() > fold, "{c}");
-        assert!(c.contains("1 more item (tables"), "{c}");
-        assert!(!body("d").contains("<details>"), "a failed section is shown whole");
-        r.open_sections = usize::MAX;
-        assert!(!r.to_html().contains("<details>"));
-    }
-
-    #[test]
-    fn the_summary_counts_and_lists_every_check() {
-        let mut r = report();
-        let mut d = Section::new("d", "D");
-        d.status(false, "3 mm, limit 1 mm");
-        r.sections.push(d);
-        assert!(r.failed());
-        let s = r.summary_section();
-        assert!(s.status.is_none(), "the summary does not count itself");
-        assert_eq!(s.data["counts"]["passed"], 1);
-        assert_eq!(s.data["counts"]["failed"], 1);
-        assert_eq!(s.data["counts"]["skipped"], 1);
-        assert_eq!(s.data["counts"]["reported"], 1);
-        let statuses: Vec<&str> =
-            s.data["sections"].as_array().unwrap().iter().map(|x| x["status"].as_str().unwrap()).collect();
-        assert_eq!(statuses, ["pass", "skipped", "reported", "fail"]);
-    }
-}
+mod tests;

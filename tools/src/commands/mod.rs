@@ -33,7 +33,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
     let vs = &VerdictSettings::new(cli.thresholds.as_deref(), cli.keep)?;
     match cli.command {
         Command::Demo(a) => demo::run(&a, vs),
-        Command::Doctor => doctor::run(),
+        Command::Doctor => doctor::run(vs),
         Command::Robot(c) => robot::run(c),
         Command::Detect(a) => detect::run(&a, vs),
         Command::CornerStudy(a) => corner_study::run(&a, vs),

@@ -103,6 +103,10 @@ pub struct CameraCandidateScore {
     pub p_value: f64,
     /// Accepted or why not.
     pub verdict: String,
+    /// The outcome in one word (`accepted`, `rejected`, `not_significant`, ...; see
+    /// `diagnose::report::Verdict::status`).
+    #[serde(default)]
+    pub status: String,
 }
 
 /// The report (`ferrocal diagnose --images`), the JSON of `shared/spec/diagnose.md` with `_px`.

@@ -84,6 +84,10 @@ pub struct ForceCandidateScore {
     pub p_value: f64,
     /// Accepted or why not.
     pub verdict: String,
+    /// The outcome in one word (`accepted`, `rejected`, `not_significant`, ...; see
+    /// `diagnose::report::Verdict::status`).
+    #[serde(default)]
+    pub status: String,
 }
 
 /// The report (`ferrocal diagnose --forces`): the JSON of `shared/spec/diagnose.md` with `_n`.

@@ -255,6 +255,10 @@ pub struct CandidateScore {
     pub sin_angle_to_geometry: Option<f64>,
     /// What happened to it.
     pub verdict: String,
+    /// The outcome in one word (`accepted`, `rejected`, `not_significant`, ...; see
+    /// `diagnose::report::Verdict::status`).
+    #[serde(default)]
+    pub status: String,
 }
 
 /// A candidate that could not be tested, and why.
@@ -561,6 +565,7 @@ fn finish(
                     parameters: r.parameters.clone(),
                     sin_angle_to_geometry: r.overlap_sine,
                     verdict: verdict_words(r, s.candidates_tried, opts),
+                    status: r.verdict.status().to_string(),
                 })
                 .collect(),
             accepted: s.accepted.clone(),
@@ -614,7 +619,7 @@ fn finish(
     }
     // Rejected-but-significant candidates of the last step, in words.
     if let Some(last) = report.steps.last() {
-        for c in last.candidates.iter().filter(|c| c.verdict.starts_with("rejected")) {
+        for c in last.candidates.iter().filter(|c| c.status == "rejected") {
             report.notes.push(format!("{}: {}", c.label, c.verdict));
         }
         for c in last.candidates.iter().filter(|c| c.p_corrected < opts.alpha && c.improvement < opts.min_improvement) {

@@ -134,3 +134,59 @@ pub(super) fn perp(v: Vector2<f64>) -> Vector2<f64> {
     let n = v.norm().max(1e-12);
     Vector2::new(-v.y / n, v.x / n)
 }
+
+/// Corner of two fitted lines, in fit coordinates, with the Jacobian blocks.
+pub(super) fn intersect(l1: &FittedLine, l2: &FittedLine) -> Option<(Vector2<f64>, [nalgebra::Matrix2<f64>; 2])> {
+    let (n1, n2) = (l1.state.normal(), l2.state.normal());
+    let m = Matrix2::new(n1.x, n1.y, n2.x, n2.y);
+    let det = m.determinant();
+    if det.abs() < 0.2 {
+        // Lines closer than ~11.5 degrees to parallel.
+        return None;
+    }
+    let minv = m.try_inverse()?;
+    let c = Vector2::new(n1.dot(&l1.origin) + l1.state.d, n2.dot(&l2.origin) + l2.state.d);
+    let mut p = minv * c;
+    // Bent lines: the point of each parabola at the corner's tangential coordinate (a
+    // correction of kappa t^2 / 2, well below 1e-3 px for corners within a pixel of the origin).
+    if l1.state.kappa != 0.0 || l2.state.kappa != 0.0 {
+        let sag =
+            |l: &FittedLine, p: Vector2<f64>| 0.5 * l.state.kappa * l.state.tangent().dot(&(p - l.origin)).powi(2);
+        p = minv * (c + Vector2::new(sag(l1, p), sag(l2, p)));
+    }
+    let mut blocks = [Matrix2::zeros(); 2];
+    for (i, l) in [l1, l2].into_iter().enumerate() {
+        let e = minv.column(i).into_owned();
+        let tp = l.state.tangent().dot(&(p - l.origin));
+        // Columns: d/dphi, d/dd.
+        blocks[i] = Matrix2::from_columns(&[-e * tp, e]);
+    }
+    Some((p, blocks))
+}
+
+impl FittedLine {
+    pub(super) fn state_h_inv(&self) -> Matrix2<f64> {
+        self.fit.h_inv_line
+    }
+}
+
+#[cfg(test)]
+mod extrapolation_tests {
+    use super::*;
+
+    #[test]
+    fn the_outer_grid_point_is_extrapolated_in_perspective() {
+        // Equally spaced board points under a 1D homography: x(k) = (60 k + 5) / (0.08 k + 1)
+        // pixels along a tilted line; the step shrinks from 60 to about 40 px.
+        let x = |k: f64| (60.0 * k + 5.0) / (0.08 * k + 1.0);
+        let u = Vector2::new(0.6, 0.8);
+        let o = Vector2::new(100.0, 50.0);
+        let at = |k: f64| o + u * x(k);
+        let p = extrapolate_projective(at(1.0), at(2.0), at(3.0)).unwrap();
+        assert!((p - at(0.0)).norm() < 1e-9, "{:?} vs {:?}", p, at(0.0));
+        // The linear extrapolation is several pixels off here.
+        assert!((at(1.0) * 2.0 - at(2.0) - at(0.0)).norm() > 3.0);
+        // Implausible input: the linear fallback.
+        assert!(extrapolate_projective(at(1.0), at(1.0), at(3.0)).is_none());
+    }
+}
