@@ -359,6 +359,17 @@ pub struct EvaluateRun {
 }
 
 impl EvaluateRun {
+    /// Refuses a run with no row to score (`measurements`: the table, named in the error).
+    pub fn check_scored(&self, measurements: &Path) -> Result<()> {
+        if self.scored.is_empty() {
+            return Err(DatasetError::Input(format!(
+                "{}: the table has no rows to score; give a table of measured poses",
+                measurements.display()
+            )));
+        }
+        Ok(())
+    }
+
     /// Which rows were scored, in words (`n` of them).
     pub fn scored_words(&self, n: usize) -> String {
         if self.test_only {

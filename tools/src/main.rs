@@ -20,28 +20,10 @@ fn main() -> ExitCode {
     match commands::run(args) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("ferrocal: error: {}", one_line(&e));
+            eprintln!("ferrocal: error: {}", ferrocal_report::error::one_line(e.as_ref()));
             ExitCode::from(1)
         }
     }
-}
-
-/// The error on one line: its chain of causes joined with `: `, a cause whose words the line
-/// already holds left out (an error that quotes its source in its own message would else say
-/// it twice: `cannot read x.csv: No such file ...: No such file ...`).
-fn one_line(e: &anyhow::Error) -> String {
-    let mut msg = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string().replace('\n', " ");
-        if msg.contains(&text) {
-            continue;
-        }
-        if !msg.is_empty() {
-            msg.push_str(": ");
-        }
-        msg.push_str(&text);
-    }
-    msg
 }
 
 /// Output piped into `head` or `less` ends quietly when the reader closes the pipe, as other
@@ -52,17 +34,5 @@ fn restore_sigpipe() {
     // disposition for SIGPIPE.
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn a_cause_quoted_by_its_error_is_said_once() {
-        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory (os error 2)");
-        let e = anyhow::Error::new(ferrocal_datasets::error::DatasetError::Io { path: "x.csv".into(), source: io });
-        assert_eq!(super::one_line(&e), "cannot read x.csv: No such file or directory (os error 2)");
-        let e = anyhow::anyhow!("inner\nreason").context("outer");
-        assert_eq!(super::one_line(&e), "outer: inner reason");
     }
 }

@@ -1,5 +1,5 @@
 //! The verdicts of the commands (`camera calibrate`, `camera stereo`, `calibrate`, `evaluate`,
-//! `export`, `diagnose`, `import`, `detect`, `corner-study`, `plan`): which numbers each holds against which limit of
+//! `export`, `diagnose`, `import`, `detect`, `corner-study`, `plan`, `doctor`): which numbers each holds against which limit of
 //! [`Thresholds`], and the next step in words (`docs/verdicts.md`).
 
 use serde_json::Value;
@@ -393,6 +393,26 @@ pub fn plan(t: &Thresholds, passed: bool, failed: &[String], html: &str) -> Verd
         None => format!("measure the poses: {} (poses.csv and the programs beside it)", html),
         Some("plan.other_checks") => format!("the plan passed, but read the failed section of {html}; more simulations (--simulations) settle a Monte Carlo check"),
         _ => format!("read the failed checks of {html}: widen the workspace, add poses (--wanted) or change the criterion"),
+    }
+    })
+}
+
+/// `doctor`: every external library answers (`libraries`: each one's name and whether it did).
+pub fn doctor(libraries: &[(&str, bool)]) -> Verdict {
+    let checks = libraries
+        .iter()
+        .map(|(name, ok)| {
+            let label = format!("{name} answers (1 yes, 0 no)");
+            Check::at_least(&format!("doctor.{name}"), &label, "", f64::from(u8::from(*ok)), 1.0, 1.0)
+        })
+        .collect();
+    Verdict::with_next(checks, |c| {
+        match c {
+        None => "every library answers: run ferrocal demo".into(),
+        Some(c) => format!(
+            "{} does not answer: run scripts/setup.sh (it installs the system libraries) and rebuild, or read its line above",
+            c.name.trim_start_matches("doctor.")
+        ),
     }
     })
 }

@@ -56,6 +56,25 @@ impl ReportError {
     }
 }
 
+/// An error on one line, as the binary shows it: its chain of causes joined with `: `, a cause
+/// whose words the line already holds left out (an error that quotes its source in its own
+/// message would else say it twice: `cannot read x.csv: No such file ...: No such file ...`).
+pub fn one_line(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut msg = String::new();
+    let mut cause = Some(e);
+    while let Some(c) = cause {
+        let text = c.to_string().replace('\n', " ");
+        if !msg.contains(&text) {
+            if !msg.is_empty() {
+                msg.push_str(": ");
+            }
+            msg.push_str(&text);
+        }
+        cause = c.source();
+    }
+    msg
+}
+
 /// The report crate's result.
 pub type Result<T, E = ReportError> = std::result::Result<T, E>;
 
@@ -93,4 +112,17 @@ macro_rules! bail {
     ($($arg:tt)*) => {
         return Err($crate::error::ReportError::Message(format!($($arg)*)))
     };
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_cause_quoted_by_its_error_is_said_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory (os error 2)");
+        let e = ferrocal_datasets::error::DatasetError::Io { path: "x.csv".into(), source: io };
+        assert_eq!(super::one_line(&e), "cannot read x.csv: No such file or directory (os error 2)");
+        let e = super::ReportError::msg("inner\nreason");
+        let e = super::ReportError::Context { context: "outer".into(), source: Box::new(e) };
+        assert_eq!(super::one_line(&e), "outer: inner reason");
+    }
 }

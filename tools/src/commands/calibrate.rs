@@ -157,9 +157,7 @@ pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCod
     if run.no_test_marked {
         eprintln!("note: {}: the split column marks no row 'test': every row is scored", args.measurements.display());
     }
-    if run.scored.is_empty() {
-        bail!("{}: the table has no rows to score; give a table of measured poses", args.measurements.display());
-    }
+    run.check_scored(&args.measurements)?;
     let (mut out, stats) = evaluate_run_json(&run)?;
     let scored_words = run.scored_words(stats.n);
     let verdict = verdict::evaluate(&vs.thresholds, &stats, &scored_words);
