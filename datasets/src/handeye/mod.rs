@@ -24,6 +24,6 @@ pub use sim::{
     RenderedRecording, StudyMode,
 };
 pub use workflow::{
-    check_simulated_images, huber_sigmas_of_loss, write_simulated_recording, HandEyeFit, HandEyeInput,
+    check_simulated_images, huber_sigmas_of_loss, run_inputs, write_simulated_recording, HandEyeFit, HandEyeInput,
     HandEyeRunOptions,
 };

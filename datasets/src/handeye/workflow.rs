@@ -78,6 +78,21 @@ impl HandEyeRunOptions {
     }
 }
 
+/// The input files of a hand-eye run: the poses table, the camera file, the robot model's file
+/// (a preset name is checked as a path too, and names none) and the image specifications.
+pub fn run_inputs<'a>(
+    poses: &'a Path,
+    intrinsics: Option<&'a Path>,
+    robot: Option<&'a str>,
+    images: &'a [PathBuf],
+) -> Vec<&'a Path> {
+    let mut inputs = vec![poses];
+    inputs.extend(intrinsics);
+    inputs.extend(robot.map(Path::new));
+    inputs.extend(images.iter().map(PathBuf::as_path));
+    inputs
+}
+
 /// A loaded recording: the corners of every usable image with its flange pose.
 #[derive(Clone, Debug)]
 pub struct HandEyeInput {

@@ -3,7 +3,7 @@
 //! [`ferrocal_report::handeye`]. Also `handeye study` (the Monte Carlo check of the covariance)
 //! and `handeye simulate`.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Result};
@@ -11,12 +11,11 @@ use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_calib::handeye::opencv::best_baseline;
 use ferrocal_calib::handeye::Mount;
 use ferrocal_datasets::handeye::{
-    check_simulated_images, coverage_study, huber_sigmas_of_loss, write_simulated_recording, HandEyeInput,
+    check_simulated_images, coverage_study, huber_sigmas_of_loss, run_inputs, write_simulated_recording, HandEyeInput,
     HandEyeRunOptions,
 };
-use ferrocal_report::handeye::{handeye_outputs, joint_line, print_summary, verdict, HandeyeFiles};
+use ferrocal_report::handeye::{handeye_outputs, joint_line, print_summary, study_json, verdict, HandeyeFiles};
 use ferrocal_report::verdict::VerdictSettings;
-use serde_json::json;
 
 /// The mount on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -170,12 +169,9 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (Some(poses_path), Some(pattern_text), Some(mount)) = (&a.poses, &a.pattern, a.mount) else {
         bail!("handeye: --poses, --pattern and --mount are required");
     };
-    let outputs: Vec<&Path> = [&a.json, &a.report, &a.out].into_iter().flatten().map(PathBuf::as_path).collect();
-    let mut inputs: Vec<&Path> = vec![poses_path.as_path()];
-    inputs.extend(a.intrinsics.as_deref());
-    inputs.extend(a.robot.as_deref().map(Path::new));
-    inputs.extend(a.images.iter().map(PathBuf::as_path));
-    ferrocal_report::check_outputs(&outputs, &inputs)?;
+    let files = HandeyeFiles { json: a.json.as_deref(), report: a.report.as_deref(), out: a.out.as_deref() };
+    let inputs = run_inputs(poses_path, a.intrinsics.as_deref(), a.robot.as_deref(), &a.images);
+    ferrocal_report::check_outputs(&files.all(), &inputs)?;
     let mount = mount_of(mount);
     let run = HandEyeRunOptions {
         images: a.images.clone(),
@@ -214,7 +210,6 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let verdict = verdict::run_verdict(checks, &fit.result, a.out.as_deref());
     // Every output is composed first and all are written together at the end: a failing joint
     // adjustment leaves no summary or report of half a run.
-    let files = HandeyeFiles { json: a.json.as_deref(), report: a.report.as_deref(), out: a.out.as_deref() };
     handeye_outputs(&run, &input, &fit, joint.as_ref(), &verdict, &files)?.write()?;
     Ok(vs.conclude(&verdict))
 }
@@ -247,7 +242,7 @@ fn run_study(s: &StudyArgs) -> Result<ExitCode> {
         println!("{}", ferrocal_report::handeye::coverage_line(r));
     }
     if let Some(p) = &s.json {
-        let v = json!({"simulations": s.simulations, "seed": s.seed, "mode": mode, "mounts": rows});
+        let v = study_json(s.simulations, s.seed, mode, &rows);
         ferrocal_report::write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())
             .map_err(|e| anyhow::Error::new(e).context(format!("writing {}", p.display())))?;
     }

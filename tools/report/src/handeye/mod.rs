@@ -15,7 +15,7 @@ use std::process::ExitCode;
 
 use ferrocal_calib::handeye::JointCalibration;
 use ferrocal_calib::verdict::Verdict;
-use ferrocal_datasets::handeye::{CoverageSummary, HandEyeFit, HandEyeInput, HandEyeRunOptions};
+use ferrocal_datasets::handeye::{CoverageSummary, HandEyeFit, HandEyeInput, HandEyeRunOptions, StudyMode};
 use serde_json::{json, Value};
 
 use crate::error::Result;
@@ -150,6 +150,18 @@ pub struct HandeyeFiles<'a> {
     pub report: Option<&'a Path>,
     /// The joint adjustment's calibration file (the format `evaluate` reads).
     pub out: Option<&'a Path>,
+}
+
+impl HandeyeFiles<'_> {
+    /// Every output asked for, in the order of the arguments (JSON, report, calibration).
+    pub fn all(&self) -> Vec<&Path> {
+        [self.json, self.report, self.out].into_iter().flatten().collect()
+    }
+}
+
+/// The JSON of `ferrocal handeye study --json`: the settings and every mount's coverage.
+pub fn study_json(simulations: usize, seed: u64, mode: StudyMode, rows: &[CoverageSummary]) -> Value {
+    json!({"simulations": simulations, "seed": seed, "mode": mode, "mounts": rows})
 }
 
 /// The files of `ferrocal handeye` for the run `run` on `input`, composed (not written): the
