@@ -219,12 +219,8 @@ pub type MeasuredViews = (RecordingCamera, Vec<(usize, ImagePose)>, Vec<Skipped>
 /// camera, `(view index, pose)` for every view measured, and the views left out.
 pub fn measure_views(data: &HandEyeData, opts: &RecordingOptions) -> Result<MeasuredViews> {
     let target = PlanarTarget { points_m: data.target_points_m.clone(), reversible: false };
-    let wrong_size = opts.camera.and_then(|c| data.views.iter().find(|v| v.image_size != c.image_size).map(|v| (c, v)));
-    if let Some((c, v)) = wrong_size {
-        return Err(DatasetError::Input(format!(
-            "the given camera (--intrinsics) is for {} x {} px images, but {} is {} x {} px: the file belongs to another camera or resolution; leave out --intrinsics to calibrate from the recording, or give this camera's own file",
-            c.image_size.width_px, c.image_size.height_px, v.name, v.image_size.width_px, v.image_size.height_px
-        )));
+    if let Some(c) = &opts.camera {
+        ferrocal_calib::handeye::check_camera_size(c, &data.views)?;
     }
     let (camera, covariance) = match &opts.camera {
         Some(c) => (RecordingCamera { camera: *c, std: None, calibration_rms_px: None, calibration_views: 0 }, None),

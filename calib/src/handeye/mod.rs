@@ -54,7 +54,7 @@ pub use closed::{ClosedForm, PosePair};
 pub use evaluate::{chain_figures, chain_residuals_px, Chain, ChainFigures, ViewFigures};
 pub use geometry::{MotionGeometry, MIN_ROTATION_DEG};
 pub use joint::{calibrate_joint, calibrate_joint_from, JointCalibration, JointOptions};
-pub use refine::{calibrate_hand_eye, MAX_NOISE_ITERATIONS, MIN_TRAIN_VIEWS, NOISE_TOLERANCE};
+pub use refine::{calibrate_hand_eye, check_camera_size, MAX_NOISE_ITERATIONS, MIN_TRAIN_VIEWS, NOISE_TOLERANCE};
 
 use crate::measurement::Split;
 

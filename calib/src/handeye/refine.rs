@@ -37,6 +37,23 @@ fn data_error(m: String) -> CalibError {
     CalibError::Data(format!("hand-eye: {m}"))
 }
 
+/// Refuses a given camera (`--intrinsics`) whose image size is not the views': a camera file of
+/// another camera or resolution would be fitted as if it were this one (120 px residuals that
+/// still "converge"). Used by the hand-eye fit and by `measure`.
+pub fn check_camera_size(camera: &CameraModel, views: &[HandEyeView]) -> Result<()> {
+    match views.iter().find(|v| v.image_size != camera.image_size) {
+        None => Ok(()),
+        Some(v) => Err(CalibError::Data(format!(
+            "the given camera (--intrinsics) is for {} x {} px images, but {} is {} x {} px: the file belongs to another camera or resolution; leave out --intrinsics to calibrate the camera from these images, or give this camera's own file",
+            camera.image_size.width_px,
+            camera.image_size.height_px,
+            v.name,
+            v.image_size.width_px,
+            v.image_size.height_px
+        ))),
+    }
+}
+
 /// Checks shapes and values of the recording; returns the usable views and the skipped ones.
 fn usable_views(data: &HandEyeData, options: &HandEyeOptions) -> Result<(Vec<HandEyeView>, Vec<SkippedView>)> {
     if data.target_points_m.is_empty() || data.target_points_m.iter().any(|p| !p.coords.iter().all(|v| v.is_finite())) {
@@ -101,14 +118,7 @@ fn initial_camera(
     match &options.intrinsics {
         IntrinsicsMode::Fixed(c) => {
             c.validate().map_err(|e| data_error(format!("the given camera: {e}")))?;
-            // A camera file of another camera or resolution would be fitted as if it were this
-            // one (120 px residuals that still "converge"): the image size must match.
-            if let Some(v) = views.iter().find(|v| v.image_size != c.image_size) {
-                return Err(data_error(format!(
-                    "the given camera (--intrinsics) is for {} x {} px images, but {} is {} x {} px: the file belongs to another camera or resolution; calibrate this camera (leave out --intrinsics) or give its own file",
-                    c.image_size.width_px, c.image_size.height_px, v.name, v.image_size.width_px, v.image_size.height_px
-                )));
-            }
+            check_camera_size(c, views)?;
             Ok((*c, None))
         }
         IntrinsicsMode::Calibrate(o) => {
@@ -271,21 +281,7 @@ fn robust_sigma(p: &Problem) -> Result<f64> {
     for e in idx.entries.iter().filter(|e| !e.name.ends_with(".robot")) {
         a.extend((0..e.size).map(|k| r[e.offset + k].abs()));
     }
-    Ok(1.4826 * median(&a))
-}
-
-fn median(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
+    Ok(1.4826 * ferrocal_vision::calib::median(&a))
 }
 
 /// The variance factors `r_g^T r_g / redundancy_g` of the corner, robot-position and

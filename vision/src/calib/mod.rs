@@ -66,7 +66,8 @@ use crate::pose::{homography, plane_frame, LocalPose};
 use bundle::{Bundle, CameraLayout, Obs};
 
 mod views;
-pub(crate) use views::{check_views, median, view_homography};
+pub use views::median;
+pub(crate) use views::{check_views, view_homography};
 
 mod outliers;
 pub(crate) use outliers::flag_outliers;

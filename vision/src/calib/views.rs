@@ -2,8 +2,8 @@
 
 use super::*;
 
-/// Median of a non-empty list (0 for an empty one).
-pub(crate) fn median(v: &[f64]) -> f64 {
+/// Median of a list (0 for an empty one).
+pub fn median(v: &[f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
     }
