@@ -75,12 +75,12 @@ pub fn detector_pattern(
                 dictionary: *dictionary,
             })
         }
-        TargetConfig::CircleGrid { cols, rows, spacing_m, large_radius_m, .. } => {
-            Pattern::CircleGrid(ferrocal_vision::detect::CircleGrid {
-                cols: *cols,
-                rows: *rows,
-                spacing_mm: spacing_m * 1e3,
-                modified: large_radius_m.is_some(),
+        TargetConfig::CircleGrid { cols, rows, spacing_m, large_radius_m, asymmetric, .. } => {
+            use ferrocal_vision::detect::CircleGrid;
+            Pattern::CircleGrid(if *asymmetric {
+                CircleGrid::asymmetric(*cols, *rows, spacing_m * 1e3)
+            } else {
+                CircleGrid::symmetric(*cols, *rows, spacing_m * 1e3, large_radius_m.is_some())
             })
         }
         TargetConfig::AprilTagBoard { .. } => {

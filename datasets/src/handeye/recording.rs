@@ -40,8 +40,12 @@ pub fn load_recording(
     pattern: &Pattern,
     mount: Mount,
 ) -> Result<(HandEyeData, Vec<Skipped>)> {
-    // Fail early on a pattern the detector refuses, before any image is read.
-    Detector::new(*pattern, DetectOptions::default(), None)?;
+    // Fail early on a pattern the detector refuses, before any image is read. The calibration
+    // targets' options (an AprilTag board's corners refined by the edge model).
+    let options = ferrocal_vision::calib::CalibrationPattern::of(pattern)
+        .map(|c| c.detect_options())
+        .unwrap_or_else(|_| DetectOptions::default());
+    Detector::new(*pattern, options.clone(), None)?;
     let by_name: HashMap<&str, usize> = table.rows.iter().enumerate().map(|(i, r)| (r.image.as_str(), i)).collect();
     let mut used = vec![false; table.rows.len()];
     let mut skipped = Vec::new();
@@ -68,7 +72,7 @@ pub fn load_recording(
         matched
             .par_iter()
             .map_init(
-                || Detector::new(*pattern, DetectOptions::default(), None),
+                || Detector::new(*pattern, options.clone(), None),
                 |det, (path, _, _)| {
                     let det = det.as_mut().map_err(|e| e.to_string())?;
                     let img = ferrocal_vision::detect::load_gray(path).map_err(|e| e.to_string())?;

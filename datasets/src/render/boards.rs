@@ -70,27 +70,30 @@ pub(super) fn charuco(
         outline_m: rect(-hx - margin_m, -hy - margin_m, hx + margin_m, hy + margin_m),
         dark_m: dark,
         corners,
+        face_minus_z: false,
     })
 }
 
-/// A circle grid (the order of `ferrocal_vision::detect::circles`).
+/// A circle grid (the order and frame of `ferrocal_vision::detect::circles`; an asymmetric
+/// grid in OpenCV's frame, origin at dot 0).
 pub(super) fn circle_grid(
-    cols: u32,
-    rows: u32,
-    spacing_m: f64,
+    grid: &CircleGrid,
     radius_m: f64,
     large_radius_m: Option<f64>,
     margin_m: f64,
 ) -> Result<TargetGeometry> {
+    let spacing_m = grid.spacing_mm * 1e-3;
     let big = large_radius_m.unwrap_or(radius_m);
-    if 2.0 * radius_m >= spacing_m || radius_m + big >= spacing_m {
+    // Nearest neighbours: `spacing` apart on a symmetric grid, `sqrt 2 spacing` (diagonal) on an
+    // asymmetric one.
+    let nearest_m = if grid.asymmetric { std::f64::consts::SQRT_2 * spacing_m } else { spacing_m };
+    if 2.0 * radius_m >= nearest_m || radius_m + big >= nearest_m {
         return Err(DatasetError::RenderConfig {
             field: "target.radius_m".into(),
             value: format!("{radius_m} (large {big})"),
-            reason: format!("neighbouring dots would touch at a spacing of {spacing_m} m"),
+            reason: format!("neighbouring dots would touch at a distance of {nearest_m} m"),
         });
     }
-    let grid = CircleGrid { cols, rows, spacing_mm: spacing_m * 1e3, modified: large_radius_m.is_some() };
     let mut dark = Vec::new();
     let mut corners = Vec::new();
     for (k, p) in grid.target_points_m().into_iter().enumerate() {
@@ -105,7 +108,13 @@ pub(super) fn circle_grid(
         );
         corners.push(TargetCorner { feature: 0, index: k as u32, p_target_m: Point3::new(p.x, p.y, 0.0) });
     }
-    let hx = 0.5 * (cols as f64 - 1.0) * spacing_m + big + margin_m;
-    let hy = 0.5 * (rows as f64 - 1.0) * spacing_m + big + margin_m;
-    Ok(TargetGeometry { outline_m: rect(-hx, -hy, hx, hy), dark_m: dark, corners })
+    let pts = grid.target_points_m();
+    let lo = |f: fn(&Point3<f64>) -> f64| pts.iter().map(f).fold(f64::INFINITY, f64::min) - big - margin_m;
+    let hi = |f: fn(&Point3<f64>) -> f64| pts.iter().map(f).fold(f64::NEG_INFINITY, f64::max) + big + margin_m;
+    Ok(TargetGeometry {
+        outline_m: rect(lo(|p| p.x), lo(|p| p.y), hi(|p| p.x), hi(|p| p.y)),
+        dark_m: dark,
+        corners,
+        face_minus_z: grid.asymmetric,
+    })
 }

@@ -278,11 +278,13 @@ impl Renderer {
         }
         // The camera centre, seen from the target, must lie in front of the printed face.
         let t_target_cam = t_cam_target.inverse();
-        if t_target_cam.translation.vector.z <= 0.0 {
+        let face = if self.target.face_minus_z { -1.0 } else { 1.0 };
+        if face * t_target_cam.translation.vector.z <= 0.0 {
             return Err(DatasetError::Render(format!(
                 "the camera sees the back of the target (camera at z = {:.4} m in the target frame); \
-                 the target's z axis must point towards the camera",
-                t_target_cam.translation.vector.z
+                 the target's z axis must point {} the camera",
+                t_target_cam.translation.vector.z,
+                if self.target.face_minus_z { "away from" } else { "towards" }
             )));
         }
         Ok(())

@@ -4,6 +4,7 @@
 //! face is read, z out of the printed face (towards a camera that sees it). All targets are
 //! drawn as a white plate (the outline) carrying non-overlapping black polygons.
 
+use ferrocal_vision::detect::CircleGrid;
 use nalgebra::{Point2, Point3};
 use serde::{Deserialize, Serialize};
 
@@ -92,6 +93,12 @@ pub enum TargetConfig {
         large_radius_m: Option<f64>,
         /// White margin beyond the outermost dots' edges, metres.
         margin_m: f64,
+        /// OpenCV's asymmetric grid instead (`spacing_m` is OpenCV's `squareSize`; its frame,
+        /// origin at dot 0 and z into the printed face, is `ferrocal_vision`'s
+        /// `CircleGrid::point_m`: a pose that shows the printed face turns z away from the
+        /// camera).
+        #[serde(default)]
+        asymmetric: bool,
     },
 }
 
@@ -121,6 +128,10 @@ pub struct TargetGeometry {
     /// chessboard row by row from the top-left; AprilTag board per tag (row by row from the
     /// top-left), per corner in the C library's order.
     pub corners: Vec<TargetCorner>,
+    /// Whether the printed face looks along -z (OpenCV's frames, z into the board: the
+    /// asymmetric circle grid) instead of +z: a camera must then be on the -z side.
+    #[serde(default)]
+    pub face_minus_z: bool,
 }
 
 impl TargetGeometry {
@@ -153,6 +164,7 @@ impl TargetGeometry {
                     ..*c
                 })
                 .collect(),
+            face_minus_z: self.face_minus_z,
         })
     }
 }
@@ -205,7 +217,7 @@ impl TargetConfig {
                 check_length("margin_m", *margin_m, true)?;
                 super::boards::charuco(*cols, *rows, *square_m, *marker_m, *dictionary, *margin_m)
             }
-            TargetConfig::CircleGrid { cols, rows, spacing_m, radius_m, large_radius_m, margin_m } => {
+            TargetConfig::CircleGrid { cols, rows, spacing_m, radius_m, large_radius_m, margin_m, asymmetric } => {
                 check_count("cols", *cols, 2)?;
                 check_count("rows", *rows, 2)?;
                 check_length("spacing_m", *spacing_m, false)?;
@@ -214,7 +226,19 @@ impl TargetConfig {
                 if let Some(l) = large_radius_m {
                     check_length("large_radius_m", *l, false)?;
                 }
-                super::boards::circle_grid(*cols, *rows, *spacing_m, *radius_m, *large_radius_m, *margin_m)
+                let grid = if *asymmetric {
+                    if large_radius_m.is_some() {
+                        return Err(DatasetError::RenderConfig {
+                            field: "target.large_radius_m".into(),
+                            value: format!("{large_radius_m:?}"),
+                            reason: "an asymmetric circle grid has no large dot".into(),
+                        });
+                    }
+                    CircleGrid::asymmetric(*cols, *rows, spacing_m * 1e3)
+                } else {
+                    CircleGrid::symmetric(*cols, *rows, spacing_m * 1e3, large_radius_m.is_some())
+                };
+                super::boards::circle_grid(&grid, *radius_m, *large_radius_m, *margin_m)
             }
         }
     }
@@ -240,7 +264,7 @@ fn plate(s: f64, margin: f64) -> Result<TargetGeometry> {
             });
         }
     }
-    Ok(TargetGeometry { outline_m: rect(-half, -half, half, half), dark_m: dark, corners })
+    Ok(TargetGeometry { outline_m: rect(-half, -half, half, half), dark_m: dark, corners, face_minus_z: false })
 }
 
 fn chessboard(cols: u32, rows: u32, s: f64, margin: f64) -> Result<TargetGeometry> {
@@ -273,7 +297,7 @@ fn chessboard(cols: u32, rows: u32, s: f64, margin: f64) -> Result<TargetGeometr
     }
     let hx = 0.5 * (nc + 1.0) * s + margin;
     let hy = 0.5 * (nr + 1.0) * s + margin;
-    Ok(TargetGeometry { outline_m: rect(-hx, -hy, hx, hy), dark_m: dark, corners })
+    Ok(TargetGeometry { outline_m: rect(-hx, -hy, hx, hy), dark_m: dark, corners, face_minus_z: false })
 }
 
 fn apriltag_board(
@@ -361,7 +385,7 @@ fn apriltag_board(
     }
     let hx = 0.5 * ((nc - 1.0) * pitch + tag_size) + margin;
     let hy = 0.5 * ((nr - 1.0) * pitch + tag_size) + margin;
-    Ok(TargetGeometry { outline_m: rect(-hx, -hy, hx, hy), dark_m: dark, corners })
+    Ok(TargetGeometry { outline_m: rect(-hx, -hy, hx, hy), dark_m: dark, corners, face_minus_z: false })
 }
 
 #[cfg(test)]

@@ -60,7 +60,9 @@ impl ModelArg {
 #[derive(Debug, Args)]
 pub struct SolveArgs {
     /// The pattern: `chessboard:9x6:25mm` (inner corners, square size),
-    /// `charuco:5x7:36.195mm:18.256mm:DICT_6X6_250` (squares), `circlegrid:10x10:25.4mm[:modified]`.
+    /// `charuco:5x7:36.195mm:18.256mm:DICT_6X6_250` (squares), `circlegrid:10x10:25.4mm[:modified]`,
+    /// `acircles:4x11:20mm` (OpenCV's asymmetric grid), `aprilboard:6x4:30mm:9mm`,
+    /// `aprilgrid:6x6:88mm:0.3` (Kalibr's Aprilgrid).
     #[arg(long)]
     pub pattern: String,
     /// Keep fx = fy (OpenCV's CALIB_FIX_ASPECT_RATIO with ratio 1).

@@ -41,7 +41,8 @@ pub struct DetectArgs {
     /// The pattern: `chessboard:<cols>x<rows>:<square>mm` (inner corners),
     /// `apriltag:<family>[:<tag size>mm]`, `plate:<square>mm` (the Gantry-Tau plate),
     /// `aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]`,
-    /// `charuco:<cols>x<rows>:<square>mm:<marker>mm:<dictionary>`, `circlegrid:<cols>x<rows>:<spacing>mm[:modified]`.
+    /// `charuco:<cols>x<rows>:<square>mm:<marker>mm:<dictionary>`, `circlegrid:<cols>x<rows>:<spacing>mm[:modified]`,
+    /// `acircles:<cols>x<rows>:<spacing>mm`, `aprilgrid:<cols>x<rows>:<tag>mm:<spacing>[:first_id]`.
     #[arg(long)]
     pub pattern: String,
     /// Write the detections here (JSON).

@@ -28,7 +28,7 @@ use super::{
 use crate::camera::ImageSize;
 use crate::detect::aruco::{opencv_charuco_corners, MarkerParams};
 use crate::detect::baseline::{opencv_find_chessboard, opencv_find_circles_grid};
-use crate::detect::{load_gray, DetectOptions, Detector};
+use crate::detect::{load_gray, Detector};
 use crate::error::Result;
 
 /// One detector's results on the image set.
@@ -164,10 +164,15 @@ pub fn compare_with_opencv(paths: &[PathBuf], pattern: &Pattern, options: &Calib
     let target = pattern.target();
     let mut sides = Vec::new();
     // ferrocal: the project's detector (chessboards included), with the pattern's calibration.
-    let mut det = Detector::new(pattern.pattern(), DetectOptions::default(), None)?;
+    let mut det = Detector::new(pattern.pattern(), pattern.detect_options(), None)?;
     let radii = std::cell::Cell::new(Vec::<[f64; 2]>::new());
     let own_detect = |img: &GrayImage| -> Found {
         match det.detect(img) {
+            // An AprilTag board: one detection per tag, together the view.
+            Ok(d) if matches!(pattern, Pattern::TagBoard(_)) => d
+                .iter()
+                .flat_map(|d| d.corners.iter().filter_map(|c| c.point_id.map(|i| (i as usize, c.position_px))))
+                .collect(),
             Ok(d) => d
                 .into_iter()
                 .max_by_key(|d| d.corners.len())
@@ -226,11 +231,20 @@ pub fn compare_with_opencv(paths: &[PathBuf], pattern: &Pattern, options: &Calib
                 sides.push(side(name, &images, &target, det, |v| calibrate_camera(v, &target, options)));
             }
         }
+        Pattern::CircleGrid(g) if g.asymmetric => {
+            let det = |img: &GrayImage| {
+                all(crate::detect::baseline::opencv_find_asymmetric_circles_grid(img, g.cols, g.rows).ok().flatten())
+            };
+            let name = "OpenCV findCirclesGrid (asymmetric, default blob detector)";
+            sides.push(side(name, &images, &target, det, |v| calibrate_camera(v, &target, options)));
+        }
         Pattern::CircleGrid(g) => {
             let det = |img: &GrayImage| all(opencv_find_circles_grid(img, g.cols, g.rows).ok().flatten());
             let name = "OpenCV findCirclesGrid (symmetric, default blob detector)";
             sides.push(side(name, &images, &target, det, |v| calibrate_camera(v, &target, options)));
         }
+        // OpenCV has no AprilTag-board finder: ferrocal's side only.
+        Pattern::TagBoard(_) => {}
         Pattern::Chessboard { inner_cols, inner_rows, .. } => {
             let det =
                 |img: &GrayImage| all(opencv_find_chessboard(img, inner_cols, inner_rows, Some(5)).ok().flatten());

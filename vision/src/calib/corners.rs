@@ -226,7 +226,7 @@ pub fn detect_pattern_views(
     let found: Vec<Result<(super::View, Option<[f64; 2]>)>> = paths
         .par_iter()
         .map_init(
-            || own.map(|p| crate::detect::Detector::new(p, crate::detect::DetectOptions::default(), None)),
+            || own.map(|p| crate::detect::Detector::new(p, pattern.detect_options(), None)),
             |detector, p| match (detector, *pattern, method) {
                 (
                     None,
@@ -272,8 +272,19 @@ fn own_view(det: &mut crate::detect::Detector, path: &Path) -> Result<(super::Vi
     let img = crate::detect::load_gray(path).map_err(|e| unusable(path, e.to_string()))?;
     let size = ImageSize { width_px: img.width(), height_px: img.height() };
     let found = det.detect(&img).map_err(|e| unusable(path, e.to_string()))?;
-    let Some(d) = found.into_iter().max_by_key(|d| d.corners.len()) else {
-        return Err(unusable(path, "pattern not found"));
+    // An AprilTag board gives one detection per tag: their corners together are the view.
+    let tag_board = matches!(det.pattern(), crate::detect::Pattern::AprilBoard { .. });
+    let d = if tag_board {
+        let Some(mut first) = found.first().cloned() else {
+            return Err(unusable(path, "pattern not found"));
+        };
+        first.corners = found.into_iter().flat_map(|d| d.corners).collect();
+        first
+    } else {
+        let Some(d) = found.into_iter().max_by_key(|d| d.corners.len()) else {
+            return Err(unusable(path, "pattern not found"));
+        };
+        d
     };
     let (ids, px): (Vec<usize>, Vec<Point2<f64>>) =
         d.corners.iter().filter_map(|c| c.point_id.map(|i| (i as usize, c.position_px))).unzip();

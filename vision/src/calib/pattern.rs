@@ -1,7 +1,8 @@
 //! The patterns camera calibration can use, out of the pattern strings of
 //! [`crate::detect::Pattern`] (the one parser): chessboards (found by OpenCV's recipe,
 //! [`super::corners`]), ChArUco boards and circle grids (found by the project's own detectors,
-//! [`crate::detect`], whose corners carry their ids so that partial views calibrate too).
+//! [`crate::detect`], whose corners carry their ids so that partial views calibrate too),
+//! AprilTag boards (every decoded tag's four corners, with ids).
 
 use super::PlanarTarget;
 use crate::detect::{CharucoBoard, CircleGrid, Pattern};
@@ -23,6 +24,9 @@ pub enum CalibrationPattern {
     Charuco(CharucoBoard),
     /// A circle grid (target frame and order: [`crate::detect::circles`]).
     CircleGrid(CircleGrid),
+    /// An AprilTag board (`aprilboard:` or Kalibr's `aprilgrid:`, always a
+    /// [`Pattern::AprilBoard`]): every tag's four corners, with ids, so partial views work.
+    TagBoard(Pattern),
 }
 
 impl CalibrationPattern {
@@ -35,9 +39,10 @@ impl CalibrationPattern {
             }
             Pattern::Charuco(b) => Ok(Self::Charuco(b)),
             Pattern::CircleGrid(g) => Ok(Self::CircleGrid(g)),
+            Pattern::AprilBoard { .. } => Ok(Self::TagBoard(*pattern)),
             _ => Err(VisionError::InvalidInput {
                 detail: format!(
-                    "pattern '{pattern}': camera calibration supports chessboard:<cols>x<rows>:<square>mm (inner corners), charuco:<cols>x<rows>:<square>mm:<marker>mm:<dictionary> and circlegrid:<cols>x<rows>:<spacing>mm[:modified]; AprilTag boards and plates are not supported by it yet"
+                    "pattern '{pattern}': camera calibration needs a board with many points: chessboard:<cols>x<rows>:<square>mm (inner corners), charuco:<cols>x<rows>:<square>mm:<marker>mm:<dictionary>, circlegrid:<cols>x<rows>:<spacing>mm[:modified], acircles:<cols>x<rows>:<spacing>mm, aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm or aprilgrid:<cols>x<rows>:<tag>mm:<spacing>; single AprilTags and the plate are not calibration targets"
                 ),
             }),
         }
@@ -58,7 +63,19 @@ impl CalibrationPattern {
             }
             Self::Charuco(b) => PlanarTarget { points_m: b.target_points_m(), reversible: false },
             Self::CircleGrid(g) => PlanarTarget { points_m: g.target_points_m(), reversible: false },
+            Self::TagBoard(p) => PlanarTarget { points_m: p.target_points_m().unwrap_or_default(), reversible: false },
         }
+    }
+
+    /// The detector's options for calibration: the defaults, with the tags' corners of an
+    /// AprilTag board refined by the edge model (sub-pixel, with covariances; the C library's
+    /// quad corners are several times less accurate).
+    pub fn detect_options(&self) -> crate::detect::DetectOptions {
+        let mut o = crate::detect::DetectOptions::default();
+        if matches!(self, Self::TagBoard(_)) {
+            o.apriltag.refine = crate::detect::apriltag::TagRefine::EdgeModel;
+        }
+        o
     }
 
     /// The pattern as a pattern string's value.
@@ -69,6 +86,7 @@ impl CalibrationPattern {
             }
             Self::Charuco(b) => Pattern::Charuco(b),
             Self::CircleGrid(g) => Pattern::CircleGrid(g),
+            Self::TagBoard(p) => p,
         }
     }
 }

@@ -26,7 +26,7 @@ use nalgebra::{Point2, Point3};
 use serde::{Deserialize, Serialize};
 
 use super::image::GrayF32;
-use super::pattern::TagFamily;
+use super::pattern::{Pattern, TagFamily};
 use super::{Corner, Detection};
 use crate::error::{Result, VisionError};
 use crate::subpix::{refine_quad, RefineOptions, RefinedCorner};
@@ -335,26 +335,29 @@ pub(crate) fn single_tag_target(tag_mm: Option<f64>) -> impl Fn(u32) -> Option<[
     move |_| tag_mm.map(|t| tag_target(0.0, 0.0, 0.5 * t * 1e-3))
 }
 
-/// Target positions on an AprilTag board (layout of `ferrocal_datasets`'
-/// `TargetConfig::AprilTagBoard`: origin at the board centre, ids row by row from the top-left).
-pub(crate) fn board_target(
-    cols: u32,
-    rows: u32,
-    tag_mm: f64,
-    spacing_mm: f64,
-    first_id: u32,
-) -> impl Fn(u32) -> Option<[Point3<f64>; 4]> {
-    move |id| {
-        let k = id.checked_sub(first_id)?;
+/// Corner positions of the `k`-th tag (`k = id - first_id`) of an AprilTag board pattern,
+/// `None` for other patterns. `aprilboard`: the layout of `ferrocal_datasets`'
+/// `TargetConfig::AprilTagBoard` (origin at the board centre, ids row by row from the
+/// top-left); `aprilgrid`: Kalibr's Aprilgrid (origin at the bottom-left corner of the first
+/// tag's black border, ids row by row from the bottom-left). Both: x right, y up as printed.
+pub(crate) fn board_target(pattern: &Pattern) -> Option<impl Fn(u32) -> Option<[Point3<f64>; 4]>> {
+    let Pattern::AprilBoard { cols, rows, tag_mm, spacing_mm, kalibr, .. } = *pattern else {
+        return None;
+    };
+    Some(move |k: u32| {
         if k >= cols * rows {
             return None;
         }
         let (r, c) = (f64::from(k / cols), f64::from(k % cols));
         let pitch = (tag_mm + spacing_mm) * 1e-3;
-        let xc = (c - 0.5 * (f64::from(cols) - 1.0)) * pitch;
-        let yc = (0.5 * (f64::from(rows) - 1.0) - r) * pitch;
-        Some(tag_target(xc, yc, 0.5 * tag_mm * 1e-3))
-    }
+        let h = 0.5 * tag_mm * 1e-3;
+        let (xc, yc) = if kalibr {
+            (c * pitch + h, r * pitch + h)
+        } else {
+            ((c - 0.5 * (f64::from(cols) - 1.0)) * pitch, (0.5 * (f64::from(rows) - 1.0) - r) * pitch)
+        };
+        Some(tag_target(xc, yc, h))
+    })
 }
 
 /// The two backends on the same image.

@@ -112,3 +112,22 @@ pub fn opencv_find_circles_grid(img: &GrayImage, cols: u32, rows: u32) -> Result
         opencv::calib3d::find_circles_grid_def(&mat, Size::new(cols as i32, rows as i32), &mut v).map_err(cv_err)?;
     Ok((found && v.len() == (cols * rows) as usize).then(|| to_points(&v)))
 }
+
+/// OpenCV's `findCirclesGrid` with `CALIB_CB_ASYMMETRIC_GRID` and the default blob detector
+/// (dark dots): `cols` dots per row, `rows` rows, in OpenCV's order; `None` when not found.
+/// Light dots on a dark ground are found by passing the inverted image, as OpenCV's users do.
+pub fn opencv_find_asymmetric_circles_grid(img: &GrayImage, cols: u32, rows: u32) -> Result<Option<Vec<Point2<f64>>>> {
+    let mat = to_mat(img)?;
+    let mut v: Vector<Point2f> = Vector::new();
+    let blobs: opencv::core::Ptr<opencv::features2d::Feature2D> =
+        opencv::features2d::SimpleBlobDetector::create_def().map_err(cv_err)?.into();
+    let found = opencv::calib3d::find_circles_grid(
+        &mat,
+        Size::new(cols as i32, rows as i32),
+        &mut v,
+        opencv::calib3d::CALIB_CB_ASYMMETRIC_GRID,
+        Some(&blobs),
+    )
+    .map_err(cv_err)?;
+    Ok((found && v.len() == (cols * rows) as usize).then(|| to_points(&v)))
+}

@@ -252,9 +252,10 @@ fn detect_inner(
             }
             Ok(apriltag::to_detections(&found, apriltag::single_tag_target(*tag_mm)))
         }
-        Pattern::AprilBoard { cols, rows, tag_mm, spacing_mm, first_id } => {
+        Pattern::AprilBoard { cols, rows, first_id, .. } => {
             let det = tag_detector(tags, TagFamily::Tag36h11, options)?;
-            let target = apriltag::board_target(*cols, *rows, *tag_mm, *spacing_mm, *first_id);
+            let at = apriltag::board_target(pattern).expect("an AprilTag board");
+            let target = |id: u32| id.checked_sub(*first_id).and_then(&at);
             let found: Vec<TagDetection> = det.detect(img)?.into_iter().filter(|t| target(t.id).is_some()).collect();
             if found.is_empty() {
                 return Err(VisionError::PatternNotFound {
@@ -262,7 +263,15 @@ fn detect_inner(
                     reason: format!("no tag36h11 tag with an id in {}..{}", first_id, first_id + cols * rows),
                 });
             }
-            Ok(apriltag::to_detections(&found, target))
+            let mut found = apriltag::to_detections(&found, target);
+            // Point ids: corner j of the board's k-th tag is point 4 k + j.
+            for d in &mut found {
+                let k = d.id.map_or(0, |id| id - first_id);
+                for (j, c) in d.corners.iter_mut().enumerate() {
+                    c.point_id = Some(4 * k + j as u32);
+                }
+            }
+            Ok(found)
         }
         Pattern::Charuco(board) => Ok(vec![charuco::detect_charuco(img, board, options, &text, timings)?]),
         Pattern::CircleGrid(grid) => Ok(vec![circles::detect_circle_grid(img, grid, options, &text)?]),

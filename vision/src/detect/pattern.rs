@@ -5,9 +5,11 @@
 //! | `chessboard:<cols>x<rows>:<square>mm` | chessboard, `cols x rows` inner corners |
 //! | `apriltag:<family>[:<tag size>mm]` | single AprilTags of a family (e.g. `tag36h11`) |
 //! | `plate:<square>mm` | the Gantry-Tau plate: five black squares of a 3 x 3 checkerboard |
-//! | `aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]` | a grid of tag36h11 tags, ids row by row from the top-left |
+//! | `aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]` | a grid of tag36h11 tags, ids row by row from the top-left, origin at the centre |
+//! | `aprilgrid:<cols>x<rows>:<tag>mm:<spacing>[:first_id]` | Kalibr's Aprilgrid: tag36h11 ids row by row from the bottom-left, origin at the bottom-left corner of the first tag's black border; the spacing is Kalibr's `tagSpacing` (gap over tag size, e.g. `0.3`) or a length (`12mm`) |
 //! | `charuco:<cols>x<rows>:<square>mm:<marker>mm:<dictionary>` | a ChArUco board of `cols x rows` squares ([`CharucoBoard`]) |
 //! | `circlegrid:<cols>x<rows>:<spacing>mm[:modified]` | a grid of `cols x rows` dots ([`CircleGrid`]); `modified`: one larger dot marks the origin |
+//! | `acircles:<cols>x<rows>:<spacing>mm` | OpenCV's asymmetric circle grid: `cols` dots per row, `rows` rows, `spacing` OpenCV's `squareSize` (rows `spacing` apart, dots in a row twice that), dark or light dots |
 //!
 //! Sizes are millimetres with the unit written (`25mm`, `24.5mm`); the tag size is the side of
 //! the tag's black border (the AprilTag library's convention) and the board spacing is the gap
@@ -149,8 +151,13 @@ pub enum Pattern {
         tag_mm: f64,
         /// Gap between neighbouring black borders, millimetres.
         spacing_mm: f64,
-        /// Id of the top-left tag.
+        /// Id of the first tag (top-left; bottom-left for Kalibr's layout).
         first_id: u32,
+        /// Kalibr's Aprilgrid layout: ids row by row from the bottom-left, origin at the
+        /// bottom-left corner of the first tag (else ids from the top-left, origin at the
+        /// board's centre).
+        #[serde(default)]
+        kalibr: bool,
     },
     /// A ChArUco board.
     Charuco(CharucoBoard),
@@ -161,7 +168,8 @@ pub enum Pattern {
 impl Pattern {
     /// The target points that [`super::Corner::point_id`] indexes, metres in the pattern's
     /// target frame (see [`super`]), for the patterns whose corners carry point ids
-    /// (chessboards, ChArUco boards, circle grids); `None` for the others.
+    /// (chessboards, ChArUco boards, circle grids, AprilTag boards: corner `j` of the board's
+    /// `k`-th tag, `k = id - first_id`, is point `4 k + j`); `None` for the others.
     pub fn target_points_m(&self) -> Option<Vec<nalgebra::Point3<f64>>> {
         match self {
             Pattern::Chessboard { cols, rows, square_mm } => Some(
@@ -173,6 +181,11 @@ impl Pattern {
             ),
             Pattern::Charuco(b) => Some(b.target_points_m()),
             Pattern::CircleGrid(g) => Some(g.target_points_m()),
+            Pattern::AprilBoard { cols, rows, .. } => {
+                let n = cols * rows;
+                let at = super::apriltag::board_target(self)?;
+                Some((0..n).flat_map(|k| at(k).into_iter().flatten()).collect())
+            }
             _ => None,
         }
     }
@@ -182,7 +195,8 @@ const EXPECTED: &str = "one of 'chessboard:<cols>x<rows>:<square>mm' (inner corn
 'apriltag:<family>[:<tag size>mm]' (e.g. apriltag:tag36h11:80mm), 'plate:<square>mm' (e.g. plate:50mm), \
 'aprilboard:<cols>x<rows>:<tag>mm:<spacing>mm[:first_id]' (e.g. aprilboard:6x4:40mm:10mm:0), \
 'charuco:<cols>x<rows>:<square>mm:<marker>mm:<dictionary>' (squares, e.g. charuco:5x7:36.195mm:18.256mm:DICT_6X6_250), \
-'circlegrid:<cols>x<rows>:<spacing>mm[:modified]' (dot centres, e.g. circlegrid:10x10:25.4mm:modified)";
+'circlegrid:<cols>x<rows>:<spacing>mm[:modified]' (dot centres, e.g. circlegrid:10x10:25.4mm:modified), \
+'acircles:<cols>x<rows>:<spacing>mm' (OpenCV's asymmetric grid, dots per row x rows, e.g. acircles:4x11:20mm)";
 
 fn syntax(pattern: &str, problem: impl Into<String>) -> VisionError {
     VisionError::PatternSyntax { pattern: pattern.to_string(), problem: problem.into(), expected: EXPECTED.to_string() }
@@ -254,12 +268,19 @@ impl FromStr for Pattern {
                 Ok(Pattern::Plate { square_mm: parse_mm(text, "square size", parts[1])? })
             }
             "aprilboard" | "apriltag_board" | "aprilgrid" => {
+                let kalibr = kind == "aprilgrid";
                 if !(4..=5).contains(&n) {
                     return Err(syntax(text, format!("an AprilTag board has 4 or 5 fields, found {n}")));
                 }
                 let (cols, rows) = parse_dims(text, "tag count", parts[1], 1)?;
                 let tag_mm = parse_mm(text, "tag size", parts[2])?;
-                let spacing_mm = parse_mm(text, "spacing", parts[3])?;
+                // Kalibr's `tagSpacing` is the gap over the tag size; a length is taken too.
+                let ratio = parts[3].trim().parse::<f64>().ok().filter(|_| kalibr);
+                let spacing_mm = match ratio {
+                    Some(r) if r.is_finite() && r >= 0.0 => r * tag_mm,
+                    Some(_) => return Err(syntax(text, format!("the tag spacing '{}' must be >= 0", parts[3]))),
+                    None => parse_mm(text, "spacing", parts[3])?,
+                };
                 let first_id = if n == 5 {
                     parts[4]
                         .trim()
@@ -268,7 +289,7 @@ impl FromStr for Pattern {
                 } else {
                     0
                 };
-                Ok(Pattern::AprilBoard { cols, rows, tag_mm, spacing_mm, first_id })
+                Ok(Pattern::AprilBoard { cols, rows, tag_mm, spacing_mm, first_id, kalibr })
             }
             "charuco" => {
                 if n != 5 {
@@ -301,7 +322,15 @@ impl FromStr for Pattern {
                         ))
                     }
                 };
-                Ok(Pattern::CircleGrid(CircleGrid { cols, rows, spacing_mm, modified }))
+                Ok(Pattern::CircleGrid(CircleGrid::symmetric(cols, rows, spacing_mm, modified)))
+            }
+            "acircles" | "asymmetric_circles" => {
+                if n != 3 {
+                    return Err(syntax(text, format!("an asymmetric circle grid has 3 fields, found {n}")));
+                }
+                let (cols, rows) = parse_dims(text, "dot count", parts[1], 2)?;
+                let spacing_mm = parse_mm(text, "spacing", parts[2])?;
+                Ok(Pattern::CircleGrid(CircleGrid::asymmetric(cols, rows, spacing_mm)))
             }
             "" => Err(syntax(text, "the pattern is empty")),
             other => Err(syntax(text, format!("unknown pattern kind '{other}'"))),
@@ -316,12 +345,14 @@ impl fmt::Display for Pattern {
             Pattern::AprilTag { family, tag_mm: Some(t) } => write!(f, "apriltag:{family}:{t}mm"),
             Pattern::AprilTag { family, tag_mm: None } => write!(f, "apriltag:{family}"),
             Pattern::Plate { square_mm } => write!(f, "plate:{square_mm}mm"),
-            Pattern::AprilBoard { cols, rows, tag_mm, spacing_mm, first_id } => {
-                write!(f, "aprilboard:{cols}x{rows}:{tag_mm}mm:{spacing_mm}mm:{first_id}")
+            Pattern::AprilBoard { cols, rows, tag_mm, spacing_mm, first_id, kalibr } => {
+                let kind = if *kalibr { "aprilgrid" } else { "aprilboard" };
+                write!(f, "{kind}:{cols}x{rows}:{tag_mm}mm:{spacing_mm}mm:{first_id}")
             }
             Pattern::Charuco(b) => {
                 write!(f, "charuco:{}x{}:{}mm:{}mm:{}", b.cols, b.rows, b.square_mm, b.marker_mm, b.dictionary)
             }
+            Pattern::CircleGrid(g) if g.asymmetric => write!(f, "acircles:{}x{}:{}mm", g.cols, g.rows, g.spacing_mm),
             Pattern::CircleGrid(g) => {
                 write!(
                     f,
@@ -367,8 +398,16 @@ mod tests {
         assert_eq!("plate:0.05m".parse::<Pattern>().unwrap(), Pattern::Plate { square_mm: 50.0 });
         assert_eq!(
             "aprilboard:2x3:30mm:9mm".parse::<Pattern>().unwrap(),
-            Pattern::AprilBoard { cols: 2, rows: 3, tag_mm: 30.0, spacing_mm: 9.0, first_id: 0 }
+            Pattern::AprilBoard { cols: 2, rows: 3, tag_mm: 30.0, spacing_mm: 9.0, first_id: 0, kalibr: false }
         );
+        assert_eq!(
+            "aprilgrid:6x6:88mm:0.25".parse::<Pattern>().unwrap(),
+            Pattern::AprilBoard { cols: 6, rows: 6, tag_mm: 88.0, spacing_mm: 22.0, first_id: 0, kalibr: true }
+        );
+        for s in ["aprilgrid:6x6:88mm:26.4mm:3", "acircles:4x11:20mm", "aprilboard:2x3:30mm:9mm:0"] {
+            let p = s.parse::<Pattern>().unwrap();
+            assert_eq!(p.to_string().parse::<Pattern>().unwrap(), p, "{s}");
+        }
         assert_eq!(
             "apriltag:36h11".parse::<Pattern>().unwrap(),
             Pattern::AprilTag { family: TagFamily::Tag36h11, tag_mm: None }
@@ -385,7 +424,7 @@ mod tests {
         );
         assert_eq!(
             "circlegrid:10x10:25.4mm:modified".parse::<Pattern>().unwrap(),
-            Pattern::CircleGrid(CircleGrid { cols: 10, rows: 10, spacing_mm: 25.4, modified: true })
+            Pattern::CircleGrid(CircleGrid::symmetric(10, 10, 25.4, true))
         );
     }
 

@@ -58,11 +58,27 @@ fn homography_of_four_points() {
 fn apriltag_board_layout_matches_the_renderer() {
     // ferrocal_datasets: tag (r, c) centred at ((c - (cols-1)/2) pitch, ((rows-1)/2 - r) pitch),
     // corners bottom-left, bottom-right, top-right, top-left.
-    let t = apriltag::board_target(3, 2, 60.0, 20.0, 10);
+    let board: Pattern = "aprilboard:3x2:60mm:20mm:10".parse().unwrap();
+    let at = apriltag::board_target(&board).unwrap();
+    let t = |id: u32| id.checked_sub(10).and_then(&at);
     assert!(t(9).is_none() && t(16).is_none());
     let c = t(14).unwrap(); // r = 1, c = 1
     assert!((c[0].x - (-0.03)).abs() < 1e-12 && (c[0].y - (-0.04 - 0.03)).abs() < 1e-12);
     assert!((c[2].x - 0.03).abs() < 1e-12 && (c[2].y - (-0.04 + 0.03)).abs() < 1e-12);
+}
+
+#[test]
+fn kalibr_aprilgrid_layout() {
+    // Kalibr: tag k at row k / cols from the bottom, column k % cols; origin at the bottom-left
+    // corner of tag 0's black border; pitch = tag (1 + tagSpacing).
+    let grid: Pattern = "aprilgrid:6x6:80mm:0.25".parse().unwrap();
+    let at = apriltag::board_target(&grid).unwrap();
+    let c0 = at(0).unwrap();
+    assert!(c0[0].coords.norm() < 1e-12 && (c0[2].x - 0.08).abs() < 1e-12 && (c0[2].y - 0.08).abs() < 1e-12);
+    let c = at(7).unwrap(); // r = 1, c = 1: bottom-left corner at (100, 100) mm
+    assert!((c[0].x - 0.1).abs() < 1e-12 && (c[0].y - 0.1).abs() < 1e-12);
+    assert!(at(36).is_none());
+    assert_eq!(grid.target_points_m().unwrap().len(), 144);
 }
 
 #[test]

@@ -20,6 +20,10 @@
 //! target onto itself); a pose does: it is defined up to that rotation, and a board seen near
 //! 45 degrees may be numbered differently in two images. Use `modified` when the frame matters.
 //!
+//! # Asymmetric grids
+//! OpenCV's asymmetric grid ([`CircleGrid::asymmetric`]) has OpenCV's frame and order
+//! ([`CircleGrid::point_m`]); its lattice and numbering: [`order`] (`place_asymmetric`).
+//!
 //! # Detection
 //! 1. Blobs ([`blobs`]): pixels darker (or lighter) than the local mean of a box window,
 //!    connected components, filtered by area and by how well their second moments describe a
@@ -61,6 +65,11 @@ pub struct CircleGrid {
     pub spacing_mm: f64,
     /// Whether dot 0 is larger than the others and marks the origin.
     pub modified: bool,
+    /// OpenCV's asymmetric grid (`acircles`): row `r` holds `cols` dots `2 s` apart, shifted by
+    /// `s` on odd rows, rows `s` apart (`spacing_mm` is `s`, OpenCV's `squareSize`); see
+    /// [`CircleGrid::point_m`] for its frame.
+    #[serde(default)]
+    pub asymmetric: bool,
 }
 
 impl CircleGrid {
@@ -69,9 +78,28 @@ impl CircleGrid {
         (self.cols * self.rows) as usize
     }
 
+    /// A symmetric grid of `cols x rows` dots `spacing_mm` apart (`modified`: dot 0 is larger).
+    pub fn symmetric(cols: u32, rows: u32, spacing_mm: f64, modified: bool) -> Self {
+        Self { cols, rows, spacing_mm, modified, asymmetric: false }
+    }
+
+    /// OpenCV's asymmetric grid: `cols` dots per row, `rows` rows, `spacing_mm` OpenCV's
+    /// `squareSize` (half the distance between neighbours in a row, the distance between rows).
+    pub fn asymmetric(cols: u32, rows: u32, spacing_mm: f64) -> Self {
+        Self { cols, rows, spacing_mm, modified: false, asymmetric: true }
+    }
+
     /// Dot `(r, c)` in the target frame, metres.
+    ///
+    /// Symmetric grids: the centred frame of the module documentation. Asymmetric grids:
+    /// OpenCV's object points `((2 c + r mod 2) s, r s, 0)`: origin at dot 0, x along the
+    /// rows, y from row to row; seen from the printed side x turned towards y turns
+    /// clockwise (x right, y down), so z points into the board, as in OpenCV's samples.
     pub fn point_m(&self, r: u32, c: u32) -> Point3<f64> {
         let s = self.spacing_mm * 1e-3;
+        if self.asymmetric {
+            return Point3::new((2 * c + r % 2) as f64 * s, r as f64 * s, 0.0);
+        }
         Point3::new(
             (c as f64 - 0.5 * (self.cols as f64 - 1.0)) * s,
             (r as f64 - 0.5 * (self.rows as f64 - 1.0)) * s,

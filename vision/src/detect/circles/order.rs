@@ -166,6 +166,15 @@ pub fn order_grid(fits: &[DotFit], grid: &CircleGrid) -> Result<Ordered, String>
         if at.len() < n {
             continue;
         }
+        if grid.asymmetric {
+            match place_asymmetric(fits, &at, grid) {
+                Ok(o) => return Ok(o),
+                Err(e) => {
+                    last_err = e;
+                    continue;
+                }
+            }
+        }
         let (c, r) = (grid.cols as i32, grid.rows as i32);
         let mut found = Vec::new();
         for (ni, nj) in [(r, c), (c, r)] {
@@ -310,4 +319,133 @@ fn number(
     let s = small[small.len() / 2];
     let l = if grid.modified { ratio(0, 0) } else { s };
     Ok(Ordered { dots, radius_over_spacing: [s, l] })
+}
+
+/// The doubled coordinates `(2 c + r mod 2, r)` of an asymmetric grid's dot `k = r cols + c`.
+fn asymmetric_xy(grid: &CircleGrid, k: usize) -> (i32, i32) {
+    let (r, c) = ((k as u32 / grid.cols) as i32, (k as u32 % grid.cols) as i32);
+    (2 * c + r % 2, r)
+}
+
+/// Places an asymmetric grid on a grown lattice. The dots of an asymmetric grid are the points
+/// `(x, y)` with `x + y` even of a square lattice of step `s` (OpenCV's `squareSize`); the
+/// grown lattice's two axes are two of that lattice's short vectors (a diagonal neighbour at
+/// `sqrt 2 s`, or a row or column neighbour at `2 s` when a tilt foreshortens the diagonals),
+/// so every pair of them that spans it (area 2) is tried, every translation that puts the
+/// whole grid on dots is kept, and of the numberings left the one seen from the printed side
+/// (x turned towards y turns clockwise in the image, as OpenCV numbers the grid) is taken; a
+/// grid with an even number of rows looks the same after a half turn, and then the numbering
+/// whose x axis points most to the right is taken.
+fn place_asymmetric(fits: &[DotFit], at: &HashMap<Cell, usize>, grid: &CircleGrid) -> Result<Ordered, String> {
+    let n = grid.n_points();
+    let pattern: Vec<(i32, i32)> = (0..n).map(|k| asymmetric_xy(grid, k)).collect();
+    const SHORT: [(i32, i32); 8] = [(1, 1), (1, -1), (-1, 1), (-1, -1), (2, 0), (-2, 0), (0, 2), (0, -2)];
+    let mut placements: Vec<Vec<usize>> = Vec::new();
+    for a in SHORT {
+        for b in SHORT {
+            if (a.0 * b.1 - a.1 * b.0).abs() != 2 {
+                continue;
+            }
+            let mapped: HashMap<(i32, i32), usize> =
+                at.iter().map(|(&(u, v), &f)| ((u * a.0 + v * b.0, u * a.1 + v * b.1), f)).collect();
+            for &t in mapped.keys() {
+                let dots: Option<Vec<usize>> =
+                    pattern.iter().map(|&(x, y)| mapped.get(&(x + t.0, y + t.1)).copied()).collect();
+                if let Some(d) = dots {
+                    if !placements.contains(&d) {
+                        placements.push(d);
+                    }
+                }
+            }
+        }
+    }
+    if placements.is_empty() {
+        return Err(format!(
+            "the lattice of {} dots holds no {}x{} asymmetric grid (are cols and rows swapped?)",
+            at.len(),
+            grid.cols,
+            grid.rows
+        ));
+    }
+    let mut seen: Vec<Vec<usize>> = placements.iter().map(|d| sorted(d)).collect();
+    seen.dedup();
+    if seen.len() > 1 {
+        return Err(format!(
+            "the lattice of {} dots holds {} candidate {}x{} asymmetric grids",
+            at.len(),
+            seen.len(),
+            grid.cols,
+            grid.rows
+        ));
+    }
+    let index: HashMap<(i32, i32), usize> = pattern.iter().enumerate().map(|(k, &xy)| (xy, k)).collect();
+    let mut best: Option<(f64, Vec<usize>)> = None;
+    for dots in placements {
+        let (ax, ay) = mean_axes(fits, &dots, &pattern, &index);
+        if ax.x * ay.y - ax.y * ay.x <= 0.0 {
+            continue;
+        }
+        let upright = ax.x / ax.norm().max(1e-12) + ay.y / ay.norm().max(1e-12);
+        if best.as_ref().is_none_or(|(u, _)| upright > *u) {
+            best = Some((upright, dots));
+        }
+    }
+    let (_, dots) =
+        best.ok_or_else(|| "no numbering of the asymmetric grid is seen from the printed side".to_string())?;
+    let mut ratios: Vec<f64> = (0..n).map(|k| radius_over_step(fits, &dots, &pattern, &index, k)).collect();
+    ratios.sort_by(f64::total_cmp);
+    let r = ratios[n / 2];
+    Ok(Ordered { dots, radius_over_spacing: [r, r] })
+}
+
+fn sorted(v: &[usize]) -> Vec<usize> {
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    s
+}
+
+/// Mean image vectors of one step `s` along the grid's x and y axes.
+fn mean_axes(
+    fits: &[DotFit],
+    dots: &[usize],
+    pattern: &[(i32, i32)],
+    index: &HashMap<(i32, i32), usize>,
+) -> (Vector2<f64>, Vector2<f64>) {
+    let (mut ax, mut ay) = (Vector2::zeros(), Vector2::zeros());
+    for (k, &(x, y)) in pattern.iter().enumerate() {
+        if let Some(&j) = index.get(&(x + 2, y)) {
+            ax += p(&fits[dots[j]]) - p(&fits[dots[k]]);
+        }
+        if let Some(&j) = index.get(&(x + 1, y + 1)) {
+            ay += p(&fits[dots[j]]) - p(&fits[dots[k]]);
+        }
+        if let Some(&j) = index.get(&(x - 1, y + 1)) {
+            ay += p(&fits[dots[j]]) - p(&fits[dots[k]]);
+        }
+    }
+    (ax, ay)
+}
+
+/// A dot's radius over the step `s`, from its ellipse's area over the local image area of one
+/// `s x s` cell (the 2 x 2 map from grid to image fitted to its neighbours' offsets).
+fn radius_over_step(
+    fits: &[DotFit],
+    dots: &[usize],
+    pattern: &[(i32, i32)],
+    index: &HashMap<(i32, i32), usize>,
+    k: usize,
+) -> f64 {
+    let (x, y) = pattern[k];
+    let (mut img_grid, mut grid_grid) = (nalgebra::Matrix2::<f64>::zeros(), nalgebra::Matrix2::<f64>::zeros());
+    for d in [(2, 0), (-2, 0), (1, 1), (-1, 1), (1, -1), (-1, -1)] {
+        if let Some(&j) = index.get(&(x + d.0, y + d.1)) {
+            let di = p(&fits[dots[j]]) - p(&fits[dots[k]]);
+            let dg = Vector2::new(d.0 as f64, d.1 as f64);
+            img_grid += di * dg.transpose();
+            grid_grid += dg * dg.transpose();
+        }
+    }
+    let area = grid_grid.try_inverse().map(|inv| (img_grid * inv).determinant().abs()).unwrap_or(f64::NAN);
+    let (a, b) = fits[dots[k]].ellipse.semi_axes_px();
+    (a * b / area.max(1e-9)).sqrt()
 }
