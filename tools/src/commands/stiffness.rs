@@ -47,7 +47,8 @@ pub enum StiffnessCommand {
     /// compliances (truth.json).
     Simulate(SimulateArgs),
     /// Identify the reduced compliance model from a deflection table. Exits 2 when the estimate
-    /// is not physical or the loads leave parameters unexcited.
+    /// is not physical (its verdict fails; 0 with --keep) or the loads leave parameters
+    /// unexcited (no estimate; 2 also with --keep).
     Identify(IdentifyArgs),
 }
 
