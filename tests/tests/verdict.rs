@@ -253,3 +253,129 @@ fn handeye_with_the_wrong_mount_fails_and_names_the_other() {
     assert!(out.status.success());
     assert_eq!(verdict_line(&out), "fail");
 }
+
+/// The commands that ended without a verdict before (`robot ...`, `simulate`, `dynamics
+/// simulate | identify | identify-static`, `stiffness simulate | identify`, `handeye simulate |
+/// study`), each once on the smallest inputs: the last stdout line is the verdict, and the JSON
+/// they write carries it.
+#[test]
+fn robot_simulators_and_identifications_end_with_the_verdict_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let info = dir.join("info.json");
+    let out = ok(ferrocal().args(["robot", "info", "--robot", "ur5", "--json"]).arg(&info));
+    assert_eq!(verdict_line(&out), "pass");
+    assert_eq!(json_verdict(&info), "pass");
+    assert_eq!(
+        verdict_line(&ok(ferrocal().args(["robot", "fk", "--robot", "ur5", "--joints", "0,-90,0,-90,0,0"]))),
+        "pass"
+    );
+    let out = ok(ferrocal().args(["robot", "ik", "--robot", "ur5", "--pose", "400,100,300"]));
+    assert_eq!(verdict_line(&out), "pass");
+    let safety = dir.join("safety.toml");
+    std::fs::write(&safety, "joint_margin = 0.02\n").unwrap();
+    let check = |joints: &str| {
+        run(ferrocal().args(["robot", "check", "--robot", "ur5", "--safety"]).arg(&safety).args(["--joints", joints]))
+    };
+    assert_eq!(verdict_line(&check("0,-90,0,-90,0,0")), "pass");
+    // Not safe: the documented exit status 3, with the verdict line.
+    let out = check("0,-90,0,-90,0,359.5");
+    assert_eq!(out.status.code(), Some(3));
+    assert_eq!(verdict_line(&out), "fail");
+
+    // A tracker-only cell (no cameras: no rendering), few poses.
+    let cell =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../datasets/cells/gantry_tau_l1.toml")).unwrap();
+    let cell: String = cell.split("[[camera]]").next().unwrap().replace("spacing_m = 0.15", "spacing_m = 0.45");
+    assert!(cell.contains("spacing_m = 0.45"), "the built-in cell changed");
+    let cell_path = dir.join("cell.toml");
+    std::fs::write(&cell_path, cell).unwrap();
+    let out = ok(ferrocal().args(["simulate", "--config"]).arg(&cell_path).arg("--out").arg(dir.join("session")));
+    assert_eq!(verdict_line(&out), "pass");
+
+    let dyn_dir = dir.join("dyn");
+    let out = ok(ferrocal()
+        .args(["dynamics", "simulate", "--periods", "2", "--rate-hz", "100", "--poses", "30", "--out"])
+        .arg(&dyn_dir));
+    assert_eq!(verdict_line(&out), "pass");
+    let ident = dir.join("ident.json");
+    let out = ok(ferrocal()
+        .args(["dynamics", "identify", "--period-samples", "400", "--legs"])
+        .arg(dyn_dir.join("legs.csv"))
+        .arg("--forces")
+        .arg(dyn_dir.join("forces.csv"))
+        .arg("--json")
+        .arg(&ident));
+    assert_eq!(verdict_line(&out), json_verdict(&ident));
+    let names: Vec<String> = json(&ident)["verdict"]["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap().to_string())
+        .collect();
+    assert!(names.contains(&"dynamics.s0".to_string()) && names.contains(&"dynamics.condition_number".to_string()));
+    let stat = dir.join("static.json");
+    let out = ok(ferrocal()
+        .args(["dynamics", "identify-static", "--poses"])
+        .arg(dyn_dir.join("static.csv"))
+        .arg("--json")
+        .arg(&stat));
+    assert_eq!(verdict_line(&out), json_verdict(&stat));
+
+    let st_dir = dir.join("stiff");
+    let out = ok(ferrocal().args(["stiffness", "simulate", "--configurations", "10", "--out"]).arg(&st_dir));
+    assert_eq!(verdict_line(&out), "pass");
+    let id = dir.join("stiff_id");
+    let out = ok(ferrocal()
+        .args(["stiffness", "identify", "--measurements"])
+        .arg(st_dir.join("deflections.csv"))
+        .arg("--out")
+        .arg(&id));
+    assert_eq!(verdict_line(&out), json_verdict(&id.join("report.json")));
+
+    let he = dir.join("he");
+    let out = ok(ferrocal()
+        .args(["handeye", "simulate", "--mount", "eye-in-hand", "--train", "4", "--test", "2", "--out"])
+        .arg(&he));
+    assert_eq!(verdict_line(&out), "pass");
+    let study = dir.join("study.json");
+    let out = run(ferrocal().args(["handeye", "study", "--simulations", "2", "--json"]).arg(&study));
+    assert_eq!(verdict_line(&out), json_verdict(&study));
+}
+
+/// Real reasons: fk at the end of a joint's travel is a warning; ik of a pose beyond the reach
+/// fails (exit 1, 0 with --keep), and a thresholds file can ask for more margin.
+#[test]
+fn robot_fk_near_a_limit_warns_and_ik_out_of_reach_fails_unless_kept() {
+    let out = ok(ferrocal().args(["robot", "fk", "--robot", "ur5", "--joints", "0,-90,0,-90,0,357"]));
+    assert_eq!(verdict_line(&out), "warning");
+    let last = String::from_utf8_lossy(&out.stdout).lines().last().unwrap().to_string();
+    assert!(last.contains("wrist_3"), "{last}");
+    let ik = |keep: bool| {
+        let mut cmd = ferrocal();
+        cmd.args(["robot", "ik", "--robot", "ur5", "--pose", "4000,100,300"]);
+        if keep {
+            cmd.arg("--keep");
+        }
+        run(&mut cmd)
+    };
+    let out = ik(false);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(verdict_line(&out), "fail");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("robot.ik_solution"));
+    let out = ik(true);
+    assert!(out.status.success());
+    assert_eq!(verdict_line(&out), "fail");
+    let tmp = tempfile::tempdir().unwrap();
+    let strict = tmp.path().join("margin.toml");
+    std::fs::write(&strict, "[robot]\nlimit_margin_warn = 0.4\n").unwrap();
+    let out = ok(ferrocal().arg("--thresholds").arg(&strict).args([
+        "robot",
+        "fk",
+        "--robot",
+        "ur5",
+        "--joints",
+        "0,-90,0,-90,0,0",
+    ]));
+    assert_eq!(verdict_line(&out), "warning");
+}

@@ -27,7 +27,9 @@ const VERDICT_HELP: &str = "Every command that computes a result ends its output
 `verdict: pass|warning|fail: <what was checked>; next: <the next step>` and writes the same as `verdict` \
 in its JSON. Exit status: 0 on success (and on a `warning`); 1 when the command fails or its result's \
 verdict is `fail` (the outputs are still written; `--keep` exits 0); 2 where a command documents it \
-(`detect`: an image failed; `plan`, `demo` and the studies: a check failed). Limits: docs/verdicts.md, \
+(`detect`: an image failed; `plan`, `demo`, `handeye study` and the studies: a check failed; `stiffness \
+identify`: the estimate is not physical); 3 when `robot check` finds the joint values not safe (also with \
+`--keep`). Limits: docs/verdicts.md, \
 overridden with --thresholds FILE.toml.";
 
 /// The commands.

@@ -25,8 +25,9 @@ pub mod commands;
 mod thresholds;
 
 pub use thresholds::{
-    CalibrateLimits, CameraLimits, DetectLimits, DiagnoseLimits, EvaluateLimits, ExportLimits, HandeyeLimits,
-    ImportLimits, MeasureLimits, PlanLimits, StereoLimits, StudyLimits, Thresholds, ThresholdsError,
+    CalibrateLimits, CameraLimits, DetectLimits, DiagnoseLimits, DynamicsLimits, EvaluateLimits, ExportLimits,
+    HandeyeLimits, ImportLimits, MeasureLimits, PlanLimits, RobotLimits, StereoLimits, StiffnessLimits, StudyLimits,
+    Thresholds, ThresholdsError,
 };
 
 use serde::{Deserialize, Serialize};

@@ -138,3 +138,85 @@ fn diagnose_counts_rejected_candidates_by_their_status_in_every_family() {
     assert_eq!(v.checks.iter().find(|c| c.name == "diagnose.rejected").unwrap().value, 0.0);
     assert_eq!(v.status, Status::Pass);
 }
+
+#[test]
+fn robot_verdicts_follow_their_limits() {
+    let t = Thresholds::default();
+    assert_eq!(commands::robot_info(6, 72, &[]).status, Status::Pass);
+    let v = commands::robot_info(6, 72, &["wrist_3".to_string()]);
+    assert_eq!(v.status, Status::Warning);
+    assert!(v.line().contains("joints without limits: wrist_3"), "{}", v.line());
+    // The smallest margin decides; joints without limits are a warning of their own.
+    let v = commands::robot_fk(&t, 2, &[("a".into(), 0.3), ("b".into(), 0.004)]);
+    assert_eq!(v.status, Status::Warning);
+    assert!(v.line().contains("(b)"), "{}", v.line());
+    assert_eq!(commands::robot_fk(&t, 2, &[("a".into(), 0.3), ("b".into(), 0.2)]).status, Status::Pass);
+    assert_eq!(commands::robot_fk(&t, 2, &[("a".into(), 0.3)]).status, Status::Warning);
+    let solved = |mm| commands::IkOutcome::Solved { position_mm: mm, orientation_deg: 1e-9 };
+    assert_eq!(commands::robot_ik(&t, &solved(1e-8)).status, Status::Pass);
+    assert_eq!(commands::robot_ik(&t, &solved(0.01)).status, Status::Fail);
+    let v = commands::robot_ik(&t, &commands::IkOutcome::NoSolution("did not converge".into()));
+    assert!(v.failed() && v.line().contains("no solution: did not converge"), "{}", v.line());
+    assert_eq!(commands::robot_check(0).status, Status::Pass);
+    assert!(commands::robot_check(2).failed());
+}
+
+#[test]
+fn identification_verdicts_warn_on_poor_excitation_and_fail_on_unphysical_estimates() {
+    let t = Thresholds::default();
+    let good = commands::LinearFitFigures {
+        undetermined: vec![],
+        condition_number: 52.0,
+        mass_relative_std: Some(0.005),
+        s0_weighted: Some(1.02),
+    };
+    assert_eq!(commands::dynamics_identify(&t, &good).status, Status::Pass);
+    for bad in [
+        commands::LinearFitFigures { undetermined: vec!["Izz_kgm2".into()], ..good.clone() },
+        commands::LinearFitFigures { condition_number: 5e3, ..good.clone() },
+        commands::LinearFitFigures { mass_relative_std: Some(0.2), ..good.clone() },
+        commands::LinearFitFigures { s0_weighted: Some(3.0), ..good.clone() },
+    ] {
+        let v = commands::dynamics_identify(&t, &bad);
+        assert_eq!(v.status, Status::Warning, "{}", v.line());
+    }
+    // Without measured noise s0 (newtons) is not checked.
+    let v = commands::dynamics_identify(&t, &commands::LinearFitFigures { s0_weighted: None, ..good });
+    assert!(!v.checks.iter().any(|c| c.name == "dynamics.s0"));
+    assert_eq!(commands::stiffness_identify(&t, &[], 1.1, 16).status, Status::Pass);
+    assert_eq!(commands::stiffness_identify(&t, &[], 2.5, 16).status, Status::Warning);
+    assert!(commands::stiffness_identify(&t, &["joint2.k < 0".into()], 1.1, 16).failed());
+    assert!(commands::stiffness_unexcited("link3.k11 unexcited").failed());
+}
+
+#[test]
+fn study_and_simulator_verdicts() {
+    let t = Thresholds::default();
+    let row = |translation, failed| commands::CoverageFigures {
+        mount: "eye-in-hand".into(),
+        runs: 200,
+        failed,
+        translation,
+        rotation: 0.997,
+    };
+    assert_eq!(commands::handeye_study(&t, &[row(0.995, 0)]).status, Status::Pass);
+    assert_eq!(commands::handeye_study(&t, &[row(0.9, 0)]).status, Status::Warning);
+    assert_eq!(commands::handeye_study(&t, &[row(0.995, 1)]).status, Status::Warning);
+    assert!(commands::handeye_study(&t, &[row(0.5, 0)]).failed());
+    assert_eq!(commands::simulated("x", &[("poses", 12)], "next").status, Status::Pass);
+    assert!(commands::simulated("x", &[("poses", 0)], "next").failed());
+    // The new sections load from a file, and their keys are listed with their defaults.
+    let f = Thresholds::from_toml("[robot]\nlimit_margin_warn = 0.1\n[dynamics]\ns0_warn = 3\n", Path::new("t.toml"))
+        .unwrap();
+    assert_eq!((f.robot.limit_margin_warn, f.dynamics.s0_warn), (0.1, 3.0));
+    assert_eq!(f.stiffness, StiffnessLimits::default());
+    let list = Thresholds::defaults_list();
+    for key in [
+        "robot.ik_position_mm_fail",
+        "dynamics.condition_number_warn",
+        "stiffness.s0_warn",
+        "study.coverage_3sigma_warn",
+    ] {
+        assert!(list.iter().any(|(k, _)| k == key), "{key}");
+    }
+}

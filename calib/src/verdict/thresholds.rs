@@ -87,8 +87,14 @@ pub struct Thresholds {
     pub export: ExportLimits,
     /// `plan`.
     pub plan: PlanLimits,
-    /// The studies (`demo`, `dynamics`, `stiffness`, `motion`, `corner-study`).
+    /// The studies (`demo`, `dynamics`, `stiffness`, `motion`, `corner-study`, `handeye study`).
     pub study: StudyLimits,
+    /// `robot fk`, `robot ik`.
+    pub robot: RobotLimits,
+    /// `dynamics identify`, `dynamics identify-static`.
+    pub dynamics: DynamicsLimits,
+    /// `stiffness identify`.
+    pub stiffness: StiffnessLimits,
 }
 
 /// Limits of a single camera's calibration.
@@ -388,11 +394,92 @@ pub struct StudyLimits {
     /// `corner-study`: the largest ratio of this project's corner RMS error to the Cramer-Rao
     /// bound over the noisy levels: warning above (default 3: an efficient estimator reaches 1).
     pub corner_over_crb_warn: f64,
+    /// `handeye study`: the smallest 3-sigma coverage of the hand-eye translation and rotation
+    /// coordinates over the mounts: warning below (default 0.95; an honest covariance covers
+    /// 99.73 %).
+    pub coverage_3sigma_warn: f64,
+    /// `handeye study`: smallest 3-sigma coverage: failure below (default 0.8: the stated
+    /// standard deviations are far too small).
+    pub coverage_3sigma_fail: f64,
+    /// `handeye study`: simulations whose calibration failed: warning above (default 0).
+    pub failed_runs_warn: f64,
 }
 
 impl Default for StudyLimits {
     fn default() -> Self {
-        Self { failed_checks_fail: 0.0, skipped_warn: 0.0, corner_over_crb_warn: 3.0 }
+        Self {
+            failed_checks_fail: 0.0,
+            skipped_warn: 0.0,
+            corner_over_crb_warn: 3.0,
+            coverage_3sigma_warn: 0.95,
+            coverage_3sigma_fail: 0.8,
+            failed_runs_warn: 0.0,
+        }
+    }
+}
+
+/// Limits of `robot fk` and `robot ik`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RobotLimits {
+    /// `robot fk`: the smallest distance of a joint from its nearer limit, as a fraction of the
+    /// joint's range: warning below (default 0.01: 3.4 deg of a +-170 deg axis, 7.2 deg of a
+    /// +-360 deg UR axis, 20 mm of a 2 m slide; a pose at the end of travel trips the
+    /// controller's soft limits or cannot be left in one direction).
+    pub limit_margin_warn: f64,
+    /// `robot ik`: distance of the solution's tool position from the target, mm: failure above
+    /// (default 1e-3 mm; a converged solution is at 1e-7 mm).
+    pub ik_position_mm_fail: f64,
+    /// `robot ik`: angle of the solution's tool orientation from the target, degrees: failure
+    /// above (default 1e-3 deg).
+    pub ik_orientation_deg_fail: f64,
+}
+
+impl Default for RobotLimits {
+    fn default() -> Self {
+        Self { limit_margin_warn: 0.01, ik_position_mm_fail: 1e-3, ik_orientation_deg_fail: 1e-3 }
+    }
+}
+
+/// Limits of `dynamics identify` and `dynamics identify-static`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DynamicsLimits {
+    /// Parameters the data do not determine (infinite standard deviation, or dropped for
+    /// rank): warning above (default 0).
+    pub undetermined_warn: f64,
+    /// Condition number of the weighted, column-scaled regressor: warning above (default 1000;
+    /// excitation designs aim below 100, and the simulated recordings give 4 to 190).
+    pub condition_number_warn: f64,
+    /// Relative standard deviation of the identified mass (`m_kg`): warning above (default
+    /// 0.05; the simulated recordings give 0.05 % to 0.8 %).
+    pub mass_relative_std_warn: f64,
+    /// A-posteriori variance factor s0 with the noise measured from repeated periods
+    /// (`--period-samples`): warning above (default 2: the residuals are twice the noise, the
+    /// model leaves something out; the right model on simulated data gives 1.00, model 6 on a
+    /// deforming sensor 1.63).
+    pub s0_warn: f64,
+}
+
+impl Default for DynamicsLimits {
+    fn default() -> Self {
+        Self { undetermined_warn: 0.0, condition_number_warn: 1000.0, mass_relative_std_warn: 0.05, s0_warn: 2.0 }
+    }
+}
+
+/// Limits of `stiffness identify`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct StiffnessLimits {
+    /// A-posteriori variance factor s0 of the final fit against the table's `sigma_mm`:
+    /// warning above (default 2: the deflections scatter twice as much as stated, or the model
+    /// leaves something out; the simulated tables give 0.9 to 1.3).
+    pub s0_warn: f64,
+}
+
+impl Default for StiffnessLimits {
+    fn default() -> Self {
+        Self { s0_warn: 2.0 }
     }
 }
 

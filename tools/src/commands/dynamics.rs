@@ -12,10 +12,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
+use ferrocal_calib::verdict::commands::{self as verdict, LinearFitFigures};
 use ferrocal_datasets::dynsim::identify::{identify_static, identify_streams, StreamIdentifyOptions};
 use ferrocal_datasets::dynsim::tables::{simulated_tables, Rig, TableSettings};
 use ferrocal_report::dynamics::{fit_json, print_fit, study_report};
-use ferrocal_report::verdict::VerdictSettings;
+use ferrocal_report::verdict::{add_verdict, VerdictSettings};
 use ferrocal_report::write_atomic;
 use serde_json::json;
 
@@ -154,13 +155,13 @@ pub struct IdentifyStaticArgs {
 pub fn run(args: &DynamicsArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     match &args.command {
         DynamicsCommand::Study(a) => run_study(a, vs),
-        DynamicsCommand::Simulate(a) => run_simulate(a),
-        DynamicsCommand::Identify(a) => run_identify(a),
-        DynamicsCommand::IdentifyStatic(a) => run_identify_static(a),
+        DynamicsCommand::Simulate(a) => run_simulate(a, vs),
+        DynamicsCommand::Identify(a) => run_identify(a, vs),
+        DynamicsCommand::IdentifyStatic(a) => run_identify_static(a, vs),
     }
 }
 
-fn run_identify(a: &IdentifyArgs) -> Result<ExitCode> {
+fn run_identify(a: &IdentifyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (f, d) = identify_streams(&StreamIdentifyOptions {
         model: a.model.clone(),
         legs: a.legs.clone(),
@@ -171,25 +172,32 @@ fn run_identify(a: &IdentifyArgs) -> Result<ExitCode> {
     })?;
     println!("{} samples, {}", f.samples, d.label());
     print_fit(&f.fit);
+    // With --period-samples the weights are the noise measured from the repeated periods, and
+    // s0 is held against 1.
+    let figures = LinearFitFigures::of(&f.fit, a.period_samples.is_some());
+    let verdict = verdict::dynamics_identify(&vs.thresholds, &figures);
     if let Some(p) = &a.json {
-        let v = fit_json(&f.fit, json!({"model": a.model, "processing": d.label(), "samples": f.samples}));
+        let mut v = fit_json(&f.fit, json!({"model": a.model, "processing": d.label(), "samples": f.samples}));
+        add_verdict(&mut v, &verdict);
         write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())?;
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }
 
-fn run_identify_static(a: &IdentifyStaticArgs) -> Result<ExitCode> {
+fn run_identify_static(a: &IdentifyStaticArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (m, n_poses, f) = identify_static(a.model, &a.poses)?;
     println!("{m}: {} from {n_poses} poses", m.description());
     print_fit(&f);
+    let verdict = verdict::dynamics_identify(&vs.thresholds, &LinearFitFigures::of(&f, false));
     if let Some(p) = &a.json {
-        let v = fit_json(&f, json!({"model": a.model, "poses": n_poses}));
+        let mut v = fit_json(&f, json!({"model": a.model, "poses": n_poses}));
+        add_verdict(&mut v, &verdict);
         write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())?;
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(vs.conclude(&verdict))
 }
 
-fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
+fn run_simulate(a: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let rig = match a.rig {
         RigArg::Platform => Rig::Platform,
         RigArg::Hexapod => Rig::Hexapod,
@@ -210,7 +218,26 @@ fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
     tables.iter().for_each(|(name, text)| files.text(&a.out.join(name), text.as_str()));
     files.write()?;
     println!("wrote {}", a.out.display());
-    Ok(ExitCode::SUCCESS)
+    // Rows of a table (its header and comment lines aside), 0 when it was not written.
+    let rows = |name: &str| {
+        tables
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map_or(0, |(_, t)| t.lines().filter(|l| !l.starts_with('#')).count().saturating_sub(1))
+    };
+    let mut counts = vec![("stream samples", rows("legs.csv"))];
+    if a.rig == RigArg::Platform {
+        counts.push(("static poses", rows("static.csv")));
+    }
+    let next = format!(
+        "identify from it: ferrocal dynamics identify --legs {legs} --forces {forces}{model}{per}",
+        legs = a.out.join("legs.csv").display(),
+        forces = a.out.join("forces.csv").display(),
+        model = if a.rig == RigArg::Hexapod { " --model hexapod" } else { "" },
+        // The excitation's period is 4 s: its samples weigh by the noise of the repeats.
+        per = if a.periods >= 2 { format!(" --period-samples {}", (4.0 * a.rate_hz).round()) } else { String::new() }
+    );
+    Ok(vs.conclude(&verdict::simulated("dynamics", &counts, &next)))
 }
 
 fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {

@@ -10,6 +10,7 @@ use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_calib::handeye::opencv::best_baseline;
 use ferrocal_calib::handeye::Mount;
+use ferrocal_calib::verdict::commands::CoverageFigures;
 use ferrocal_datasets::handeye::{
     check_simulated_images, coverage_study, huber_sigmas_of_loss, run_inputs, write_simulated_recording, HandEyeInput,
     HandEyeRunOptions,
@@ -162,8 +163,8 @@ pub fn mount_of(m: MountArg) -> Mount {
 /// Runs `ferrocal handeye` (or its study).
 pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     match &a.command {
-        Some(HandeyeCommand::Study(s)) => return run_study(s),
-        Some(HandeyeCommand::Simulate(s)) => return run_simulate(s),
+        Some(HandeyeCommand::Study(s)) => return run_study(s, vs),
+        Some(HandeyeCommand::Simulate(s)) => return run_simulate(s, vs),
         None => {}
     }
     let (Some(poses_path), Some(pattern_text), Some(mount)) = (&a.poses, &a.pattern, a.mount) else {
@@ -214,7 +215,7 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     Ok(vs.conclude(&verdict))
 }
 
-fn run_simulate(s: &SimulateArgs) -> Result<ExitCode> {
+fn run_simulate(s: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     check_simulated_images(s.train, s.test)?;
     // Written aside and moved into place: a run that is stopped leaves no folder of images
     // without its poses.csv.
@@ -224,10 +225,16 @@ fn run_simulate(s: &SimulateArgs) -> Result<ExitCode> {
     let written = write_simulated_recording(mount_of(s.mount), s.robot.as_deref(), counts, staged.path(), &s.out)?;
     eprintln!("{written}");
     staged.commit()?;
-    Ok(ExitCode::SUCCESS)
+    let counts = [("images", s.train + s.test)];
+    let next = format!(
+        "calibrate from it: ferrocal handeye --images {dir}/images --poses {dir}/poses.csv --pattern <truth.json's pattern> --mount {mount} --intrinsics {dir}/camera.yaml",
+        dir = s.out.display(),
+        mount = if s.mount == MountArg::EyeInHand { "eye-in-hand" } else { "eye-to-hand" }
+    );
+    Ok(vs.conclude(&ferrocal_calib::verdict::commands::simulated("handeye", &counts, &next)))
 }
 
-fn run_study(s: &StudyArgs) -> Result<ExitCode> {
+fn run_study(s: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     if s.simulations == 0 {
         bail!("handeye study: --simulations must be at least 1");
     }
@@ -241,10 +248,23 @@ fn run_study(s: &StudyArgs) -> Result<ExitCode> {
     for r in &rows {
         println!("{}", ferrocal_report::handeye::coverage_line(r));
     }
+    let figures: Vec<CoverageFigures> = rows
+        .iter()
+        .map(|r| CoverageFigures {
+            mount: r.mount.name().to_string(),
+            runs: r.n_runs,
+            failed: r.n_failed,
+            translation: r.translation_coverage_3sigma,
+            rotation: r.rotation_coverage_3sigma,
+        })
+        .collect();
+    let v = ferrocal_calib::verdict::commands::handeye_study(&vs.thresholds, &figures);
     if let Some(p) = &s.json {
-        let v = study_json(s.simulations, s.seed, mode, &rows);
-        ferrocal_report::write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())
+        let mut j = study_json(s.simulations, s.seed, mode, &rows);
+        ferrocal_report::verdict::add_verdict(&mut j, &v);
+        ferrocal_report::write_atomic(p, serde_json::to_string_pretty(&j)?.as_bytes())
             .map_err(|e| anyhow::Error::new(e).context(format!("writing {}", p.display())))?;
     }
-    Ok(ExitCode::SUCCESS)
+    // A failed check exits 2, the studies' documented status (0 with --keep).
+    Ok(vs.conclude_with(&v, ExitCode::SUCCESS, 2))
 }

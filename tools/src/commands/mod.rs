@@ -34,11 +34,11 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         Command::Demo(a) => demo::run(&a, vs),
         Command::Doctor => doctor::run(vs),
-        Command::Robot(c) => robot::run(c),
+        Command::Robot(c) => robot::run(c, vs),
         Command::Detect(a) => detect::run(&a, vs),
         Command::CornerStudy(a) => corner_study::run(&a, vs),
         Command::Camera(c) => camera::run(c, vs),
-        Command::Simulate(a) => simulate::run_simulate(&a),
+        Command::Simulate(a) => simulate::run_simulate(&a, vs),
         Command::Import(a) => simulate::run_import(&a, vs),
         Command::Measure(a) => simulate::run_measure(&a, vs),
         Command::Correct(a) => correct::run(&a, vs),

@@ -32,12 +32,21 @@ pub struct SimulateArgs {
     pub seed: Option<u64>,
 }
 
-pub fn run_simulate(args: &SimulateArgs) -> Result<ExitCode> {
+pub fn run_simulate(args: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let cfg = cell_for_session(&args.config, &args.out, args.seed)?;
     let bars = crate::progress::Bars::default();
     let manifest = simulate(&cfg, &args.out, args.force, |k, n| bars.tick("simulating poses", k as u64, n as u64))?;
     eprintln!("{}", session_summary(&manifest, &args.out));
-    Ok(ExitCode::SUCCESS)
+    let counts = [("poses", manifest.n_poses)];
+    let next = if manifest.cameras.is_empty() {
+        format!(
+            "calibrate from the tracker's table: ferrocal calibrate --robot <model> --measurements {} --out <cal.json>",
+            args.out.join("tracker.csv").display()
+        )
+    } else {
+        format!("measure the session: ferrocal measure --session {} --out <table.csv>", args.out.display())
+    };
+    Ok(vs.conclude(&verdict::simulated("simulate", &counts, &next)))
 }
 
 /// Which recording to import.

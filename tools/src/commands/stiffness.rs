@@ -15,6 +15,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
+use ferrocal_calib::verdict::commands as verdict;
 use ferrocal_datasets::stiffsim::identify::identify_deflections;
 use ferrocal_datasets::stiffsim::tables::simulated_deflections;
 use ferrocal_report::stiffness::{
@@ -46,7 +47,8 @@ pub enum StiffnessCommand {
     /// compliances (truth.json).
     Simulate(SimulateArgs),
     /// Identify the reduced compliance model from a deflection table. Exits 2 when the estimate
-    /// is not physical or the loads leave parameters unexcited.
+    /// is not physical (its verdict fails; 0 with --keep) or the loads leave parameters
+    /// unexcited (no estimate; 2 also with --keep).
     Identify(IdentifyArgs),
 }
 
@@ -103,8 +105,8 @@ pub struct IdentifyArgs {
 pub fn run(args: &StiffnessArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     match &args.command {
         StiffnessCommand::Study(a) => run_study(a, vs),
-        StiffnessCommand::Simulate(a) => run_simulate(a),
-        StiffnessCommand::Identify(a) => run_identify(a),
+        StiffnessCommand::Simulate(a) => run_simulate(a, vs),
+        StiffnessCommand::Identify(a) => run_identify(a, vs),
     }
 }
 
@@ -114,20 +116,26 @@ fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     super::finish_study(&report, &a.out, t0, vs)
 }
 
-fn run_simulate(a: &SimulateArgs) -> Result<ExitCode> {
+fn run_simulate(a: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let sim = simulated_deflections(a.seed, a.configurations)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
     write_atomic(&a.out.join("deflections.csv"), sim.csv.as_bytes())?;
     write_atomic(&a.out.join("truth.json"), serde_json::to_string_pretty(&sim.truth)?.as_bytes())?;
     println!("wrote {} ({} measurements)", a.out.join("deflections.csv").display(), sim.measurements);
-    Ok(ExitCode::SUCCESS)
+    let next = format!(
+        "identify from it: ferrocal stiffness identify --measurements {}",
+        a.out.join("deflections.csv").display()
+    );
+    Ok(vs.conclude(&verdict::simulated("stiffness", &[("measurements", sim.measurements)], &next)))
 }
 
-fn run_identify(a: &IdentifyArgs) -> Result<ExitCode> {
+fn run_identify(a: &IdentifyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let id = match identify_deflections(&a.model, &a.measurements, a.nu_threshold)? {
         Ok(id) => id,
         Err(e) => {
+            // No estimate at all: exit status 2 with or without --keep (there is nothing to keep).
             eprintln!("error: {e}");
+            println!("{}", verdict::stiffness_unexcited(&e.to_string()).line());
             return Ok(ExitCode::from(2));
         }
     };
@@ -144,5 +152,13 @@ fn run_identify(a: &IdentifyArgs) -> Result<ExitCode> {
         write_atomic(&out.join("parameters.json"), serde_json::to_string_pretty(&params)?.as_bytes())?;
         println!("wrote {}", html.display());
     }
-    Ok(if ok { ExitCode::SUCCESS } else { ExitCode::from(2) })
+    let s0 = red.steps.last().map_or(red.fit.s0, |s| s.s0);
+    let verdict = verdict::stiffness_identify(&vs.thresholds, &red.physical_problems, s0, red.param.len());
+    if let Some(out) = &a.out {
+        ferrocal_report::verdict::add_verdict_to_file(&out.join("report.json"), &verdict)?;
+        ferrocal_report::verdict::add_verdict_to_html(&out.join("index.html"), &verdict)?;
+    }
+    // A physical estimate exits 0; one that is not exits 2 (0 with --keep), as before.
+    debug_assert_eq!(ok, !verdict.failed());
+    Ok(vs.conclude_with(&verdict, ExitCode::SUCCESS, 2))
 }
