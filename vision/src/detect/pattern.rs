@@ -318,7 +318,10 @@ impl FromStr for Pattern {
                     Some(_) => {
                         return Err(syntax(
                             text,
-                            format!("the last field '{}' must be 'modified' (or 'symmetric', the default)", parts[3]),
+                            format!(
+                                "the last field '{}' must be 'modified' (or 'symmetric', the default); OpenCV's asymmetric grid is acircles:<cols>x<rows>:<spacing>mm",
+                                parts[3]
+                            ),
                         ))
                     }
                 };
