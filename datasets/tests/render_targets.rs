@@ -314,7 +314,7 @@ fn rendered_asymmetric_circle_grids_in_opencv_order() {
             margin_m: 0.02,
             asymmetric: true,
         };
-        let renderer = Renderer::new(cam.clone(), &config, RenderConfig::default()).unwrap();
+        let renderer = Renderer::new(cam, &config, RenderConfig::default()).unwrap();
         let points = PlanarTarget { points_m: grid.target_points_m(), reversible: false };
         let pattern = Pattern::CircleGrid(grid);
         assert_eq!(pattern.to_string().parse::<Pattern>().unwrap(), pattern);
@@ -419,7 +419,7 @@ fn asymmetric_grid_and_aprilgrid_calibrate_as_well_as_the_chessboard() {
     ];
     let mut errors = Vec::new();
     for (name, config, text) in boards {
-        let renderer = Renderer::new(cam.clone(), &config, RenderConfig::default()).unwrap();
+        let renderer = Renderer::new(cam, &config, RenderConfig::default()).unwrap();
         let pattern: Pattern = text.parse().unwrap();
         let cal_pattern = CalPattern::of(&pattern).unwrap();
         // Poses drawn for the printed face towards the camera (the renderer's frame, z out of
