@@ -188,7 +188,7 @@ def ferrocal_runs(binary, set_dir, tmp, name):
     cmd = base + ["--json", res, "--corners-out", corners]
     run(cmd)
     run(base + ["--nominal-target-scale", "--json", nominal])
-    shown = " ".join(str(c) for c in cmd).replace(str(tmp), "$TMP")
+    shown = " ".join(str(c) for c in cmd).replace(str(tmp), "$TMP").replace(str(REPO) + "/", "")
     return json.loads(res.read_text()), json.loads(nominal.read_text()), json.loads(corners.read_text()), shown
 
 
