@@ -181,6 +181,86 @@ fn import_ic_handeye_reads_both_real_sets() {
     }
 }
 
+fn isometry(t: &serde_json::Value) -> nalgebra::Isometry3<f64> {
+    let p = vec3(&t["translation_mm"]);
+    let q: Vec<f64> = (0..4).map(|i| t["rotation_wxyz"][i].as_f64().unwrap()).collect();
+    nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(p[0] * 1e-3, p[1] * 1e-3, p[2] * 1e-3),
+        nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3])),
+    )
+}
+
+/// `handeye --corners-out` on the real 10x10 set (every second image held out): every image
+/// with its split as in the table, its robot pose as read, 100 corners with distinct point ids;
+/// and the held-out chain RMS recomputed from the exported corners, target points and robot
+/// poses with the JSON's camera (Brown-5 in OpenCV's order), X, W and print scale is the
+/// command's own `heldout_rms_px`: what other tools are given is exactly what ferrocal scored.
+#[test]
+fn handeye_corners_out_reproduces_the_heldout_figure() {
+    let tmp = tempfile::tempdir().unwrap();
+    let set = data("industrial_calibration/test_set_10x10");
+    let csv = tmp.path().join("poses.csv");
+    ok(ferrocal().args(["import", "ic-handeye", "--test-every", "2", "--input"]).arg(&set).arg("--out").arg(&csv));
+    let (res, corners) = (tmp.path().join("r.json"), tmp.path().join("corners.json"));
+    ok(ferrocal()
+        .args(["handeye", "--images"])
+        .arg(set.join("images"))
+        .arg("--poses")
+        .arg(&csv)
+        .args(["--pattern", "circlegrid:10x10:25.4mm:modified", "--mount", "eye-in-hand", "--json"])
+        .arg(&res)
+        .arg("--corners-out")
+        .arg(&corners));
+    let (r, c) = (json(&res), json(&corners));
+    assert_eq!(c["mount"], "eye-in-hand");
+    assert_eq!(c["pattern"], "circlegrid:10x10:25.4mm:modified");
+    assert_eq!(c["data_source"], "ROS-Industrial industrial_calibration example data, Apache-2.0");
+    let target: Vec<nalgebra::Point3<f64>> =
+        c["target_points_m"].as_array().unwrap().iter().map(|p| nalgebra::Point3::from(vec3(p))).collect();
+    assert_eq!(target.len(), 100);
+    let views = c["views"].as_array().unwrap();
+    assert_eq!(views.len(), 15);
+    assert_eq!(views[0]["image"], "0.png");
+    assert!((views[0]["t_base_flange"]["translation_mm"][0].as_f64().unwrap() - 716.9496300523684).abs() < 1e-9);
+    let k = &r["camera"];
+    let f = |key: &str| k[key].as_f64().unwrap();
+    let d: Vec<f64> = (0..5).map(|i| k["distortion"][i].as_f64().unwrap()).collect();
+    let (x, w, scale) = (isometry(&r["hand_eye"]), isometry(&r["world"]), r["target_scale"]["value"].as_f64().unwrap());
+    let mut sums = [(0.0, 0usize); 2];
+    for (i, v) in views.iter().enumerate() {
+        let split = v["split"].as_str().unwrap();
+        assert_eq!(split, if i % 2 == 1 { "test" } else { "train" }, "{v}");
+        assert_eq!(v["used"], true);
+        let ids: Vec<usize> = v["point_ids"].as_array().unwrap().iter().map(|i| i.as_u64().unwrap() as usize).collect();
+        let px = v["corners_px"].as_array().unwrap();
+        assert_eq!((ids.len(), px.len()), (100, 100));
+        assert_eq!(ids.iter().collect::<std::collections::BTreeSet<_>>().len(), 100);
+        // Eye-in-hand: T_camera_target = X^-1 T_base_flange^-1 W.
+        let t = x.inverse() * isometry(&v["t_base_flange"]).inverse() * w;
+        for (&id, uv) in ids.iter().zip(px) {
+            let p = t * nalgebra::Point3::from(target[id].coords * scale);
+            let (a, b) = (p.x / p.z, p.y / p.z);
+            let r2 = a * a + b * b;
+            let radial = 1.0 + d[0] * r2 + d[1] * r2 * r2 + d[4] * r2 * r2 * r2;
+            let xd = a * radial + 2.0 * d[2] * a * b + d[3] * (r2 + 2.0 * a * a);
+            let yd = b * radial + d[2] * (r2 + 2.0 * b * b) + 2.0 * d[3] * a * b;
+            let (u, vv) = (f("fx") * xd + f("cx"), f("fy") * yd + f("cy"));
+            let e2 = (u - uv[0].as_f64().unwrap()).powi(2) + (vv - uv[1].as_f64().unwrap()).powi(2);
+            let s = &mut sums[usize::from(split == "test")];
+            s.0 += e2;
+            s.1 += 1;
+        }
+    }
+    let rms = |(s, n): (f64, usize)| (s / n as f64).sqrt();
+    let (train, held) = (rms(sums[0]), rms(sums[1]));
+    assert!((train - r["train_rms_px"].as_f64().unwrap()).abs() < 1e-6, "train {train} against {}", r["train_rms_px"]);
+    assert!(
+        (held - r["heldout_rms_px"].as_f64().unwrap()).abs() < 1e-6,
+        "held-out {held} against {}",
+        r["heldout_rms_px"]
+    );
+}
+
 /// Bad input: a missing set folder, a pose file with a bad value (file, line, column), a
 /// poses table with a bad quaternion, joint columns without a robot; nothing is written.
 #[test]

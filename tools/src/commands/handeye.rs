@@ -60,6 +60,11 @@ pub struct HandeyeArgs {
     /// Write an HTML report here.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Write the fit's inputs here as JSON: the target points, and per image its split, the
+    /// robot pose and the detected corners with their point ids (for running other tools on
+    /// the same corners and split, e.g. scripts/handeye_peers.py).
+    #[arg(long, value_name = "FILE.json")]
+    pub corners_out: Option<PathBuf>,
     /// Fit the printed target's overall scale against the robot's metric poses: the default
     /// without --out; with --out (the joint adjustment) only when given.
     #[arg(long, conflicts_with = "nominal_target_scale")]
@@ -170,7 +175,12 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (Some(poses_path), Some(pattern_text), Some(mount)) = (&a.poses, &a.pattern, a.mount) else {
         bail!("handeye: --poses, --pattern and --mount are required");
     };
-    let files = HandeyeFiles { json: a.json.as_deref(), report: a.report.as_deref(), out: a.out.as_deref() };
+    let files = HandeyeFiles {
+        json: a.json.as_deref(),
+        report: a.report.as_deref(),
+        out: a.out.as_deref(),
+        corners: a.corners_out.as_deref(),
+    };
     let inputs = run_inputs(poses_path, a.intrinsics.as_deref(), a.robot.as_deref(), &a.images);
     ferrocal_report::check_outputs(&files.all(), &inputs)?;
     let mount = mount_of(mount);

@@ -4,7 +4,7 @@
 //! corners, skipped images and the data's source.
 
 use ferrocal_calib::handeye::opencv::BaselineReport;
-use ferrocal_calib::handeye::{ChainFigures, HandEyeResult, TransformEstimate};
+use ferrocal_calib::handeye::{ChainFigures, HandEyeData, HandEyeResult, TransformEstimate};
 use ferrocal_calib::Split;
 use nalgebra::Isometry3;
 use serde_json::{json, Value};
@@ -30,6 +30,37 @@ fn split_name(s: Split) -> &'static str {
         Split::Train => "train",
         Split::Test => "test",
     }
+}
+
+/// The inputs of a fit as `handeye --corners-out` writes them, for running other tools on the
+/// same corners and split: the mount, the pattern, the target's nominal points (metres), and per
+/// image its split, the robot's `T_base_flange` as read, the detected corners (pixels, `(0, 0)`
+/// the centre of the top-left pixel) with their point ids (indices into `target_points_m`), and
+/// `used`: false for an image the fit `result` left out (too few corners, no PnP pose).
+pub fn corners_json(data: &HandEyeData, pattern: &str, result: &HandEyeResult, source: Option<&str>) -> Value {
+    let views: Vec<Value> = data
+        .views
+        .iter()
+        .map(|v| {
+            json!({
+                "image": v.name,
+                "split": split_name(v.split),
+                "used": !result.skipped.iter().any(|s| s.name == v.name),
+                "image_size": [v.image_size.width_px, v.image_size.height_px],
+                "t_base_flange": transform_json(&v.t_base_flange),
+                "point_ids": v.point_ids,
+                "corners_px": v.corners_px.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>(),
+            })
+        })
+        .collect();
+    json!({
+        "mount": data.mount.name(),
+        "pattern": pattern,
+        "target_points_m": data.target_points_m.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+        "pixel_convention": "(0, 0) is the centre of the top-left pixel (OpenCV's)",
+        "views": views,
+        "data_source": source,
+    })
 }
 
 /// The chain figures' overall numbers.

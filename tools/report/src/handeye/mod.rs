@@ -150,12 +150,16 @@ pub struct HandeyeFiles<'a> {
     pub report: Option<&'a Path>,
     /// The joint adjustment's calibration file (the format `evaluate` reads).
     pub out: Option<&'a Path>,
+    /// The fit's inputs: target points, and per image split, robot pose and corners
+    /// ([`json::corners_json`]).
+    pub corners: Option<&'a Path>,
 }
 
 impl HandeyeFiles<'_> {
-    /// Every output asked for, in the order of the arguments (JSON, report, calibration).
+    /// Every output asked for, in the order of the arguments (JSON, report, calibration,
+    /// corners).
     pub fn all(&self) -> Vec<&Path> {
-        [self.json, self.report, self.out].into_iter().flatten().collect()
+        [self.json, self.report, self.out, self.corners].into_iter().flatten().collect()
     }
 }
 
@@ -179,6 +183,9 @@ pub fn handeye_outputs(
     let mut out = Outputs::default();
     if let (Some(p), Some(joint), Some(spec)) = (files.out, joint, &run.robot) {
         out.json(p, &joint.file(spec))?;
+    }
+    if let Some(p) = files.corners {
+        out.json(p, &json::corners_json(&input.data, &run.pattern, result, source))?;
     }
     if let Some(h) = files.report {
         let (mount, pattern) = (run.mount.name(), &run.pattern);
