@@ -372,115 +372,32 @@ fn rendered_asymmetric_circle_grids_in_opencv_order() {
     assert!(rms(&ours_all) <= rms(&cv_all), "ferrocal's centres must be at least as good as OpenCV's");
 }
 
-/// Camera calibration from rendered views of the boards people print, against the truth and
-/// against the chessboard path on the same camera and the same kind of poses: a 9 x 6
-/// chessboard (the project's corners), OpenCV's 4 x 11 asymmetric circle grid (centres with the
-/// perspective bias corrected) and a Kalibr Aprilgrid of 6 x 4 tags (the tags' corners, with
-/// ids; two views cut by the image border, so partial views are used). The same lens model
-/// family renders and calibrates: this checks the targets' detection, order, ids and frames,
-/// not the lens model.
+/// Camera calibration from rendered views of the boards people print
+/// (`ferrocal_datasets::render::printed_targets`: a 9 x 6 chessboard, OpenCV's 4 x 11 asymmetric
+/// circle grid with the perspective bias corrected, a Kalibr Aprilgrid of 6 x 4 tags with two
+/// views cut by the image border), against the truth and against the chessboard path on the same
+/// camera and the same kind of poses. The same lens model family renders and calibrates: this
+/// checks the targets' detection, order, ids and frames, not the lens model.
 #[test]
 fn asymmetric_grid_and_aprilgrid_calibrate_as_well_as_the_chessboard() {
-    use nalgebra::UnitQuaternion;
-    let cam = camera();
-    let kalibr_ids: Vec<u32> = (0..4u32).flat_map(|r| (0..6u32).map(move |c| (3 - r) * 6 + c)).collect();
-    let boards: [(&str, TargetConfig, &str); 3] = [
-        (
-            "chessboard 9x6",
-            TargetConfig::Chessboard { inner_cols: 9, inner_rows: 6, square_m: 0.025, margin_m: 0.02 },
-            "chessboard:9x6:25mm",
-        ),
-        (
-            "acircles 4x11",
-            TargetConfig::CircleGrid {
-                cols: 4,
-                rows: 11,
-                spacing_m: 0.02,
-                radius_m: 0.006,
-                large_radius_m: None,
-                margin_m: 0.02,
-                asymmetric: true,
-            },
-            "acircles:4x11:20mm",
-        ),
-        (
-            "aprilgrid 6x4",
-            TargetConfig::AprilTagBoard {
-                cols: 6,
-                rows: 4,
-                tag_size_m: 0.03,
-                spacing_m: 0.009,
-                first_id: 0,
-                ids: Some(kalibr_ids),
-                margin_m: 0.01,
-            },
-            "aprilgrid:6x4:30mm:0.3",
-        ),
-    ];
-    let mut errors = Vec::new();
-    for (name, config, text) in boards {
-        let renderer = Renderer::new(cam, &config, RenderConfig::default()).unwrap();
-        let pattern: Pattern = text.parse().unwrap();
-        let cal_pattern = CalPattern::of(&pattern).unwrap();
-        // Poses drawn for the printed face towards the camera (the renderer's frame, z out of
-        // the face); OpenCV's asymmetric grid has z into the face: half a turn about x.
-        let flip = matches!(pattern, Pattern::CircleGrid(g) if g.asymmetric);
-        let face: Vec<_> = renderer
-            .target()
-            .corners
-            .iter()
-            .map(|c| if flip { nalgebra::Point3::new(c.p_target_m.x, -c.p_target_m.y, 0.0) } else { c.p_target_m })
-            .collect();
-        let face = PlanarTarget { points_m: face, reversible: false };
-        let mut rng = sim::rng(21);
-        let (mut views, mut radii) = (Vec::new(), Vec::new());
-        let mut detector = ferrocal_vision::detect::Detector::new(pattern, cal_pattern.detect_options(), None).unwrap();
-        for i in 0..12u64 {
-            let mut t = sim::random_calibration_pose(&mut rng, &cam, &face, (0.35, 0.6), (20.0, 50.0));
-            if i >= 10 {
-                // Shifted so that part of the board leaves the image.
-                t.translation.vector.x += 0.08;
-            }
-            if flip {
-                t *= UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
-            }
-            let out = renderer.render(&t, 500 + i).unwrap();
-            let Ok(found) = detector.detect(&out.image) else { continue };
-            let corners: Vec<_> =
-                found.iter().flat_map(|d| d.corners.iter()).filter(|c| c.point_id.is_some()).collect();
-            radii.extend(found.iter().filter_map(|d| d.circle_radii_m));
-            let mut v =
-                View::new(format!("{name} {i}"), cam.image_size, corners.iter().map(|c| c.position_px).collect());
-            v.point_ids = corners.iter().map(|c| c.point_id.unwrap() as usize).collect();
-            views.push(v);
-        }
-        assert!(views.len() >= 10, "{name}: {} of 12 views found", views.len());
-        let r = (!radii.is_empty()).then(|| {
-            let med = |k: usize| {
-                let mut v: Vec<f64> = radii.iter().map(|r: &[f64; 2]| r[k]).collect();
-                v.sort_by(f64::total_cmp);
-                v[v.len() / 2]
-            };
-            [med(0), med(1)]
-        });
-        let cal = calibrate_pattern(&views, &cal_pattern, r, &CalibrationOptions::default()).unwrap().calibration;
-        let (a, b) = (cal.camera.intrinsics, cam.intrinsics);
-        let e = [a.fx_px - b.fx_px, a.fy_px - b.fy_px, a.cx_px - b.cx_px, a.cy_px - b.cy_px];
-        let norm = e.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let rows = ferrocal_datasets::render::printed_targets::printed_targets(21, 12).unwrap();
+    for r in &rows {
         println!(
-            "{name}: {} views, {} corners, RMS {:.4} px; errors fx fy cx cy {e:.3?} px (norm {norm:.3}), std {:.3?}",
-            views.len(),
-            views.iter().map(|v| v.corners_px.len()).sum::<usize>(),
-            cal.rms_px,
-            &cal.std[..4]
+            "{}: {} of {} views, {} corners, RMS {:.4} px; errors fx fy cx cy {:.3?} px (norm {:.3}), std {:.3?}",
+            r.target, r.views_found, r.views, r.corners, r.rms_px, r.error_px, r.error_norm_px, r.std_px
         );
-        for (i, x) in e.iter().enumerate() {
-            assert!(x.abs() < 4.0 * cal.std[i] + 0.1, "{name}: intrinsic {i} off by {x:.3} px (std {:.3})", cal.std[i]);
+        assert!(r.views_found >= 10, "{}: {} of {} views found", r.target, r.views_found, r.views);
+        for (i, (e, sd)) in r.error_px.iter().zip(&r.std_px).enumerate() {
+            assert!(e.abs() < 4.0 * sd + 0.1, "{}: intrinsic {i} off by {e:.3} px (std {sd:.3})", r.target);
         }
-        errors.push((name, norm));
     }
-    let chess = errors[0].1;
-    for (name, norm) in &errors[1..] {
-        assert!(*norm < 2.0 * chess + 0.2, "{name}: intrinsics {norm:.3} px from the truth, the chessboard {chess:.3}");
+    let chess = rows[0].error_norm_px;
+    for r in &rows[1..] {
+        assert!(
+            r.error_norm_px < 2.0 * chess + 0.2,
+            "{}: intrinsics {:.3} px from the truth, the chessboard {chess:.3}",
+            r.target,
+            r.error_norm_px
+        );
     }
 }

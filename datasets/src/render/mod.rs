@@ -42,6 +42,7 @@ pub mod calibration_errors;
 pub mod calibration_study;
 pub mod corner_study;
 mod optics;
+pub mod printed_targets;
 mod raster;
 mod sensor;
 pub mod supersampled;

@@ -126,3 +126,35 @@ pub fn camera_diagnose(reports: &[(&str, Value)]) -> Section {
     d.reported("findings shown; no pass/fail criterion");
     d
 }
+
+/// The boards people print calibrated side by side on renders of one known camera
+/// (`ferrocal_datasets::render::printed_targets`).
+pub fn printed_targets_section(seed: u64) -> Result<Section> {
+    let mut s = Section::new(
+        "printed-targets",
+        "Printed targets: chessboard, OpenCV's asymmetric circle grid, Kalibr's Aprilgrid",
+    );
+    let rows = ferrocal_datasets::render::printed_targets::printed_targets(seed, 12)?;
+    s.text("Twelve random views (20 to 50 degrees of tilt, the last two cut by the image border) of each board, rendered with one known 1280 x 960 camera (Brown 5); `camera calibrate` on each (the circle grid's centres corrected for the perspective bias, the Aprilgrid's tag corners refined by the edge model and used with their ids, so partial views count). The same lens family renders and calibrates: this checks the targets' detection, numbering and frames. Pattern strings: `chessboard:9x6:25mm`, `acircles:4x11:20mm`, `aprilgrid:6x4:30mm:0.3`.");
+    let fmt4 = |v: &[f64; 4]| v.iter().map(|x| format!("{x:+.3}")).collect::<Vec<_>>().join(" / ");
+    s.table(
+        "Intrinsics against the truth",
+        &["target", "views found", "points", "RMS [px]", "error fx / fy / cx / cy [px]", "std [px]", "error norm [px]"],
+        rows.iter()
+            .map(|r| {
+                vec![
+                    r.target.clone(),
+                    format!("{} of {}", r.views_found, r.views),
+                    r.corners.to_string(),
+                    format!("{:.4}", r.rms_px),
+                    fmt4(&r.error_px),
+                    r.std_px.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" / "),
+                    format!("{:.3}", r.error_norm_px),
+                ]
+            })
+            .collect(),
+    );
+    s.data = serde_json::to_value(&rows)?;
+    s.check(checks::printed_targets(&rows));
+    Ok(s)
+}

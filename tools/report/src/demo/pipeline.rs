@@ -60,6 +60,7 @@ pub fn demo_report(d: &DemoSettings, mut prov: Provenance, tick: Tick, run: RunC
         prov.add_input(&ur10);
     }
     s.extend(real_camera_sections(d, run)?);
+    s.push(printed_targets_section(d.seed)?);
     s.push(plan_section(d, run)?);
     s.extend(diagnose_sections(d, tick)?);
     s.push(crate::compensate::demo_section(&ur5_csv, UR5_ATTRIBUTION, tick)?);
