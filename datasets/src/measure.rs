@@ -248,6 +248,7 @@ pub fn disagrees(p: &PoseAgreement, sigmas: f64, relative: f64) -> bool {
 }
 
 /// Compares the single-camera poses of camera 0 (`c0[k]`) and camera `c` (`cc[k + offset]`).
+#[allow(clippy::too_many_arguments)]
 fn compare_cameras(
     rig: &ferrocal_vision::pose::CameraRig,
     points: &[Point3<f64>],
