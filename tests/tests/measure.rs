@@ -143,3 +143,101 @@ fn measure_a_real_image_folder_with_its_poses_table() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("needs joint readings"));
     assert!(!table.exists());
 }
+
+/// Hostile sessions (#30): the left and right pose image lists swapped, the right list shifted by
+/// one image, a calibration board square of 60 m instead of 60 mm: each refused with what is
+/// wrong and the likely fix, nothing written; one pose whose right image is another pose's
+/// (an outlier) is measured with a warning naming it; the clean session is unchanged.
+#[test]
+fn swapped_or_shifted_image_lists_and_a_board_in_the_wrong_unit_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cell = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../datasets/cells/gantry_tau_l1.toml"))
+        .unwrap()
+        .replace("spacing_m = 0.15", "spacing_m = 0.45")
+        .replace("views = 20", "views = 8");
+    assert!(cell.contains("spacing_m = 0.45") && cell.contains("views = 8"), "the built-in cell changed");
+    let cell_path = tmp.path().join("cell.toml");
+    std::fs::write(&cell_path, cell).unwrap();
+    let session = tmp.path().join("session");
+    ok(ferrocal().args(["simulate", "--config"]).arg(&cell_path).arg("--out").arg(&session));
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(session.join("manifest.json")).unwrap()).unwrap();
+    // The session with its manifest edited by `edit`, measured into `name.csv`.
+    let measure = |name: &str, edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut m = manifest.clone();
+        edit(&mut m);
+        std::fs::write(session.join("manifest.json"), serde_json::to_string(&m).unwrap()).unwrap();
+        let table = tmp.path().join(format!("{name}.csv"));
+        let summary = tmp.path().join(format!("{name}.json"));
+        let out = run(ferrocal()
+            .args(["measure", "--session"])
+            .arg(&session)
+            .arg("--out")
+            .arg(&table)
+            .arg("--json")
+            .arg(&summary));
+        (out, table, summary)
+    };
+    let refused = |name: &str, edit: &dyn Fn(&mut serde_json::Value), expect: &[&str]| {
+        let (out, table, summary) = measure(name, edit);
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        assert_eq!(out.status.code(), Some(1), "{name}: {stderr}");
+        for e in expect {
+            assert!(stderr.contains(e), "{name}: expected '{e}' in {stderr}");
+        }
+        assert!(!table.exists() && !summary.exists(), "{name}: an output was written");
+    };
+
+    // Clean: every pose's cameras agree, the verdict passes.
+    let (out, table, summary) = measure("clean", &|_| {});
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = json(&summary);
+    assert_eq!(s["verdict"]["status"], "pass", "{}", String::from_utf8_lossy(&out.stdout));
+    assert!(s["camera_agreement"].as_array().unwrap().len() >= 10);
+    let clean_rows = std::fs::read_to_string(&table).unwrap();
+
+    refused(
+        "swapped",
+        &|m| {
+            let cams = m["cameras"].as_array_mut().unwrap();
+            let left = cams[0]["images"].take();
+            cams[0]["images"] = cams[1]["images"].take();
+            cams[1]["images"] = left;
+        },
+        &["the cameras disagree", "the left and right images look swapped"],
+    );
+    refused(
+        "shifted",
+        &|m| {
+            let right = m["cameras"][1]["images"].as_array_mut().unwrap();
+            right.remove(0);
+            right.push(serde_json::Value::Null);
+        },
+        &[
+            "the right camera's list looks shifted by one image",
+            "image k of the left pairs with image k-1 of the right",
+        ],
+    );
+    refused(
+        "board_60m",
+        &|m| m["calibration_board"]["square_m"] = serde_json::json!(60.0),
+        &["the calibration board's square size looks wrong", "did you mean mm?", "measure.distance_m_fail"],
+    );
+
+    // One pose whose right image is another pose's: measured, the verdict warns and names it.
+    let (out, _, summary) = measure("outlier", &|m| {
+        let right = m["cameras"][1]["images"].as_array_mut().unwrap();
+        right[4] = right[2].clone();
+    });
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = json(&summary);
+    assert_eq!(s["verdict"]["status"], "warning");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("cameras disagree on 1 of") && stdout.contains("0005 (camera 1"), "{stdout}");
+
+    // The manifest restored, the same table as before (the check changes no number).
+    let (out, table, _) = measure("clean2", &|_| {});
+    assert!(out.status.success());
+    let strip = |t: &str| t.lines().filter(|l| !l.starts_with('#')).collect::<Vec<_>>().join("\n");
+    assert_eq!(strip(&std::fs::read_to_string(&table).unwrap()), strip(&clean_rows));
+}

@@ -302,11 +302,38 @@ pub struct MeasureLimits {
     pub rms_px_warn: f64,
     /// Camera calibration RMS: failure above (default 2.0).
     pub rms_px_fail: f64,
+    /// A pose's cameras disagree when the target position from one camera alone, carried into
+    /// camera 0's frame by the calibrated rig, differs from camera 0's own by more than this many
+    /// standard deviations of the two (default 10) ...
+    pub cameras_disagree_sigmas: f64,
+    /// ... and by more than this fraction of the target's distance (default 1e-3: 1 mm at 1 m;
+    /// a floor for rigs whose stated sigmas are tighter than their calibration).
+    pub cameras_disagree_relative: f64,
+    /// Fraction of the compared poses whose cameras disagree: warning above (default 0: every
+    /// such pose is named).
+    pub cameras_disagree_fraction_warn: f64,
+    /// Fraction whose cameras disagree: refused above (default 0.5; the message names a swap or
+    /// a shift of the image lists when one makes the poses agree), no table written.
+    pub cameras_disagree_fraction_fail: f64,
+    /// Camera baseline or median target distance, m: refused above (default 50 m; no camera
+    /// measures a target in a robot cell from that far, a board or target square size in the
+    /// wrong unit gives kilometres).
+    pub distance_m_fail: f64,
 }
 
 impl Default for MeasureLimits {
     fn default() -> Self {
-        Self { measured_fraction_warn: 0.9, measured_fraction_fail: 0.5, rms_px_warn: 0.5, rms_px_fail: 2.0 }
+        Self {
+            measured_fraction_warn: 0.9,
+            measured_fraction_fail: 0.5,
+            rms_px_warn: 0.5,
+            rms_px_fail: 2.0,
+            cameras_disagree_sigmas: 10.0,
+            cameras_disagree_relative: 1e-3,
+            cameras_disagree_fraction_warn: 0.0,
+            cameras_disagree_fraction_fail: 0.5,
+            distance_m_fail: 50.0,
+        }
     }
 }
 

@@ -122,6 +122,7 @@ pub fn session_json(
         "skipped": m.skipped,
         "rig_rms_px": m.rig.rms_px,
         "median_position_sigma_mm": m.median_sigma_mm(),
+        "camera_agreement": m.agreement.poses,
         "poses": m.poses.iter().map(|p| json!({
             "pose_id": p.pose_id,
             "cameras": p.cameras,
@@ -141,7 +142,40 @@ pub fn session_verdict(
     out: &Path,
 ) -> ferrocal_calib::verdict::Verdict {
     let n = m.rows.rows.len();
-    crate::verdict::measure_verdict(t, n, n + m.skipped.len(), "rig calibration RMS", m.rig.rms_px, Some(out))
+    let mut v =
+        crate::verdict::measure_verdict(t, n, n + m.skipped.len(), "rig calibration RMS", m.rig.rms_px, Some(out));
+    // The cameras' agreement pose by pose (a larger disagreeing fraction was refused before).
+    let l = &t.measure;
+    let a = &m.agreement;
+    if !a.poses.is_empty() {
+        let bad = a.disagreeing(l.cameras_disagree_sigmas, l.cameras_disagree_relative);
+        let named = bad
+            .iter()
+            .map(|p| format!("{} (camera {}: {:.2} mm, {:.0} sigma)", p.pose_id, p.camera, p.difference_mm, p.sigmas))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let label = if bad.is_empty() {
+            format!("cameras agree on all {} poses, fraction disagreeing", a.poses.len())
+        } else {
+            format!("cameras disagree on {} of {} poses: {named}; fraction", bad.len(), a.poses.len())
+        };
+        let check = ferrocal_calib::verdict::Check::at_most(
+            "measure.cameras_disagree_fraction",
+            &label,
+            "",
+            bad.len() as f64 / a.poses.len() as f64,
+            l.cameras_disagree_fraction_warn,
+            l.cameras_disagree_fraction_fail,
+        );
+        let next = if bad.is_empty() || v.status != ferrocal_calib::verdict::Status::Pass {
+            v.next.clone()
+        } else {
+            "look at the named poses' images (blur, a reflection, a partly covered target) and drop or retake them"
+                .into()
+        };
+        v = ferrocal_calib::verdict::Verdict::new(v.checks.into_iter().chain([check]).collect(), next);
+    }
+    v
 }
 
 /// The terminal line of a session's measurement written to the table `out`.

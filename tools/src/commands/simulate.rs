@@ -170,6 +170,9 @@ pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode>
     if m.rows.rows.is_empty() {
         anyhow::bail!("measure: no pose of {} could be measured ({} skipped)", session.display(), m.skipped.len());
     }
+    // Data that contradict themselves (swapped or shifted image lists, a square size in the
+    // wrong unit) are refused before anything is written.
+    m.check_consistent(&vs.thresholds.measure).with_context(|| format!("measure: {}", session.display()))?;
     // The table and the summary are composed first and written together at the end.
     let mut files = Outputs::default();
     files.text(out, m.table_text(session).with_context(|| format!("writing {}", out.display()))?);
