@@ -293,6 +293,41 @@ pub fn corrected_commands(s: &crate::sim::CorrectedCommandsStudy) -> Check {
     )
 }
 
+/// Sigmas within which each intrinsic calibrated from a printed target must lie of the truth
+/// (plus [`PRINTED_TARGET_FLOOR_PX`]).
+pub const PRINTED_TARGET_SIGMAS: f64 = 4.0;
+/// Floor of that tolerance, pixels (the lens-curved edges' bias the covariances leave out).
+pub const PRINTED_TARGET_FLOOR_PX: f64 = 0.1;
+
+/// The boards people print (`render::printed_targets`): each found in all but two of its views
+/// at most, each intrinsic within [`PRINTED_TARGET_SIGMAS`] standard deviations (+
+/// [`PRINTED_TARGET_FLOOR_PX`]) of the truth, and no board's intrinsics error more than twice
+/// the chessboard's + 0.2 px (the first row is the chessboard).
+pub fn printed_targets(rows: &[crate::render::printed_targets::TargetRow]) -> Check {
+    let chess = rows.first().map_or(f64::NAN, |r| r.error_norm_px);
+    let checks: Vec<Check> = rows
+        .iter()
+        .map(|r| {
+            let within = r
+                .error_px
+                .iter()
+                .zip(&r.std_px)
+                .all(|(e, sd)| e.abs() < PRINTED_TARGET_SIGMAS * sd + PRINTED_TARGET_FLOOR_PX);
+            let found = r.views_found + 2 >= r.views;
+            let like_chess = r.error_norm_px < 2.0 * chess + 0.2;
+            Check::from_bool(
+                r.target.clone(),
+                within && found && like_chess,
+                format!(
+                    "{} of {} views, intrinsics {:.3} px from the truth (chessboard {:.3} px)",
+                    r.views_found, r.views, r.error_norm_px, chess
+                ),
+            )
+        })
+        .collect();
+    Check::all("printed targets", &checks)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -337,39 +372,4 @@ mod tests {
         let c = intrinsics([540.0, 342.0, 235.0, 0.39], &OPENCV_LEFT_PUBLISHED);
         assert!(c.failed() && c.detail.contains("published"), "{c:?}");
     }
-}
-
-/// Sigmas within which each intrinsic calibrated from a printed target must lie of the truth
-/// (plus [`PRINTED_TARGET_FLOOR_PX`]).
-pub const PRINTED_TARGET_SIGMAS: f64 = 4.0;
-/// Floor of that tolerance, pixels (the lens-curved edges' bias the covariances leave out).
-pub const PRINTED_TARGET_FLOOR_PX: f64 = 0.1;
-
-/// The boards people print (`render::printed_targets`): each found in all but two of its views
-/// at most, each intrinsic within [`PRINTED_TARGET_SIGMAS`] standard deviations (+
-/// [`PRINTED_TARGET_FLOOR_PX`]) of the truth, and no board's intrinsics error more than twice
-/// the chessboard's + 0.2 px (the first row is the chessboard).
-pub fn printed_targets(rows: &[crate::render::printed_targets::TargetRow]) -> Check {
-    let chess = rows.first().map_or(f64::NAN, |r| r.error_norm_px);
-    let checks: Vec<Check> = rows
-        .iter()
-        .map(|r| {
-            let within = r
-                .error_px
-                .iter()
-                .zip(&r.std_px)
-                .all(|(e, sd)| e.abs() < PRINTED_TARGET_SIGMAS * sd + PRINTED_TARGET_FLOOR_PX);
-            let found = r.views_found + 2 >= r.views;
-            let like_chess = r.error_norm_px < 2.0 * chess + 0.2;
-            Check::from_bool(
-                r.target.clone(),
-                within && found && like_chess,
-                format!(
-                    "{} of {} views, intrinsics {:.3} px from the truth (chessboard {:.3} px)",
-                    r.views_found, r.views, r.error_norm_px, chess
-                ),
-            )
-        })
-        .collect();
-    Check::all("printed targets", &checks)
 }
