@@ -533,3 +533,31 @@ fn a_fifo_or_device_as_an_image_and_sizes_beyond_a_bound_are_named_before_any_wo
     assert!(err.contains("at most 2000"), "{err}");
     assert!(!he.exists(), "nothing written");
 }
+
+/// A plan asking for a billion simulated calibrations (in its file or by flag) is refused at
+/// once, naming the key and the bound, and writes nothing.
+#[test]
+fn a_plan_with_a_billion_simulated_calibrations_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(root.join("datasets/cells/plan_gantry_tau_l1.toml")).unwrap();
+    assert!(text.contains("runs = 50"), "the built-in plan changed");
+    let plan = tmp.path().join("plan.toml");
+    std::fs::write(&plan, text.replace("runs = 50", "runs = 1000000000")).unwrap();
+    let out_dir = tmp.path().join("out");
+    let e = fails_within(
+        ferrocal().args(["plan", "--plan"]).arg(&plan).arg("--out").arg(&out_dir),
+        Duration::from_secs(60),
+    );
+    assert!(e.contains("[simulation] runs = 1000000000") && e.contains("more than 10000"), "{e}");
+    let e = fails_within(
+        ferrocal()
+            .args(["plan", "--simulations", "20000", "--plan"])
+            .arg(root.join("datasets/cells/plan_gantry_tau_l1.toml"))
+            .arg("--out")
+            .arg(&out_dir),
+        Duration::from_secs(60),
+    );
+    assert!(e.contains("--simulations = 20000") && e.contains("more than 10000"), "{e}");
+    assert!(!out_dir.exists(), "an output was written");
+}

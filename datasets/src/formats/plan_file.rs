@@ -93,6 +93,22 @@ pub struct SimulationSection {
 fn default_runs() -> usize {
     50
 }
+
+/// Most simulated calibrations a plan's Monte Carlo check may ask for (each is a full
+/// calibration; 10,000 already take minutes, and the sampling error of a standard deviation is
+/// then 0.7 %).
+pub const MAX_SIMULATION_RUNS: usize = 10_000;
+
+/// Refuses a number of simulated calibrations beyond [`MAX_SIMULATION_RUNS`], naming `what`
+/// (the plan file's key or the flag).
+pub fn check_runs(runs: usize, what: &str) -> Result<()> {
+    if runs > MAX_SIMULATION_RUNS {
+        return Err(DatasetError::Input(format!(
+            "{what} = {runs} simulated calibrations is more than {MAX_SIMULATION_RUNS} (each is a full calibration; 200 give the standard deviations to 5 %): ask for fewer"
+        )));
+    }
+    Ok(())
+}
 fn default_seed() -> u64 {
     1
 }
@@ -172,6 +188,9 @@ impl PlanFile {
         let bad = |m: String| Err(DatasetError::Input(format!("{}: {m}", path.display())));
         if let Err(e) = plan.safety.validate() {
             return bad(format!("[safety]: {e}"));
+        }
+        if let Err(e) = check_runs(plan.simulation.runs, "[simulation] runs") {
+            return bad(e.to_string());
         }
         match (plan.cameras.is_empty(), &plan.tracker) {
             (true, None) => bad("give [[camera]] sections (with [target]) or a [tracker]".into()),

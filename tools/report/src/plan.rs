@@ -90,6 +90,7 @@ pub fn run(args: &PlanRequest, log: &dyn Fn(&str), on_run: &dyn Fn(usize, usize)
         plan.simulation.seed = s;
     }
     let runs = args.simulations.unwrap_or(plan.simulation.runs);
+    ferrocal_datasets::formats::plan_file::check_runs(runs, "--simulations")?;
     let model = RobotModel::load(&plan.robot.model).with_context(|| format!("robot model '{}'", plan.robot.model))?;
     let checker = SafetyChecker::new(&model, plan.safety.clone()).context("[safety]")?;
     let dev = device(&plan)?;
