@@ -163,9 +163,40 @@ pub fn read_static_table(path: &Path) -> Result<(Vec<Pose>, DMatrix<f64>)> {
     let mut cols: Vec<&str> = POSE_COLUMNS.to_vec();
     cols.extend_from_slice(&FORCE_COLUMNS);
     let t = read_table(path, &cols)?;
+    check_pose_units(&t)?;
     let poses: Vec<Pose> =
         (0..t.values.nrows()).map(|k| pose_from_coordinates(&std::array::from_fn(|i| t.values[(k, i)]))).collect();
     Ok((poses, t.values.columns(6, 6).into_owned()))
+}
+
+/// Largest plausible platform coordinate of a quasi-static table, metres: beyond it the values
+/// are millimetres under a `_m` header (the largest parallel machines move a few metres; a
+/// hexapod's platform stays within a metre of its home).
+pub const MAX_PLATFORM_COORDINATE_M: f64 = 50.0;
+
+/// Refuses a quasi-static table whose pose columns cannot be in their stated units: a position
+/// beyond [`MAX_PLATFORM_COORDINATE_M`] (millimetres under `_m`) or an angle beyond a full turn
+/// (degrees under `_rad`); the error names the file, line, column and the likely unit.
+fn check_pose_units(t: &Table) -> Result<()> {
+    for (c, name) in POSE_COLUMNS.iter().enumerate() {
+        let angle = c >= 3;
+        let limit = if angle { std::f64::consts::TAU } else { MAX_PLATFORM_COORDINATE_M };
+        let Some(r) = (0..t.values.nrows()).find(|&r| t.values[(r, c)].abs() > limit) else { continue };
+        let v = t.values[(r, c)];
+        let n = (0..t.values.nrows()).filter(|&k| t.values[(k, c)].abs() > limit).count();
+        let why = if angle {
+            format!("beyond a full turn ({limit:.4} rad): the angles look like degrees; convert them to radians")
+        } else {
+            format!("more than {limit} m from the platform's origin: the positions look like millimetres; convert them to metres")
+        };
+        return Err(input(format!(
+            "{}:{}, column '{name}': {v} is {why} ({n} of {} rows)",
+            t.path.display(),
+            t.lines[r],
+            t.values.nrows()
+        )));
+    }
+    Ok(())
 }
 
 /// A quasi-static table as CSV text: the pose coordinates (9 decimals) and the six forces (6
@@ -206,6 +237,22 @@ mod tests {
         let e = read_stream(&p, "leg positions", &LEG_COLUMNS).unwrap_err().to_string();
         assert!(e.contains("legs.csv:9: t_s = 0.074") && e.contains("off the uniform"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn static_tables_in_degrees_or_millimetres_are_refused_naming_the_column() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("static.csv");
+        let head = format!("{},{}\n", POSE_COLUMNS.join(","), FORCE_COLUMNS.join(","));
+        std::fs::write(&p, format!("{head}0.01,0,0.8,0.05,0,0,1,2,3,4,5,6\n0.02,0,0.8,12.5,0,0,1,2,3,4,5,6\n"))
+            .unwrap();
+        let e = read_static_table(&p).unwrap_err().to_string();
+        assert!(e.contains("static.csv:3, column 'roll_rad': 12.5") && e.contains("look like degrees"), "{e}");
+        std::fs::write(&p, format!("{head}10,0,800,0,0,0,1,2,3,4,5,6\n")).unwrap();
+        let e = read_static_table(&p).unwrap_err().to_string();
+        assert!(e.contains("column 'z_m': 800") && e.contains("look like millimetres"), "{e}");
+        std::fs::write(&p, format!("{head}0.01,0,0.8,0.05,-0.1,3.0,1,2,3,4,5,6\n")).unwrap();
+        assert!(read_static_table(&p).is_ok());
     }
 
     #[test]
