@@ -11,6 +11,7 @@
 use crate::calib_support;
 
 use calib_support as sim;
+use ferrocal_datasets::render::printed_targets::facing_pose;
 use ferrocal_datasets::render::{RenderConfig, Renderer, TargetConfig};
 use ferrocal_vision::calib::{
     calibrate_pattern, CalibrationOptions, CalibrationPattern as CalPattern, PlanarTarget, View,
@@ -273,23 +274,6 @@ fn circle_grid_calibration_with_the_bias_corrected() {
     }
 }
 
-/// `T_cam_target` for a target in OpenCV's frame (z into the printed face): the centre at
-/// `centre_cam`, the printed face towards the camera, tilted about the in-plane axis at
-/// `axis_deg` and rolled by `roll_deg`.
-fn opencv_frame_pose(
-    target: &PlanarTarget,
-    centre_cam: Vector3<f64>,
-    tilt_deg: f64,
-    axis_deg: f64,
-    roll_deg: f64,
-) -> Isometry3<f64> {
-    use nalgebra::{Translation3, Unit, UnitQuaternion};
-    let (tilt, axis, roll) = (tilt_deg.to_radians(), axis_deg.to_radians(), roll_deg.to_radians());
-    let r = UnitQuaternion::from_axis_angle(&Unit::new_normalize(Vector3::new(axis.cos(), axis.sin(), 0.0)), tilt)
-        * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), roll);
-    Isometry3::from_parts(Translation3::from(centre_cam - r * sim::centre(target)), r)
-}
-
 /// OpenCV's asymmetric circle grid (`acircles`): 4 x 11 as OpenCV's own printed pattern, dark
 /// dots on white and the same inverted (white on black), and 5 x 8 (an even number of rows,
 /// which looks the same after a half turn). Rendered with exact truth (the renderer does not
@@ -315,11 +299,11 @@ fn rendered_asymmetric_circle_grids_in_opencv_order() {
             asymmetric: true,
         };
         let renderer = Renderer::new(cam, &config, RenderConfig::default()).unwrap();
-        let points = PlanarTarget { points_m: grid.target_points_m(), reversible: false };
         let pattern = Pattern::CircleGrid(grid);
         assert_eq!(pattern.to_string().parse::<Pattern>().unwrap(), pattern);
         for (k, &(tilt, axis, roll)) in poses.iter().enumerate() {
-            let t = opencv_frame_pose(&points, Vector3::new(0.01, -0.01, 0.5), tilt, axis, roll);
+            let (tilt_rad, axis_rad, roll_rad) = (f64::to_radians(tilt), f64::to_radians(axis), f64::to_radians(roll));
+            let t = facing_pose(renderer.target(), Vector3::new(0.01, -0.01, 0.5), tilt_rad, axis_rad, roll_rad);
             let out = renderer.render(&t, 300 + k as u64).unwrap();
             let mut img = out.image.clone();
             if light {

@@ -329,26 +329,6 @@ fn diagnose_finds_the_deformation_of_a_simulated_force_sensing_end_effector() {
     assert!(!dir.path().join("bad.json").exists());
 }
 
-/// `T_cam_target` for a board whose printed face is towards +z of its frame (`face_plus_z`) or
-/// -z (OpenCV's frames): its centre `centre_m` (target frame) at `at_cam_m`, tilted about the
-/// in-plane axis at `axis_deg`, rolled by `roll_deg`.
-fn board_pose(
-    centre_m: nalgebra::Vector3<f64>,
-    at_cam_m: nalgebra::Vector3<f64>,
-    tilt_deg: f64,
-    axis_deg: f64,
-    roll_deg: f64,
-    face_plus_z: bool,
-) -> nalgebra::Isometry3<f64> {
-    use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
-    let face = if face_plus_z { std::f64::consts::PI } else { 0.0 };
-    let axis = Unit::new_normalize(Vector3::new(axis_deg.to_radians().cos(), axis_deg.to_radians().sin(), 0.0));
-    let r = UnitQuaternion::from_axis_angle(&axis, tilt_deg.to_radians())
-        * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), roll_deg.to_radians())
-        * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), face);
-    Isometry3::from_parts(Translation3::from(at_cam_m - r * centre_m), r)
-}
-
 /// OpenCV's asymmetric circle grid (printed white on black) and a Kalibr Aprilgrid through
 /// `camera calibrate`, on images rendered by the project's renderer with a known camera (the
 /// renderer integrates the printed shapes over each pixel; the same lens family renders and
@@ -356,50 +336,16 @@ fn board_pose(
 /// intrinsic within 4 standard deviations (+0.2 px) of the truth.
 #[test]
 fn asymmetric_circle_grid_and_aprilgrid_through_camera_calibrate() {
-    use ferrocal_datasets::render::{RenderConfig, Renderer, TargetConfig};
-    use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
-    let cam = CameraModel::new(
-        Intrinsics { fx_px: 1150.0, fy_px: 1148.0, cx_px: 647.0, cy_px: 478.0 },
-        Distortion::Brown5 { k1: -0.12, k2: 0.08, p1: 4e-4, p2: -3e-4, k3: 0.0 },
-        ImageSize { width_px: 1280, height_px: 960 },
-    )
-    .unwrap();
-    let kalibr_ids: Vec<u32> = (0..4u32).flat_map(|r| (0..6u32).map(move |c| (3 - r) * 6 + c)).collect();
-    let cases = [
-        (
-            "acircles",
-            TargetConfig::CircleGrid {
-                cols: 4,
-                rows: 11,
-                spacing_m: 0.02,
-                radius_m: 0.006,
-                large_radius_m: None,
-                margin_m: 0.02,
-                asymmetric: true,
-            },
-            "acircles:4x11:20mm",
-        ),
-        (
-            "aprilgrid",
-            TargetConfig::AprilTagBoard {
-                cols: 6,
-                rows: 4,
-                tag_size_m: 0.03,
-                spacing_m: 0.009,
-                first_id: 0,
-                ids: Some(kalibr_ids),
-                margin_m: 0.01,
-            },
-            "aprilgrid:6x4:30mm:0.3",
-        ),
-    ];
+    use ferrocal_datasets::render::printed_targets::{facing_pose, study_boards, study_camera};
+    use ferrocal_datasets::render::{RenderConfig, Renderer};
+    // The demo's printed-target study's camera and boards, without the chessboard.
+    let cam = study_camera();
+    let cases: Vec<_> = study_boards().into_iter().filter(|b| !b.2.starts_with("chessboard")).collect();
+    assert_eq!(cases.iter().map(|b| b.2).collect::<Vec<_>>(), ["acircles:4x11:20mm", "aprilgrid:6x4:30mm:0.3"]);
     let tmp = tempfile::tempdir().unwrap();
-    for (name, config, pattern) in cases {
+    for (_, config, pattern) in cases {
+        let name = pattern.split(':').next().unwrap();
         let renderer = Renderer::new(cam, &config, RenderConfig::default()).unwrap();
-        let face_plus_z = !renderer.target().face_minus_z;
-        let corners = &renderer.target().corners;
-        let centre =
-            corners.iter().fold(nalgebra::Vector3::zeros(), |a, c| a + c.p_target_m.coords) / corners.len() as f64;
         let dir = tmp.path().join(name);
         std::fs::create_dir_all(&dir).unwrap();
         for (i, (tilt, axis, roll, dx, dz)) in [
@@ -417,7 +363,8 @@ fn asymmetric_circle_grid_and_aprilgrid_through_camera_calibrate() {
         .into_iter()
         .enumerate()
         {
-            let t = board_pose(centre, nalgebra::Vector3::new(dx, 0.01, dz), tilt, axis, roll, face_plus_z);
+            let (tilt_rad, axis_rad, roll_rad) = (f64::to_radians(tilt), f64::to_radians(axis), f64::to_radians(roll));
+            let t = facing_pose(renderer.target(), nalgebra::Vector3::new(dx, 0.01, dz), tilt_rad, axis_rad, roll_rad);
             let mut img = renderer.render(&t, 700 + i as u64).unwrap().image;
             if name == "acircles" {
                 img.pixels_mut().for_each(|p| p.0[0] = 255 - p.0[0]);

@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use super::{RenderConfig, Renderer, TargetConfig};
+use super::{RenderConfig, Renderer, TargetConfig, TargetGeometry};
 use crate::error::{DatasetError, Result};
 use ferrocal_vision::calib::{calibrate_pattern, CalibrationOptions, CalibrationPattern, View};
 use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
@@ -88,14 +88,30 @@ pub fn study_boards() -> Vec<(&'static str, TargetConfig, &'static str)> {
     ]
 }
 
+/// `T_cam_target` showing `target`'s printed face (target z towards the camera, or away from
+/// it for OpenCV's frames, [`TargetGeometry::face_minus_z`]): the centre of its corners at
+/// `at_cam_m`, tilted by `tilt_rad` about the in-plane axis at `axis_rad`, rolled by `roll_rad`.
+pub fn facing_pose(
+    target: &TargetGeometry,
+    at_cam_m: Vector3<f64>,
+    tilt_rad: f64,
+    axis_rad: f64,
+    roll_rad: f64,
+) -> Isometry3<f64> {
+    let centre =
+        target.corners.iter().fold(Vector3::zeros(), |a, c| a + c.p_target_m.coords) / target.corners.len() as f64;
+    let face = if target.face_minus_z { 0.0 } else { std::f64::consts::PI };
+    let r = UnitQuaternion::from_axis_angle(
+        &Unit::new_normalize(Vector3::new(axis_rad.cos(), axis_rad.sin(), 0.0)),
+        tilt_rad,
+    ) * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), roll_rad)
+        * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), face);
+    Isometry3::from_parts(Translation3::from(at_cam_m - r * centre), r)
+}
+
 /// A random pose showing the printed face of `renderer`'s target whole (5 px inside the image),
 /// 0.35-0.6 m away, tilted 20-50 degrees about a random in-plane axis, rolled +-30 degrees.
 fn random_pose(renderer: &Renderer, rng: &mut rand_chacha::ChaCha8Rng) -> Result<Isometry3<f64>> {
-    let target = renderer.target();
-    let centre =
-        target.corners.iter().fold(Vector3::zeros(), |a, c| a + c.p_target_m.coords) / target.corners.len() as f64;
-    // The face towards the camera: target z towards it (or away for OpenCV's frames).
-    let face = if target.face_minus_z { 0.0 } else { std::f64::consts::PI };
     let cam = renderer.camera();
     let k = cam.intrinsics;
     for _ in 0..10_000 {
@@ -106,12 +122,7 @@ fn random_pose(renderer: &Renderer, rng: &mut rand_chacha::ChaCha8Rng) -> Result
         let axis_rad: f64 = rng.random_range(0.0..std::f64::consts::TAU);
         let tilt_rad = rng.random_range(20.0f64..50.0).to_radians();
         let roll_rad = rng.random_range(-30.0f64..30.0).to_radians();
-        let r = UnitQuaternion::from_axis_angle(
-            &Unit::new_normalize(Vector3::new(axis_rad.cos(), axis_rad.sin(), 0.0)),
-            tilt_rad,
-        ) * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), roll_rad)
-            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), face);
-        let t = Isometry3::from_parts(Translation3::from(at - r * centre), r);
+        let t = facing_pose(renderer.target(), at, tilt_rad, axis_rad, roll_rad);
         let (w, h) = (f64::from(cam.image_size.width_px), f64::from(cam.image_size.height_px));
         let inside = renderer.ground_truth(&t).is_ok_and(|g| {
             g.corners.iter().all(|c| c.pixel.is_some_and(|p| p.x > 5.0 && p.y > 5.0 && p.x < w - 6.0 && p.y < h - 6.0))
