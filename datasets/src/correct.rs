@@ -30,6 +30,57 @@ pub struct CorrectRun {
     pub removed_mm: Vec<f64>,
     /// The largest distance left from an intended pose, mm.
     pub worst_residual_mm: f64,
+    /// Per command, the motion the program asked for (its `motion` column; joint without one).
+    pub motions: Vec<Motion>,
+}
+
+/// How a program moves to a command: the optional `motion` column of a joint program.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Motion {
+    /// Joint interpolation (`joint`, `j`, `movej`, `ptp`, `moveabsj`, `movej`): the default.
+    Joint,
+    /// Linear in the tool (`linear`, `l`, `movel`, `lin`).
+    Linear,
+}
+
+impl Motion {
+    /// The word written in the corrected CSV's `motion` column.
+    pub fn word(self) -> &'static str {
+        match self {
+            Motion::Joint => "joint",
+            Motion::Linear => "linear",
+        }
+    }
+
+    /// Reads a `motion` cell (case-insensitive); `None` for a word it does not know.
+    pub fn parse(cell: &str) -> Option<Self> {
+        match cell.trim().to_ascii_lowercase().as_str() {
+            "" | "joint" | "j" | "movej" | "ptp" | "moveabsj" | "movabsj" => Some(Motion::Joint),
+            "linear" | "l" | "movel" | "lin" => Some(Motion::Linear),
+            _ => None,
+        }
+    }
+}
+
+/// The motion of every row of a joint program (its `motion` column; joint without one), or an
+/// error naming the file, line and word.
+fn read_motions(program: &MeasurementTable, path: &Path) -> Result<Vec<Motion>> {
+    program
+        .set
+        .rows
+        .iter()
+        .map(|r| match r.meta.get("motion") {
+            None => Ok(Motion::Joint),
+            Some(cell) => Motion::parse(cell).ok_or_else(|| {
+                DatasetError::Input(format!(
+                    "{}: line {}, column motion: '{}' is not a motion; use joint (movej, ptp) or linear (movel, lin)",
+                    path.display(),
+                    r.source_line.unwrap_or(0),
+                    cell.trim()
+                ))
+            }),
+        })
+        .collect()
 }
 
 /// Corrects every command of the joint program `program` for the robot `robot` (preset, URDF or
@@ -43,6 +94,8 @@ pub fn correct_run(robot: &str, calibration: &Path, program_path: &Path, positio
     if program.joint_units.len() == Kinematics::dof(&model) {
         program.check_joint_values(&Kinematics::joint_limits(&model), model.name())?;
     }
+    let motions = read_motions(&program, program_path)?;
+    let has_motion = program.set.rows.iter().any(|r| r.meta.contains_key("motion"));
     let opts = CorrectOptions { use_orientation: !positions_only, ..CorrectOptions::default() };
     let units = &program.joint_units;
     let mut csv = format!("# corrected by ferrocal {} with {}\n", env!("CARGO_PKG_VERSION"), calibration.display());
@@ -50,12 +103,15 @@ pub fn correct_run(robot: &str, calibration: &Path, program_path: &Path, positio
     for (i, u) in units.iter().enumerate() {
         csv.push_str(&format!(",q{}_{}", i + 1, u.suffix()));
     }
+    if has_motion {
+        csv.push_str(",motion");
+    }
     csv.push_str(",removed_error_mm,residual_mm\n");
     let mut removed_mm = Vec::new();
     let mut worst_residual_mm = 0.0f64;
     let corrected = correct_program(&cm, &program.set.rows, &opts)
         .map_err(|e| DatasetError::from(e).context(format!("correcting {}", program_path.display())))?;
-    for (row, c) in program.set.rows.iter().zip(&corrected) {
+    for (k, (row, c)) in program.set.rows.iter().zip(&corrected).enumerate() {
         if c.residual_m > REACHED_M {
             return Err(DatasetError::Input(format!(
                 "{}: pose {} (line {}): the calibrated model cannot reach the intended pose ({:.4} mm remain)",
@@ -69,11 +125,14 @@ pub fn correct_run(robot: &str, calibration: &Path, program_path: &Path, positio
         for (v, u) in c.q.iter().zip(units) {
             csv.push_str(&format!(",{}", u.from_si(*v)));
         }
+        if has_motion {
+            csv.push_str(&format!(",{}", motions[k].word()));
+        }
         csv.push_str(&format!(",{:.6},{:.6}\n", c.nominal_error_m * 1e3, c.residual_m * 1e3));
         removed_mm.push(c.nominal_error_m * 1e3);
         worst_residual_mm = worst_residual_mm.max(c.residual_m * 1e3);
     }
-    Ok(CorrectRun { model, program, corrected, csv, removed_mm, worst_residual_mm })
+    Ok(CorrectRun { model, program, corrected, csv, removed_mm, worst_residual_mm, motions })
 }
 
 /// A robot program format the corrected commands can be written in.
@@ -105,10 +164,13 @@ impl ProgramFormat {
 }
 
 impl CorrectRun {
-    /// The corrected commands as the robot programs `outputs` asks for (path, text), one measure
-    /// step per command in the program's order with its approach directions when the program
-    /// has them, waiting `dwell_s` at each; `header`: the programs' comment lines. Each
-    /// program's name is its file's stem.
+    /// The corrected commands as the robot programs `outputs` asks for (path, text): a motion
+    /// program, one move per command in the program's order named by its pose id, joint or
+    /// linear as the program's `motion` column asks (linear moves with joint interpolation where
+    /// the language needs a Cartesian target for a linear move: RAPID, KRL; said in the line's
+    /// comment), with its approach directions when the program has them, waiting `dwell_s` at
+    /// each when it is above zero; `header`: the programs' comment lines. Each program's name is
+    /// its file's stem.
     pub fn programs(
         &self,
         outputs: &[(ProgramFormat, &Path)],
@@ -119,12 +181,17 @@ impl CorrectRun {
         let steps: Vec<PathStep> = rows
             .iter()
             .zip(&self.corrected)
+            .zip(&self.motions)
             .enumerate()
-            .map(|(k, (r, c))| PathStep {
+            .map(|(k, ((r, c), m))| PathStep {
                 q: c.q.clone(),
-                kind: StepKind::Measure,
+                kind: match m {
+                    Motion::Joint => StepKind::Move,
+                    Motion::Linear => StepKind::MoveLinear,
+                },
                 pose: Some(k),
                 dir: r.dir.clone().unwrap_or_else(|| vec![0; c.q.len()]),
+                label: Some(r.pose_id.clone()),
             })
             .collect();
         let path = PlannedPath {
@@ -181,6 +248,19 @@ impl CorrectRun {
             self.mean_removed_mm(),
             out.display()
         )
+    }
+
+    /// The files of `outputs` whose language writes this program's linear moves with joint
+    /// interpolation (RAPID, KRL; empty when the program has no linear move).
+    pub fn linear_as_joint<'a>(&self, outputs: &[(ProgramFormat, &'a Path)]) -> Vec<&'a Path> {
+        if !self.motions.contains(&Motion::Linear) {
+            return Vec::new();
+        }
+        outputs
+            .iter()
+            .filter(|(k, _)| matches!(k, ProgramFormat::Rapid | ProgramFormat::Krl))
+            .map(|(_, p)| *p)
+            .collect()
     }
 
     /// The mean of the errors the correction removes, mm (0 without commands).

@@ -348,6 +348,76 @@ fn correct_writes_commands_that_the_calibrated_model_puts_on_the_nominal_poses()
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("bad.csv"));
     assert!(!out2.exists());
+
+    // A user's program (#33 finding 7): its pose names and motion types are kept in every
+    // language, and the programs are motion programs (no measurement steps, no waits).
+    let named = tmp.path().join("named.csv");
+    let mut text = format!("{},motion\n", lines[0]);
+    for (k, l) in lines[1..5].iter().enumerate() {
+        let (_, rest) = l.split_once(',').unwrap();
+        text.push_str(&format!("weld_seam_{k},{rest},{}\n", if k % 2 == 1 { "linear" } else { "movej" }));
+    }
+    std::fs::write(&named, &text).unwrap();
+    let progs = ["named.mod", "named.ngc", "named.script", "named.src"].map(|f| tmp.path().join(f));
+    let o = ferrocal_tests::run(
+        ferrocal()
+            .args(["correct", "--robot", "ur5", "--calibration"])
+            .arg(&cal)
+            .arg("--program")
+            .arg(&named)
+            .arg("--out")
+            .arg(tmp.path().join("named_out.csv"))
+            .arg("--rapid")
+            .arg(&progs[0])
+            .arg("--gcode")
+            .arg(&progs[1])
+            .arg("--urscript")
+            .arg(&progs[2])
+            .arg("--krl")
+            .arg(&progs[3]),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for p in &progs {
+        let t = std::fs::read_to_string(p).unwrap();
+        for k in 0..4 {
+            assert!(t.contains(&format!("weld_seam_{k}")), "{}: pose name {k} lost:\n{t}", p.display());
+        }
+        for word in ["measure", "sleep(", "WAIT SEC", "WaitTime", "G4 "] {
+            assert!(!t.contains(word), "{}: a motion program has '{word}':\n{t}", p.display());
+        }
+    }
+    let script = std::fs::read_to_string(&progs[2]).unwrap();
+    let moves: Vec<&str> =
+        script.lines().map(str::trim).filter(|l| l.starts_with("movej(") || l.starts_with("movel(")).collect();
+    assert_eq!(moves.len(), 4);
+    for (k, m) in moves.iter().enumerate() {
+        assert_eq!(m.starts_with("movel("), k % 2 == 1, "{m}");
+    }
+    let krl = std::fs::read_to_string(&progs[3]).unwrap();
+    assert_eq!(krl.matches("linear in the program").count(), 2, "{krl}");
+    let csv = std::fs::read_to_string(tmp.path().join("named_out.csv")).unwrap();
+    assert!(csv.contains(",motion,") && csv.contains(",linear,"), "{csv}");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let verdict = stdout.lines().last().unwrap();
+    assert!(verdict.starts_with("verdict: warning:") && verdict.contains("named.src"), "{verdict}");
+    // An unknown motion word is refused naming the file, line and column; nothing is written.
+    std::fs::write(&named, text.replacen(",linear\n", ",circular\n", 1)).unwrap();
+    let out3 = tmp.path().join("never3.csv");
+    let o = ferrocal_tests::run(
+        ferrocal()
+            .args(["correct", "--robot", "ur5", "--calibration"])
+            .arg(&cal)
+            .arg("--program")
+            .arg(&named)
+            .arg("--out")
+            .arg(&out3),
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("named.csv") && err.contains("line 3") && err.contains("circular"),
+        "{err}"
+    );
+    assert!(!out3.exists());
 }
 
 /// The joint values (degrees) of every move of a RAPID, G-code, URScript or KRL program that

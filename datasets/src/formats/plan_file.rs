@@ -289,6 +289,7 @@ pub fn measure_steps(poses: &[Vec<f64>], indices: &[usize]) -> PlannedPath {
                 kind: StepKind::Measure,
                 pose: Some(k),
                 dir: vec![0; poses[k].len()],
+                label: None,
             })
             .collect(),
         order: Vec::new(),

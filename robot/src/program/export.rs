@@ -53,6 +53,12 @@ pub struct ProgramSettings {
     /// URScript `movej` joint acceleration, rad/s^2.
     #[serde(default = "default_urscript_accel")]
     pub urscript_accel_rad_s2: f64,
+    /// URScript `movel` tool speed of a program's linear moves, m/s.
+    #[serde(default = "default_urscript_linear_speed")]
+    pub urscript_linear_speed_m_s: f64,
+    /// URScript `movel` tool acceleration of a program's linear moves, m/s^2.
+    #[serde(default = "default_urscript_linear_accel")]
+    pub urscript_linear_accel_m_s2: f64,
     /// A URScript statement run after the wait at every measurement (e.g. `set_digital_out(0, True)`).
     #[serde(default)]
     pub urscript_trigger: Option<String>,
@@ -94,6 +100,12 @@ fn default_urscript_speed() -> f64 {
 fn default_urscript_accel() -> f64 {
     1.0
 }
+fn default_urscript_linear_speed() -> f64 {
+    0.25
+}
+fn default_urscript_linear_accel() -> f64 {
+    1.2
+}
 fn default_krl_name() -> String {
     "ferrocal_plan".into()
 }
@@ -117,6 +129,8 @@ impl Default for ProgramSettings {
             urscript_name: default_urscript_name(),
             urscript_speed_rad_s: default_urscript_speed(),
             urscript_accel_rad_s2: default_urscript_accel(),
+            urscript_linear_speed_m_s: default_urscript_linear_speed(),
+            urscript_linear_accel_m_s2: default_urscript_linear_accel(),
             urscript_trigger: None,
             krl_name: default_krl_name(),
             krl_velocity_percent: default_krl_velocity(),
@@ -189,12 +203,7 @@ pub fn rapid_module<R: SafetyBody + ?Sized>(
     for h in header {
         let _ = writeln!(s, "  ! {}", h.replace('\n', " "));
     }
-    let _ = writeln!(
-        s,
-        "  ! {} steps, {} measurements; robot axes in deg (revolute) and mm (linear)",
-        path.steps.len(),
-        path.measurements()
-    );
+    let _ = writeln!(s, "  ! {}; robot axes in deg (revolute) and mm (linear)", count_line(path));
     for (k, st) in path.steps.iter().enumerate() {
         let mut rob = [0.0f64; 6];
         let mut ext = [9e9f64; 6];
@@ -218,7 +227,10 @@ pub fn rapid_module<R: SafetyBody + ?Sized>(
     let _ = writeln!(s, "  PROC main()");
     let mut n_meas = 0;
     for (k, st) in path.steps.iter().enumerate() {
-        let what = step_label(st);
+        let mut what = step_label(st);
+        if st.kind == StepKind::MoveLinear {
+            what.push_str(LINEAR_AS_JOINT);
+        }
         let _ = writeln!(
             s,
             "    MoveAbsJ jt{:04}, {}, {}, {}; ! {what}",
@@ -227,12 +239,18 @@ pub fn rapid_module<R: SafetyBody + ?Sized>(
             settings.rapid_zone,
             settings.rapid_tool
         );
-        if st.kind == StepKind::Measure {
-            n_meas += 1;
-            let _ = writeln!(s, "    WaitTime \\InPos, {dwell_s:.2}; ! measurement {n_meas}");
-            if let Some(t) = &settings.rapid_trigger {
-                let _ = writeln!(s, "    {t}");
+        match after_move(st, dwell_s) {
+            AfterMove::Measure => {
+                n_meas += 1;
+                let _ = writeln!(s, "    WaitTime \\InPos, {dwell_s:.2}; ! measurement {n_meas}");
+                if let Some(t) = &settings.rapid_trigger {
+                    let _ = writeln!(s, "    {t}");
+                }
             }
+            AfterMove::Dwell => {
+                let _ = writeln!(s, "    WaitTime \\InPos, {dwell_s:.2}; ! dwell");
+            }
+            AfterMove::Nothing => {}
         }
     }
     let _ = writeln!(s, "  ENDPROC");
@@ -261,6 +279,8 @@ pub fn path_csv<R: SafetyBody + ?Sized>(model: &R, path: &PlannedPath, only_meas
             StepKind::Approach => "approach",
             StepKind::Measure => "measure",
             StepKind::Via => "via",
+            StepKind::Move => "move",
+            StepKind::MoveLinear => "move_linear",
         };
         let pose = st.pose.map(|p| (p + 1).to_string()).unwrap_or_default();
         let _ = write!(s, "{},{kind},{pose}", k + 1);
@@ -396,12 +416,21 @@ pub fn gcode<R: SafetyBody + ?Sized>(
                 }
             }
         }
-        if st.kind == StepKind::Measure {
-            n_meas += 1;
-            let _ = writeln!(s, "G4 P{dwell_s:.2} (measurement {n_meas}, pose {})", st.pose.map_or(0, |p| p + 1));
-            if let Some(t) = &settings.gcode_trigger {
-                let _ = writeln!(s, "{t}");
+        if matches!(st.kind, StepKind::Move | StepKind::MoveLinear) {
+            let _ = writeln!(s, "(step {}: {})", k + 1, step_label(st).replace(['(', ')'], ""));
+        }
+        match after_move(st, dwell_s) {
+            AfterMove::Measure => {
+                n_meas += 1;
+                let _ = writeln!(s, "G4 P{dwell_s:.2} (measurement {n_meas}, pose {})", st.pose.map_or(0, |p| p + 1));
+                if let Some(t) = &settings.gcode_trigger {
+                    let _ = writeln!(s, "{t}");
+                }
             }
+            AfterMove::Dwell => {
+                let _ = writeln!(s, "G4 P{dwell_s:.2} (dwell)");
+            }
+            AfterMove::Nothing => {}
         }
     }
     let _ = writeln!(s, "M2");
@@ -415,9 +444,45 @@ fn step_label(st: &super::PathStep) -> String {
         (StepKind::Approach, Some(p)) => format!("approach pose {}", p + 1),
         (StepKind::Measure, Some(p)) => format!("measure pose {}", p + 1),
         (StepKind::Via, _) => "via".to_string(),
+        (StepKind::Move | StepKind::MoveLinear, p) => match (&st.label, p) {
+            (Some(l), _) => l.replace(['\n', '\r'], " "),
+            (None, Some(p)) => format!("move {}", p + 1),
+            (None, None) => "move".to_string(),
+        },
         (_, None) => String::new(),
     }
 }
+
+/// The header line that counts a path's steps: a user's program counts its moves, a
+/// measurement path its steps and measurements.
+fn count_line(path: &PlannedPath) -> String {
+    let moves = path.program_moves();
+    if moves > 0 && path.measurements() == 0 {
+        format!("{moves} moves")
+    } else {
+        format!("{} steps, {} measurements", path.steps.len(), path.measurements())
+    }
+}
+
+/// What a writer does after the move to a step: a measurement waits the dwell time and runs the
+/// trigger; a program's move waits only when a dwell time is asked; other steps do nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum AfterMove {
+    Nothing,
+    Dwell,
+    Measure,
+}
+
+fn after_move(st: &super::PathStep, dwell_s: f64) -> AfterMove {
+    match st.kind {
+        StepKind::Measure => AfterMove::Measure,
+        StepKind::Move | StepKind::MoveLinear if dwell_s > 0.0 => AfterMove::Dwell,
+        _ => AfterMove::Nothing,
+    }
+}
+
+/// The comment a joint-interpolating writer adds to a program's linear move.
+const LINEAR_AS_JOINT: &str = " (linear in the program; written with joint interpolation: this language's linear move needs a Cartesian target in the controller's frames)";
 
 /// A finite joint value for a program line, or an error naming the step and joint.
 fn finite_joint(v: f64, step: usize, joint: usize) -> Result<f64> {
@@ -459,7 +524,15 @@ pub fn urscript<R: SafetyBody + ?Sized>(
     for h in header {
         let _ = writeln!(s, "# {}", h.replace('\n', " "));
     }
-    let _ = writeln!(s, "# {} steps, {} measurements; joints in rad", path.steps.len(), path.measurements());
+    let _ = writeln!(s, "# {}; joints in rad", count_line(path));
+    let (lv, la) = (settings.urscript_linear_speed_m_s, settings.urscript_linear_accel_m_s2);
+    if path.steps.iter().any(|st| st.kind == StepKind::MoveLinear)
+        && !(lv.is_finite() && lv > 0.0 && lv <= 5.0 && la.is_finite() && la > 0.0 && la <= 50.0)
+    {
+        return Err(RobotError::Safety(format!(
+            "program settings: urscript_linear_speed_m_s must be in (0, 5] and urscript_linear_accel_m_s2 in (0, 50]; got {lv} and {la}"
+        )));
+    }
     let _ = writeln!(s, "def {}():", settings.urscript_name);
     let mut n_meas = 0;
     for (k, st) in path.steps.iter().enumerate() {
@@ -468,13 +541,26 @@ pub fn urscript<R: SafetyBody + ?Sized>(
                 .enumerate()
                 .map(|(j, x)| finite_joint(*x, k, j).map(|x| format!("{x:.7}")))
                 .collect::<Result<_>>()?;
-        let _ = writeln!(s, "  movej([{}], a={a:.3}, v={v:.3})  # step {}: {}", q.join(", "), k + 1, step_label(st));
-        if st.kind == StepKind::Measure {
-            n_meas += 1;
-            let _ = writeln!(s, "  sleep({dwell_s:.2})  # measurement {n_meas}");
-            if let Some(t) = &settings.urscript_trigger {
-                let _ = writeln!(s, "  {t}");
+        if st.kind == StepKind::MoveLinear {
+            // movel takes joint positions too: the target is their forward kinematics.
+            let _ =
+                writeln!(s, "  movel([{}], a={la:.3}, v={lv:.3})  # step {}: {}", q.join(", "), k + 1, step_label(st));
+        } else {
+            let _ =
+                writeln!(s, "  movej([{}], a={a:.3}, v={v:.3})  # step {}: {}", q.join(", "), k + 1, step_label(st));
+        }
+        match after_move(st, dwell_s) {
+            AfterMove::Measure => {
+                n_meas += 1;
+                let _ = writeln!(s, "  sleep({dwell_s:.2})  # measurement {n_meas}");
+                if let Some(t) = &settings.urscript_trigger {
+                    let _ = writeln!(s, "  {t}");
+                }
             }
+            AfterMove::Dwell => {
+                let _ = writeln!(s, "  sleep({dwell_s:.2})  # dwell");
+            }
+            AfterMove::Nothing => {}
         }
     }
     let _ = writeln!(s, "end");
@@ -510,12 +596,7 @@ pub fn krl<R: SafetyBody + ?Sized>(
     for h in header {
         let _ = writeln!(s, "; {}", h.replace('\n', " "));
     }
-    let _ = writeln!(
-        s,
-        "; {} steps, {} measurements; axes in deg (revolute) and mm (linear)",
-        path.steps.len(),
-        path.measurements()
-    );
+    let _ = writeln!(s, "; {}; axes in deg (revolute) and mm (linear)", count_line(path));
     let _ = writeln!(s, "BAS (#INITMOV,0 )");
     let _ = writeln!(s, "FOR I=1 TO 6");
     let _ = writeln!(s, "  $VEL_AXIS[I]={vel:.0}");
@@ -528,13 +609,23 @@ pub fn krl<R: SafetyBody + ?Sized>(
             let name = if j < 6 { format!("A{}", j + 1) } else { format!("E{}", j - 5) };
             words.push(format!("{name} {u:.4}"));
         }
-        let _ = writeln!(s, "PTP {{AXIS: {}}} ; step {}: {}", words.join(", "), k + 1, step_label(st));
-        if st.kind == StepKind::Measure {
-            n_meas += 1;
-            let _ = writeln!(s, "WAIT SEC {dwell_s:.2} ; measurement {n_meas}");
-            if let Some(t) = &settings.krl_trigger {
-                let _ = writeln!(s, "{t}");
+        let mut what = step_label(st);
+        if st.kind == StepKind::MoveLinear {
+            what.push_str(LINEAR_AS_JOINT);
+        }
+        let _ = writeln!(s, "PTP {{AXIS: {}}} ; step {}: {what}", words.join(", "), k + 1);
+        match after_move(st, dwell_s) {
+            AfterMove::Measure => {
+                n_meas += 1;
+                let _ = writeln!(s, "WAIT SEC {dwell_s:.2} ; measurement {n_meas}");
+                if let Some(t) = &settings.krl_trigger {
+                    let _ = writeln!(s, "{t}");
+                }
             }
+            AfterMove::Dwell => {
+                let _ = writeln!(s, "WAIT SEC {dwell_s:.2} ; dwell");
+            }
+            AfterMove::Nothing => {}
         }
     }
     let _ = writeln!(s, "END");

@@ -154,6 +154,13 @@ pub enum StepKind {
     Measure,
     /// A via configuration around an obstacle.
     Via,
+    /// A move of a user's program (e.g. a corrected command of `ferrocal correct`), joint
+    /// interpolation; no measurement is made there.
+    Move,
+    /// A move of a user's program that the program asked to be linear in the tool (URScript
+    /// `movel`); writers without a joint-target linear move write it with joint interpolation
+    /// and say so in the step's comment.
+    MoveLinear,
 }
 
 /// One configuration of the path.
@@ -167,6 +174,9 @@ pub struct PathStep {
     pub pose: Option<usize>,
     /// Sign of every joint's last motion into this configuration (`1`, `-1`, `0`).
     pub dir: Vec<i8>,
+    /// The user's name of the step (a program's pose id), written in the programs' comments.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub label: Option<String>,
 }
 
 /// A checked path.
@@ -194,6 +204,11 @@ impl PlannedPath {
     /// Number of measurements.
     pub fn measurements(&self) -> usize {
         self.steps.iter().filter(|s| s.kind == StepKind::Measure).count()
+    }
+
+    /// Number of moves of a user's program ([`StepKind::Move`], [`StepKind::MoveLinear`]).
+    pub fn program_moves(&self) -> usize {
+        self.steps.iter().filter(|s| matches!(s.kind, StepKind::Move | StepKind::MoveLinear)).count()
     }
 }
 
@@ -563,7 +578,7 @@ pub fn plan_path<R: SafetyBody + ?Sized>(
                 for v in vias {
                     let prev = steps.last().map(|s| s.q.clone()).unwrap_or_default();
                     let dir = v.iter().zip(&prev).map(|(x, y)| sign(x - y)).collect();
-                    steps.push(PathStep { q: v, kind: StepKind::Via, pose: None, dir });
+                    steps.push(PathStep { q: v, kind: StepKind::Via, pose: None, dir, label: None });
                 }
             }
         }
@@ -571,7 +586,7 @@ pub fn plan_path<R: SafetyBody + ?Sized>(
             Some(prev) => q.iter().zip(&prev.q).map(|(x, y)| sign(x - y)).collect(),
             None => vec![0; n_j],
         };
-        steps.push(PathStep { q: q.clone(), kind: *kind, pose: *pose, dir });
+        steps.push(PathStep { q: q.clone(), kind: *kind, pose: *pose, dir, label: None });
     }
     // Measurements repeated at the same configuration keep the direction of their approach.
     let travel_s = steps.windows(2).map(|w| metric(&w[0].q, &w[1].q, &speed)).sum();
@@ -635,7 +650,7 @@ mod tests {
     #[test]
     fn program_writers_refuse_bad_settings_by_name() {
         let model = crate::RobotModel::Serial(crate::presets::ur5());
-        let step = PathStep { q: vec![0.1; 6], kind: StepKind::Measure, pose: Some(0), dir: vec![0; 6] };
+        let step = PathStep { q: vec![0.1; 6], kind: StepKind::Measure, pose: Some(0), dir: vec![0; 6], label: None };
         let path = PlannedPath {
             steps: vec![step],
             order: vec![0],
@@ -664,7 +679,13 @@ mod tests {
             &[0.0; 3],
         ));
         let short = PlannedPath {
-            steps: vec![PathStep { q: vec![0.0; 3], kind: StepKind::Measure, pose: Some(0), dir: vec![0; 3] }],
+            steps: vec![PathStep {
+                q: vec![0.0; 3],
+                kind: StepKind::Measure,
+                pose: Some(0),
+                dir: vec![0; 3],
+                label: None,
+            }],
             ..path.clone()
         };
         assert!(err(urscript(&three, &short, 0.0, &ok, &[])).contains("URScript moves six revolute joints"));

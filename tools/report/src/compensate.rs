@@ -108,9 +108,11 @@ pub fn correct_verdict(
     run: &ferrocal_datasets::correct::CorrectRun,
     out: &Path,
     calibration: &Path,
+    linear_as_joint: &[&Path],
 ) -> ferrocal_calib::verdict::Verdict {
     let l = &t.export;
     let largest = run.removed_mm.iter().copied().fold(0.0, f64::max);
+    let linear: Vec<String> = linear_as_joint.iter().map(|p| p.display().to_string()).collect();
     let checks = vec![
         ferrocal_calib::verdict::Check::at_most(
             "correct.residual_mm",
@@ -128,9 +130,19 @@ pub fn correct_verdict(
             l.correction_mm_warn,
             l.correction_mm_fail,
         ),
+        ferrocal_calib::verdict::Check::flag(
+            "correct.linear_as_joint",
+            &format!("linear moves of the program written with joint interpolation in {}", linear.join(", ")),
+            "every move written as the program asks",
+            !linear.is_empty(),
+        ),
     ];
     ferrocal_calib::verdict::Verdict::with_next(checks, |c| {
         match c.map(|c| c.name.as_str()) {
+        Some("correct.linear_as_joint") => format!(
+            "the end points are corrected, but the path between them is not straight in {}: teach those moves as linear on the controller from the corrected end points, or write --urscript (movel)",
+            linear.join(", ")
+        ),
         None => format!("run {} on the robot and measure a few of its poses to confirm", out.display()),
         Some("correct.correction_mm") => format!(
             "the corrections are large: check that {} was made for this robot and frame (ferrocal evaluate on a recent table) before running the program",

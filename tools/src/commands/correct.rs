@@ -19,7 +19,8 @@ pub struct CorrectArgs {
     #[arg(long)]
     pub calibration: std::path::PathBuf,
     /// The program's joint commands: `pose_id`, `q1_<u>` ... (rad, deg, m, mm), optionally the
-    /// conditions the effects see (`dir<i>`, `temp_c`, `payload_kg`, `t_s`).
+    /// conditions the effects see (`dir<i>`, `temp_c`, `payload_kg`, `t_s`) and `motion` (`joint`
+    /// or `linear` per command; joint without the column).
     #[arg(long)]
     pub program: std::path::PathBuf,
     /// The corrected commands (CSV, the program's joint units), with per pose the error the
@@ -29,13 +30,15 @@ pub struct CorrectArgs {
     /// Match positions only (the smallest joint change that does), not orientations.
     #[arg(long)]
     pub positions_only: bool,
-    /// Also write the corrected program as an ABB RAPID module (`MoveAbsJ` per command).
+    /// Also write the corrected program as an ABB RAPID module (`MoveAbsJ` per command, named by
+    /// its pose id).
     #[arg(long, value_name = "FILE.mod")]
     pub rapid: Option<std::path::PathBuf>,
     /// Also write it as G-code (one axis letter per joint, `G1` per command).
     #[arg(long, value_name = "FILE.ngc")]
     pub gcode: Option<std::path::PathBuf>,
-    /// Also write it as a Universal Robots URScript (`movej` per command; six revolute joints).
+    /// Also write it as a Universal Robots URScript (`movej` per command, `movel` where the
+    /// program asks for a linear move; six revolute joints).
     #[arg(long, value_name = "FILE.script")]
     pub urscript: Option<std::path::PathBuf>,
     /// Also write it as a KUKA KRL program (`PTP {AXIS: ..}` per command); the `DEF` name is the
@@ -68,6 +71,8 @@ pub fn run(a: &CorrectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         println!("corrected program written to {}", path.display());
     }
     println!("{}", run.summary_line(&a.out));
-    let verdict = ferrocal_report::compensate::correct_verdict(&vs.thresholds, &run, &a.out, &a.calibration);
+    let linear_as_joint = run.linear_as_joint(&outputs);
+    let verdict =
+        ferrocal_report::compensate::correct_verdict(&vs.thresholds, &run, &a.out, &a.calibration, &linear_as_joint);
     Ok(vs.conclude(&verdict))
 }
