@@ -150,3 +150,57 @@ pub fn check_safety(
     }
     Ok(ok)
 }
+
+/// The names of the joints without both limits (which `robot fk`, `plan` and the safety checks
+/// cannot hold to a range).
+pub fn unlimited_joints(model: &RobotModel) -> Vec<String> {
+    model
+        .joint_names()
+        .into_iter()
+        .zip(model.joint_limits())
+        .filter(|(_, l)| !(l.lower.is_finite() && l.upper.is_finite()))
+        .map(|(n, _)| n)
+        .collect()
+}
+
+/// The distance of every limited joint of `q` from its nearer limit, a fraction of its range
+/// (joint name, fraction; 0 for a joint whose range is empty).
+pub fn limit_margins(model: &RobotModel, q: &[f64]) -> Vec<(String, f64)> {
+    model
+        .joint_names()
+        .into_iter()
+        .zip(model.joint_limits())
+        .zip(q)
+        .filter(|((_, l), _)| l.lower.is_finite() && l.upper.is_finite())
+        .map(|((n, l), v)| {
+            let range = l.upper - l.lower;
+            (n, if range > 0.0 { (v - l.lower).min(l.upper - v) / range } else { 0.0 })
+        })
+        .collect()
+}
+
+/// Inverse kinematics of `target` from `seed`: the joints and how closely they reach it, or no
+/// solution with the reason (not converged, unreachable, outside the limits); other errors are
+/// errors.
+pub fn solve_ik(
+    model: &RobotModel,
+    target: &Isometry3<f64>,
+    seed: &[f64],
+) -> Result<(Option<Vec<f64>>, ferrocal_calib::verdict::commands::IkOutcome)> {
+    use ferrocal_calib::verdict::commands::IkOutcome;
+    use ferrocal_robot::RobotError;
+    match model.inverse(target, seed) {
+        Ok(q) => {
+            let reached = model.forward(&q)?;
+            let outcome = IkOutcome::Solved {
+                position_mm: (reached.translation.vector - target.translation.vector).norm() * 1e3,
+                orientation_deg: reached.rotation.angle_to(&target.rotation).to_degrees(),
+            };
+            Ok((Some(q), outcome))
+        }
+        Err(
+            e @ (RobotError::IkNotConverged { .. } | RobotError::Unreachable { .. } | RobotError::OutsideLimits { .. }),
+        ) => Ok((None, IkOutcome::NoSolution(e.to_string()))),
+        Err(e) => Err(e.into()),
+    }
+}

@@ -433,6 +433,37 @@ pub fn print_fit(f: &ferrocal_lsq::linear::LinearFit) {
     println!("s0 = {:.4}, {} equations, redundancy {}, cond = {:.3e}", f.s0, f.n_rows, f.dof, f.condition_number);
 }
 
+/// The verdict of `dynamics simulate`: the rows written (stream samples; static poses for the
+/// platform) and the `dynamics identify` command that reads them back (`--period-samples` for
+/// the 4 s excitation when it repeats).
+pub fn simulate_verdict(
+    tables: &[(&str, String)],
+    out: &std::path::Path,
+    hexapod: bool,
+    periods: usize,
+    rate_hz: f64,
+) -> ferrocal_calib::verdict::Verdict {
+    // Rows of a table (its header and comment lines aside), 0 when it was not written.
+    let rows = |name: &str| {
+        tables
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map_or(0, |(_, t)| t.lines().filter(|l| !l.starts_with('#')).count().saturating_sub(1))
+    };
+    let mut counts = vec![("stream samples", rows("legs.csv"))];
+    if !hexapod {
+        counts.push(("static poses", rows("static.csv")));
+    }
+    let next = format!(
+        "identify from it: ferrocal dynamics identify --legs {legs} --forces {forces}{model}{per}",
+        legs = out.join("legs.csv").display(),
+        forces = out.join("forces.csv").display(),
+        model = if hexapod { " --model hexapod" } else { "" },
+        per = if periods >= 2 { format!(" --period-samples {}", (4.0 * rate_hz).round()) } else { String::new() }
+    );
+    ferrocal_calib::verdict::commands::simulated("dynamics", &counts, &next)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -34,25 +34,12 @@ pub enum CameraCommand {
     Stereo(StereoArgs),
 }
 
-/// The lens model.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum ModelArg {
-    /// OpenCV's 5 coefficients k1 k2 p1 p2 k3.
-    Brown5,
-    /// OpenCV's rational model, 8 coefficients.
-    Rational8,
-    /// Kannala-Brandt (OpenCV fisheye), 4 coefficients.
-    #[value(name = "kannala_brandt", alias = "kannala-brandt")]
-    KannalaBrandt,
-}
-
-impl ModelArg {
-    fn kind(self) -> DistortionKind {
-        match self {
-            ModelArg::Brown5 => DistortionKind::Brown5,
-            ModelArg::Rational8 => DistortionKind::Rational8,
-            ModelArg::KannalaBrandt => DistortionKind::KannalaBrandt,
-        }
+/// A lens model a camera can be calibrated with, by name ([`DistortionKind::CALIBRATED`]).
+fn lens_model(s: &str) -> Result<DistortionKind> {
+    let names: Vec<&str> = DistortionKind::CALIBRATED.iter().map(|k| k.name()).collect();
+    match s.parse::<DistortionKind>() {
+        Ok(k) if DistortionKind::CALIBRATED.contains(&k) => Ok(k),
+        _ => anyhow::bail!("'{s}' is not a lens model; use one of {}", names.join(", ")),
     }
 }
 
@@ -68,9 +55,10 @@ pub struct SolveArgs {
     /// Keep fx = fy (OpenCV's CALIB_FIX_ASPECT_RATIO with ratio 1).
     #[arg(long)]
     pub fix_aspect: bool,
-    /// Lens model.
-    #[arg(long, value_enum, default_value = "brown5")]
-    pub model: ModelArg,
+    /// Lens model: brown5 (OpenCV's 5 coefficients k1 k2 p1 p2 k3), rational8 (OpenCV's
+    /// rational model, 8 coefficients) or kannala_brandt (OpenCV's fisheye, 4 coefficients).
+    #[arg(long, default_value = "brown5", value_parser = lens_model)]
+    pub model: DistortionKind,
     /// Robust loss of the bundle adjustment: none, huber:<px> or cauchy:<px>.
     #[arg(long, default_value = "none")]
     pub loss: String,
@@ -91,32 +79,8 @@ pub struct SolveArgs {
     /// views, else independent), `independent` (every corner an independent measurement,
     /// s0^2 (J^T J)^-1, as OpenCV), `jackknife` (leave one view out; the corners of a view may
     /// be correlated) or `sandwich` (view-clustered sandwich).
-    #[arg(long, value_enum, default_value = "auto")]
-    pub covariance: CovarianceArg,
-}
-
-/// How the covariance of the camera parameters is computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum CovarianceArg {
-    /// Corners independent.
-    Independent,
-    /// Leave-one-view-out jackknife.
-    Jackknife,
-    /// View-clustered sandwich.
-    Sandwich,
-    /// The jackknife with enough views, else independent.
-    Auto,
-}
-
-impl CovarianceArg {
-    fn method(self) -> CovarianceMethod {
-        match self {
-            CovarianceArg::Independent => CovarianceMethod::Independent,
-            CovarianceArg::Jackknife => CovarianceMethod::ViewJackknife,
-            CovarianceArg::Sandwich => CovarianceMethod::ViewSandwich,
-            CovarianceArg::Auto => CovarianceMethod::Auto,
-        }
-    }
+    #[arg(long, default_value = "auto", value_parser = CovarianceMethod::parse)]
+    pub covariance: CovarianceMethod,
 }
 
 /// Where the chessboard corners come from.
@@ -159,11 +123,11 @@ impl SolveArgs {
     fn options(&self) -> Result<(CalibrationPattern, CalibrationOptions)> {
         let pattern: CalibrationPattern = self.pattern.parse()?;
         let options = CalibrationOptions {
-            model: self.model.kind(),
+            model: self.model,
             fix_aspect: self.fix_aspect,
             loss: RobustLoss::parse(&self.loss)?,
             reject_outliers: self.reject_outliers,
-            covariance: self.covariance.method(),
+            covariance: self.covariance,
             ..CalibrationOptions::default()
         };
         options.validate()?;

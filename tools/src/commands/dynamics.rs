@@ -218,26 +218,8 @@ fn run_simulate(a: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     tables.iter().for_each(|(name, text)| files.text(&a.out.join(name), text.as_str()));
     files.write()?;
     println!("wrote {}", a.out.display());
-    // Rows of a table (its header and comment lines aside), 0 when it was not written.
-    let rows = |name: &str| {
-        tables
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map_or(0, |(_, t)| t.lines().filter(|l| !l.starts_with('#')).count().saturating_sub(1))
-    };
-    let mut counts = vec![("stream samples", rows("legs.csv"))];
-    if a.rig == RigArg::Platform {
-        counts.push(("static poses", rows("static.csv")));
-    }
-    let next = format!(
-        "identify from it: ferrocal dynamics identify --legs {legs} --forces {forces}{model}{per}",
-        legs = a.out.join("legs.csv").display(),
-        forces = a.out.join("forces.csv").display(),
-        model = if a.rig == RigArg::Hexapod { " --model hexapod" } else { "" },
-        // The excitation's period is 4 s: its samples weigh by the noise of the repeats.
-        per = if a.periods >= 2 { format!(" --period-samples {}", (4.0 * a.rate_hz).round()) } else { String::new() }
-    );
-    Ok(vs.conclude(&verdict::simulated("dynamics", &counts, &next)))
+    let hexapod = a.rig == RigArg::Hexapod;
+    Ok(vs.conclude(&ferrocal_report::dynamics::simulate_verdict(&tables, &a.out, hexapod, a.periods, a.rate_hz)))
 }
 
 fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {

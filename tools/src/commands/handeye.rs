@@ -10,7 +10,6 @@ use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_calib::handeye::opencv::best_baseline;
 use ferrocal_calib::handeye::Mount;
-use ferrocal_calib::verdict::commands::CoverageFigures;
 use ferrocal_datasets::handeye::{
     check_simulated_images, coverage_study, huber_sigmas_of_loss, run_inputs, write_simulated_recording, HandEyeInput,
     HandEyeRunOptions,
@@ -258,17 +257,7 @@ fn run_study(s: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     for r in &rows {
         println!("{}", ferrocal_report::handeye::coverage_line(r));
     }
-    let figures: Vec<CoverageFigures> = rows
-        .iter()
-        .map(|r| CoverageFigures {
-            mount: r.mount.name().to_string(),
-            runs: r.n_runs,
-            failed: r.n_failed,
-            translation: r.translation_coverage_3sigma,
-            rotation: r.rotation_coverage_3sigma,
-        })
-        .collect();
-    let v = ferrocal_calib::verdict::commands::handeye_study(&vs.thresholds, &figures);
+    let v = ferrocal_report::handeye::study_verdict(&vs.thresholds, &rows);
     if let Some(p) = &s.json {
         let mut j = study_json(s.simulations, s.seed, mode, &rows);
         ferrocal_report::verdict::add_verdict(&mut j, &v);

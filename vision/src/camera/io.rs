@@ -65,11 +65,7 @@ fn k_matrix(camera: &CameraModel) -> [f64; 9] {
 }
 
 fn ros_model_name(kind: DistortionKind) -> &'static str {
-    match kind {
-        DistortionKind::None | DistortionKind::Brown5 => "plumb_bob",
-        DistortionKind::Rational8 => "rational_polynomial",
-        DistortionKind::KannalaBrandt => "equidistant",
-    }
+    kind.ros_name()
 }
 
 /// The OpenCV FileStorage YAML text of a camera.

@@ -68,6 +68,37 @@ pub enum DistortionKind {
 }
 
 impl DistortionKind {
+    /// The lens models a camera can be calibrated with (every kind but the ideal pinhole).
+    pub const CALIBRATED: [DistortionKind; 3] =
+        [DistortionKind::Brown5, DistortionKind::Rational8, DistortionKind::KannalaBrandt];
+
+    /// The model's name on the command line and in the project's files (`none`, `brown5`,
+    /// `rational8`, `kannala_brandt`; serde's name).
+    pub fn name(self) -> &'static str {
+        match self {
+            DistortionKind::None => "none",
+            DistortionKind::Brown5 => "brown5",
+            DistortionKind::Rational8 => "rational8",
+            DistortionKind::KannalaBrandt => "kannala_brandt",
+        }
+    }
+
+    /// The model's other names (ROS `distortion_model`, OpenCV's): read, never written except
+    /// the ROS one, the first ([`DistortionKind::ros_name`]).
+    pub fn aliases(self) -> &'static [&'static str] {
+        match self {
+            DistortionKind::None => &[],
+            DistortionKind::Brown5 => &["plumb_bob"],
+            DistortionKind::Rational8 => &["rational_polynomial"],
+            DistortionKind::KannalaBrandt => &["equidistant", "fisheye", "kannala-brandt"],
+        }
+    }
+
+    /// The ROS `camera_info` `distortion_model` of the model (`plumb_bob` for the pinhole).
+    pub fn ros_name(self) -> &'static str {
+        self.aliases().first().copied().unwrap_or("plumb_bob")
+    }
+
     /// Names of the coefficients, in OpenCV order.
     pub fn coefficient_names(self) -> &'static [&'static str] {
         match self {
@@ -76,6 +107,19 @@ impl DistortionKind {
             DistortionKind::Rational8 => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
             DistortionKind::KannalaBrandt => &["k1", "k2", "k3", "k4"],
         }
+    }
+}
+
+impl std::str::FromStr for DistortionKind {
+    type Err = VisionError;
+
+    /// A model by its name or one of its aliases (see [`DistortionKind::name`]).
+    fn from_str(s: &str) -> Result<Self> {
+        let all =
+            [DistortionKind::None, DistortionKind::Brown5, DistortionKind::Rational8, DistortionKind::KannalaBrandt];
+        all.into_iter()
+            .find(|k| k.name() == s || k.aliases().contains(&s))
+            .ok_or_else(|| VisionError::UnsupportedDistortion { model: s.to_string(), count: 0 })
     }
 }
 

@@ -209,3 +209,19 @@ pub fn handeye_outputs(
     }
     Ok(out)
 }
+
+/// The verdict of `handeye study`: per mount, the runs, the failures and the 3-sigma coverage of
+/// the translation and rotation errors.
+pub fn study_verdict(t: &ferrocal_calib::verdict::Thresholds, rows: &[CoverageSummary]) -> Verdict {
+    let figures: Vec<ferrocal_calib::verdict::commands::CoverageFigures> = rows
+        .iter()
+        .map(|r| ferrocal_calib::verdict::commands::CoverageFigures {
+            mount: r.mount.name().to_string(),
+            runs: r.n_runs,
+            failed: r.n_failed,
+            translation: r.translation_coverage_3sigma,
+            rotation: r.rotation_coverage_3sigma,
+        })
+        .collect();
+    ferrocal_calib::verdict::commands::handeye_study(t, &figures)
+}
