@@ -37,6 +37,12 @@
 //! `ferrocal evaluate` reads: the device frame is `W^-1` (`T_camera_base` eye-to-hand,
 //! `T_target_base` eye-in-hand) and the tool `X` (the target's origin, or the camera, on the
 //! flange), orientation calibrated.
+//!
+//! # Rigs
+//! [`rig::calibrate_joint_rig`] poses the same problem with N cameras: camera 0 is the
+//! reference above, each further camera `k` adds its own camera block and `T_camk_cam0`, and
+//! its corners go through the same corner residual with the point carried into camera `k`. With
+//! one camera it is this module's problem, block for block.
 
 use std::sync::Arc;
 

@@ -67,23 +67,6 @@ pub struct RigJointCalibration {
     pub cameras: Vec<RigCamera>,
 }
 
-impl RigJointCalibration {
-    /// The held-out chain RMS over every camera's held-out corners, pixels (`None` without
-    /// held-out images).
-    pub fn heldout_rms_px(&self) -> Option<f64> {
-        let figures = std::iter::once(&self.reference.figures).chain(self.cameras.iter().map(|c| &c.figures));
-        let (mut sum, mut n) = (0.0, 0usize);
-        for f in figures {
-            for v in f.views.iter().filter(|v| v.split == crate::measurement::Split::Test && v.rms_px.is_finite()) {
-                let k = v.n_corners - v.n_unprojected;
-                sum += v.rms_px.powi(2) * k as f64;
-                n += k;
-            }
-        }
-        (n > 0).then(|| (sum / n as f64).sqrt())
-    }
-}
-
 /// The joint adjustment of a rig: `data[k]` is camera `k`'s recording (camera 0 the
 /// reference; every camera the same mount and target), `joints[k]` the joint readings of its
 /// views (one per view, model order; the views' `t_base_flange` are not used). See the module
