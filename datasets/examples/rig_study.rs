@@ -47,7 +47,7 @@ fn main() {
                     .map(|(mm, deg, z)| format!("{mm:.3} mm {deg:.4} deg ({z:.2} sigma)"))
                     .collect();
                 println!(
-                    "{:>4} | {:>9} | {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} | {:>6.2} {:>6.2} | {:>4}/{:<4} {:>6.2} | {:>6.3}  ({:.1} s; {} shared; model error tracker {:.4}, rig {:.4}, best single {:.4} mm; T_cam1_cam0 error {})",
+                    "{:>4} | {:>9} | {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} | {:>6.2} {:>6.2} | {:>4}/{:<4} {:>6.2} | {:>6.3}  ({:.1} s; {} shared; model error tracker {:.4}, rig {:.4} (noise-free {:.4}), best single {:.4} mm; T_cam1_cam0 error {})",
                     r.seed,
                     images.join("/"),
                     r.tracker.rms_mm,
@@ -65,6 +65,7 @@ fn main() {
                     r.n_shared,
                     r.tracker_model_rms_mm,
                     r.rig_model_rms_mm,
+                    r.rig_noise_free_model_rms_mm,
                     r.best_single_model_rms_mm(),
                     transform.join(", "),
                 );

@@ -168,6 +168,9 @@ pub struct RigStudyRun {
     pub tracker_model_rms_mm: f64,
     /// The same for the rig.
     pub rig_model_rms_mm: f64,
+    /// The same for the rig adjustment of the noise-free corners (the truth in its gauge): near
+    /// zero when the model reaches the truth from these starts.
+    pub rig_noise_free_model_rms_mm: f64,
     /// The same for each camera alone.
     pub single_model_rms_mm: Vec<Option<f64>>,
     /// The rig's free robot parameters against the truth in its gauge.
@@ -356,6 +359,7 @@ pub fn run_rig_study(config: &RigStudyConfig, seed: u64) -> Result<RigStudyRun> 
         single,
         tracker_model_rms_mm: model_rms_mm(&tracker_cal.calibrated)?,
         rig_model_rms_mm: model_rms_mm(&rig_model)?,
+        rig_noise_free_model_rms_mm: model_rms_mm(&through_file(&truth_gauge.reference, robot, &nominal)?)?,
         single_model_rms_mm,
         rig_coverage: coverage(&rig.reference.params, &truth_gauge.reference.params),
         rig_raw_coverage: coverage_raw(&rig.reference.params, &truth_values),
