@@ -37,27 +37,43 @@
 //! `ferrocal evaluate` reads: the device frame is `W^-1` (`T_camera_base` eye-to-hand,
 //! `T_target_base` eye-in-hand) and the tool `X` (the target's origin, or the camera, on the
 //! flange), orientation calibrated.
+//!
+//! # Rigs
+//! [`rig::calibrate_joint_rig`] poses the same problem with N cameras: camera 0 is the
+//! reference above, each further camera `k` adds its own camera block and `T_camk_cam0`, and
+//! its corners go through the same corner residual with the point carried into camera `k`. With
+//! one camera it is this module's problem, block for block.
 
 use std::sync::Arc;
 
-use nalgebra::{DMatrix, Isometry3, Matrix2, Matrix6, Point2, Point3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, Isometry3, Matrix2, Matrix6};
 use serde::Serialize;
 
-use ferrocal_lsq::{so3, BlockId, Loss, LsqError, Problem, Residual};
-use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
+use ferrocal_lsq::{BlockId, Loss, LsqError, Problem, Se3};
+use ferrocal_robot::{Kinematics, RobotModel};
 use ferrocal_vision::camera::CameraModel;
 
 use super::evaluate::{chain_figures, Chain, ChainFigures};
 use super::refine::pnp_poses;
-use super::residual::{camera_with, chain_point, whitening};
+use super::residual::{camera_with, whitening};
 use super::{calibrate_hand_eye, HandEyeData, HandEyeOptions, HandEyeResult, Mount, TransformEstimate};
 use crate::error::{CalibError, Result};
 use crate::file::CalibrationFile;
+#[cfg(test)]
 use crate::frames::exp6;
 use crate::kinematic::{identifiable_candidates, CalibratedModel, KinematicOptions, ParamResult, StateLayout};
 use crate::measurement::{PoseMeasurement, Split};
+use corner::{RigCorner, RobotCorner};
+#[cfg(test)]
+use ferrocal_robot::Parameterized;
+use maps::{FrameMap, RobotMap};
+#[cfg(test)]
+use nalgebra::{Point2, Point3, Vector3};
 use subspace::Subspace;
 
+mod corner;
+mod maps;
+pub mod rig;
 mod subspace;
 
 /// Options of [`calibrate_joint`].
@@ -145,233 +161,51 @@ impl JointCalibration {
     }
 }
 
-/// How the free robot coordinates map onto the model.
-struct RobotMap {
-    model: RobotModel,
-    /// `(robot block coordinate, index in the model's parameter vector)`.
-    model_cols: Vec<(usize, usize)>,
-    /// `(robot block coordinate, joint)`.
-    offset_cols: Vec<(usize, usize)>,
-    n: usize,
+/// One camera's part of the joint problem: its recording and the joint readings of its views
+/// (camera 0, the reference, first).
+pub(super) struct CamInput<'a> {
+    pub(super) data: &'a HandEyeData,
+    pub(super) joints: &'a [Vec<f64>],
 }
 
-impl RobotMap {
-    /// The model with the block's values and the effective joints.
-    fn apply(&self, v: &[f64], q: &[f64]) -> ferrocal_lsq::Result<(RobotModel, Vec<f64>)> {
-        let mut m = self.model.clone();
-        if !self.model_cols.is_empty() {
-            let mut vals = m.parameter_values();
-            for &(k, pi) in &self.model_cols {
-                vals[pi] = v[k];
-            }
-            m.set_parameter_values(&vals).map_err(LsqError::model)?;
-        }
-        let mut qq = q.to_vec();
-        for &(k, j) in &self.offset_cols {
-            qq[j] += v[k];
-        }
-        Ok((m, qq))
-    }
-
-    /// `FK(q + dq; θ)` and its derivative (6 x n, rows `[dt; dw]` in the base frame, the
-    /// product chart of [`ferrocal_lsq::Se3`]: `t' = t + dt`, `R' = Exp(dw) R`) with respect to the block's
-    /// coordinates: analytic for joint offsets and serial corrections, central differences
-    /// for other model parameters.
-    fn pose_jacobian(&self, v: &[f64], q: &[f64]) -> ferrocal_lsq::Result<(Isometry3<f64>, DMatrix<f64>)> {
-        let (m, qq) = self.apply(v, q)?;
-        let t = m.forward(&qq).map_err(LsqError::model)?;
-        let p = t.translation.vector;
-        let mut jac = DMatrix::zeros(6, self.n);
-        let mut put = |col: usize, dt: Vector3<f64>, dw: Vector3<f64>| {
-            jac.fixed_view_mut::<3, 1>(0, col).copy_from(&dt);
-            jac.fixed_view_mut::<3, 1>(3, col).copy_from(&dw);
-        };
-        if !self.offset_cols.is_empty() {
-            let jg = m.jacobian(&qq).map_err(LsqError::model)?;
-            for &(k, j) in &self.offset_cols {
-                put(
-                    k,
-                    Vector3::new(jg[(0, j)], jg[(1, j)], jg[(2, j)]),
-                    Vector3::new(jg[(3, j)], jg[(4, j)], jg[(5, j)]),
-                );
-            }
-        }
-        let names = self.model.parameters();
-        let frames = match &m {
-            RobotModel::Serial(chain) => Some((chain, chain.frames(&qq).map_err(LsqError::model)?)),
-            _ => None,
-        };
-        for &(k, pi) in &self.model_cols {
-            let name = &names[pi].name;
-            let corr = frames.as_ref().and_then(|(chain, fr)| {
-                let joint = chain.joint_of_parameter(name)?;
-                let comp =
-                    ferrocal_robot::serial::CORRECTION_NAMES.iter().position(|c| name.ends_with(&format!(".{c}")))?;
-                let c = chain.joints.get(joint)?.correction;
-                let cr = Vector3::new(c[3], c[4], c[5]);
-                let link = fr.links[joint];
-                let r_a = link.rotation * UnitQuaternion::from_scaled_axis(cr).inverse();
-                Some(if comp < 3 {
-                    (r_a * Vector3::ith(comp, 1.0), Vector3::zeros())
-                } else {
-                    let w = r_a * so3::left_jacobian(&cr).column(comp - 3).into_owned();
-                    (w.cross(&(p - link.translation.vector)), w)
-                })
-            });
-            let (dt, dw) = match corr {
-                Some(d) => d,
-                None => {
-                    let h = 1e-7;
-                    let mut vp = v.to_vec();
-                    vp[k] += h;
-                    let (mp, qp) = self.apply(&vp, q)?;
-                    let tp = mp.forward(&qp).map_err(LsqError::model)?;
-                    vp[k] -= 2.0 * h;
-                    let (mm, qm) = self.apply(&vp, q)?;
-                    let tm = mm.forward(&qm).map_err(LsqError::model)?;
-                    (
-                        (tp.translation.vector - tm.translation.vector) / (2.0 * h),
-                        (tp.rotation * tm.rotation.inverse()).scaled_axis() / (2.0 * h),
-                    )
-                }
-            };
-            put(k, dt, dw);
-        }
-        Ok((t, jac))
-    }
+/// A further camera `k` of a rig as the core solve returns it.
+pub(super) struct OtherCamera {
+    pub(super) camera: CameraModel,
+    pub(super) camera_std: Vec<f64>,
+    /// `T_camk_cam0` with its covariance (the `Se3` block's tangent `[t, r]`).
+    pub(super) t_cam_cam0: TransformEstimate,
+    pub(super) figures: ChainFigures,
 }
 
-/// The device frame's increment `f` and the tool's `t` as in the kinematic calibration
-/// (`F = exp6(f) F0`, `X = X0 exp6(t)`), with `W = F^-1`, and the derivatives of `W` and `X` in
-/// the [`ferrocal_lsq::Se3`] chart with respect to `f` and `t` (6 x 6 each).
-struct FrameMap {
-    f0: Isometry3<f64>,
-    x0: Isometry3<f64>,
-    /// The free coordinates of `f` (the block's tangent; a residual's Jacobian has these columns).
-    frame_free: Vec<usize>,
-    /// The free coordinates of `t`.
-    tool_free: Vec<usize>,
-}
-
-impl FrameMap {
-    fn w_and_x(&self, f: &[f64], t: &[f64]) -> (Isometry3<f64>, Isometry3<f64>) {
-        ((exp6(f) * self.f0).inverse(), self.x0 * exp6(t))
-    }
-
-    /// `(dW/df, dX/dt)` in the `Se3` chart.
-    fn jacobians(&self, f: &[f64], t: &[f64]) -> (Matrix6<f64>, Matrix6<f64>) {
-        let big_f = exp6(f) * self.f0;
-        let rf = big_f.rotation.to_rotation_matrix().into_inner();
-        let tf = big_f.translation.vector;
-        let jl_f = so3::left_jacobian(&Vector3::new(f[3], f[4], f[5]));
-        // F in its chart: dt_F = df_t + (J_l df_r) x (t_F - f_t), dr_F = J_l df_r.
-        let mut m_f = Matrix6::identity();
-        let lever = tf - Vector3::new(f[0], f[1], f[2]);
-        m_f.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-lever.cross_matrix() * jl_f));
-        m_f.fixed_view_mut::<3, 3>(3, 3).copy_from(&jl_f);
-        // W = F^-1: dt_W = -R^T dt_F - R^T [t_F]x dr_F, dr_W = -R^T dr_F.
-        let mut m_inv = Matrix6::zeros();
-        m_inv.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-rf.transpose()));
-        m_inv.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-rf.transpose() * tf.cross_matrix()));
-        m_inv.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-rf.transpose()));
-        // X = X0 exp6(t): dt_X = R0 dt_t, dr_X = R0 J_l(t_r) dr_t.
-        let r0 = self.x0.rotation.to_rotation_matrix().into_inner();
-        let mut m_x = Matrix6::zeros();
-        m_x.fixed_view_mut::<3, 3>(0, 0).copy_from(&r0);
-        m_x.fixed_view_mut::<3, 3>(3, 3).copy_from(&(r0 * so3::left_jacobian(&Vector3::new(t[3], t[4], t[5]))));
-        (m_inv * m_f, m_x)
-    }
-}
-
-/// One corner predicted through the robot's kinematics (see the module documentation). Blocks:
-/// the robot coordinates (Euclidean), the device frame increment `f` and the tool increment `t`
-/// ([`FrameMap`]), the camera (Euclidean).
-struct RobotCorner {
-    map: Arc<RobotMap>,
-    frames: Arc<FrameMap>,
-    mount: Mount,
-    q: Vec<f64>,
-    point_m: Point3<f64>,
-    detected_px: Point2<f64>,
-    whiten: Matrix2<f64>,
-    camera: CameraModel,
-}
-
-impl Residual for RobotCorner {
-    fn n_residuals(&self) -> usize {
-        2
-    }
-
-    fn evaluate(
-        &self,
-        params: &[&[f64]],
-        residuals: &mut [f64],
-        jacobians: Option<&mut [Option<DMatrix<f64>>]>,
-    ) -> ferrocal_lsq::Result<()> {
-        let (w, x) = self.frames.w_and_x(params[1], params[2]);
-        let camera = camera_with(&self.camera, params[3])?;
-        let want_robot = jacobians.as_ref().is_some_and(|j| j[0].is_some());
-        let (t, j_pose) = if want_robot {
-            let (t, j) = self.map.pose_jacobian(params[0], &self.q)?;
-            (t, Some(j))
-        } else {
-            let (m, qq) = self.map.apply(params[0], &self.q)?;
-            (m.forward(&qq).map_err(LsqError::model)?, None)
-        };
-        let c = chain_point(self.mount, &x, &w, &t, 1.0, &self.point_m);
-        let proj = camera.project_with_jacobians(&Point3::from(c.p_cam)).map_err(LsqError::model)?;
-        let r = self.whiten * (proj.pixel - self.detected_px);
-        residuals[0] = r.x;
-        residuals[1] = r.y;
-        let Some(jacs) = jacobians else { return Ok(()) };
-        let sp = self.whiten * proj.d_pixel_d_point;
-        if let (Some(j), Some(jp)) = (&mut jacs[0], &j_pose) {
-            let d = DMatrix::from_column_slice(2, 6, (sp * c.d_robot).as_slice()) * jp;
-            j.copy_from(&d);
-        }
-        let fill = |j: &mut Option<DMatrix<f64>>, m: &[f64]| {
-            if let Some(j) = j {
-                j.copy_from_slice(m);
-            }
-        };
-        let (m_w, m_x) = self.frames.jacobians(params[1], params[2]);
-        let pick = |j: &mut Option<DMatrix<f64>>, full: nalgebra::Matrix2x6<f64>, free: &[usize]| {
-            if let Some(j) = j {
-                for (k, &i) in free.iter().enumerate() {
-                    j[(0, k)] = full[(0, i)];
-                    j[(1, k)] = full[(1, i)];
-                }
-            }
-        };
-        pick(&mut jacs[1], sp * c.d_w * m_w, &self.frames.frame_free);
-        pick(&mut jacs[2], sp * c.d_x * m_x, &self.frames.tool_free);
-        fill(&mut jacs[3], (self.whiten * &proj.d_pixel_d_params).as_slice());
-        Ok(())
-    }
-
-    fn row_names(&self) -> Vec<String> {
-        vec!["x".into(), "y".into()]
+/// The name of camera `k`'s view `name` in the problem (camera 0's views keep their names).
+fn view_key(k: usize, name: &str) -> String {
+    if k == 0 {
+        name.to_string()
+    } else {
+        format!("cam{k}.{name}")
     }
 }
 
 /// The measurement table the parameter selection runs on: every training image's target pose
-/// in the device frame (`W^-1 FK X`) from the hand-eye start, with the options' sigmas.
+/// in the device frame (`W^-1 FK X`, the reference camera's `W`) from the hand-eye start, with
+/// the options' sigmas; the training images of every camera of a rig.
 fn selection_rows(
     model: &RobotModel,
-    data: &HandEyeData,
-    joints: &[Vec<f64>],
+    cams: &[CamInput],
     start: &HandEyeResult,
     opts: &KinematicOptions,
 ) -> Result<Vec<PoseMeasurement>> {
     let w_inv = start.world.transform.inverse();
     let mut rows = Vec::new();
-    for (v, q) in data.views.iter().zip(joints).filter(|(v, _)| v.split == Split::Train) {
-        let t = w_inv * model.forward(q)? * start.hand_eye.transform;
-        let mut r = PoseMeasurement::new(v.name.clone(), q.clone(), t.translation.vector);
-        r.orientation = Some(t.rotation);
-        r.sigma_m = Some(opts.sigma_position_m);
-        r.sigma_rad = Some(opts.sigma_orientation_rad);
-        rows.push(r);
+    for (k, cam) in cams.iter().enumerate() {
+        for (v, q) in cam.data.views.iter().zip(cam.joints).filter(|(v, _)| v.split == Split::Train) {
+            let t = w_inv * model.forward(q)? * start.hand_eye.transform;
+            let mut r = PoseMeasurement::new(view_key(k, &v.name), q.clone(), t.translation.vector);
+            r.orientation = Some(t.rotation);
+            r.sigma_m = Some(opts.sigma_position_m);
+            r.sigma_rad = Some(opts.sigma_orientation_rad);
+            rows.push(r);
+        }
     }
     Ok(rows)
 }
@@ -386,6 +220,8 @@ struct Blocks {
     frame: BlockId,
     tool: BlockId,
     camera: BlockId,
+    /// Per further camera: its camera block and its `T_camk_cam0` block.
+    others: Vec<(BlockId, BlockId)>,
 }
 
 /// What every build of the problem shares.
@@ -393,8 +229,7 @@ struct Setup<'a> {
     map: Arc<RobotMap>,
     frames: Arc<FrameMap>,
     scales: Vec<f64>,
-    data: &'a HandEyeData,
-    joints: &'a [Vec<f64>],
+    cams: &'a [CamInput<'a>],
     options: &'a HandEyeOptions,
 }
 
@@ -404,6 +239,8 @@ struct State {
     frame: Vec<f64>,
     tool: Vec<f64>,
     camera: CameraModel,
+    /// Per further camera: the camera and `T_camk_cam0` (`Se3` values).
+    others: Vec<(CameraModel, Vec<f64>)>,
 }
 
 fn build(setup: &Setup, state: &State, loss: Loss) -> Result<(Problem, Blocks)> {
@@ -422,38 +259,64 @@ fn build(setup: &Setup, state: &State, loss: Loss) -> Result<(Problem, Blocks)> 
     };
     let frame = subspace("device_frame", &state.frame, &setup.frames.frame_free)?;
     let tool = subspace("tool", &state.tool, &setup.frames.tool_free)?;
-    let camera = &state.camera;
-    let cam = p.add_euclidean("camera", camera.parameter_values()).map_err(lsq_error)?;
-    p.set_scales(cam, (0..camera.n_parameters()).map(|i| if i < 4 { 1.0 } else { 1e-3 }).collect())
-        .map_err(lsq_error)?;
+    let add_camera = |p: &mut Problem, name: &str, camera: &CameraModel| -> Result<BlockId> {
+        let cam = p.add_euclidean(name, camera.parameter_values()).map_err(lsq_error)?;
+        p.set_scales(cam, (0..camera.n_parameters()).map(|i| if i < 4 { 1.0 } else { 1e-3 }).collect())
+            .map_err(lsq_error)?;
+        Ok(cam)
+    };
+    let cam = add_camera(&mut p, "camera", &state.camera)?;
     let fallback = whitening(&(Matrix2::identity() * setup.options.fallback_corner_sigma_px.powi(2)))
         .ok_or_else(|| CalibError::Data("the fallback corner sigma must be positive".into()))?;
-    let data = setup.data;
-    for (v, q) in data.views.iter().zip(setup.joints).filter(|(v, _)| v.split == Split::Train) {
-        for ((&id, px), cov) in v.point_ids.iter().zip(&v.corners_px).zip(&v.covariances_px2) {
-            let r = RobotCorner {
-                map: setup.map.clone(),
-                frames: setup.frames.clone(),
-                mount: data.mount,
-                q: q.clone(),
-                point_m: data.target_points_m[id],
-                detected_px: *px,
-                whiten: cov.and_then(|c| whitening(&c)).unwrap_or(fallback),
-                camera: *camera,
-            };
-            p.add_residual(&format!("{}.c{id}", v.name), Box::new(r), &[rb, frame, tool, cam], loss)
+    // Camera 0's corners, then each further camera's blocks and corners.
+    let mut others = Vec::new();
+    for (k, input) in setup.cams.iter().enumerate() {
+        let (camera, rig) = if k == 0 {
+            (state.camera, None)
+        } else {
+            let (camera, t_k0) = &state.others[k - 1];
+            let c = add_camera(&mut p, &format!("camera{k}"), camera)?;
+            let r = p.add_block(&format!("cam{k}_cam0"), t_k0.clone(), Arc::new(Se3)).map_err(lsq_error)?;
+            p.set_scales(r, vec![1e-3; 6]).map_err(lsq_error)?;
+            others.push((c, r));
+            (*camera, Some((c, r)))
+        };
+        let data = input.data;
+        for (v, q) in data.views.iter().zip(input.joints).filter(|(v, _)| v.split == Split::Train) {
+            for ((&id, px), cov) in v.point_ids.iter().zip(&v.corners_px).zip(&v.covariances_px2) {
+                let r = RobotCorner {
+                    map: setup.map.clone(),
+                    frames: setup.frames.clone(),
+                    mount: data.mount,
+                    q: q.clone(),
+                    point_m: data.target_points_m[id],
+                    detected_px: *px,
+                    whiten: cov.and_then(|c| whitening(&c)).unwrap_or(fallback),
+                    camera,
+                };
+                let name = format!("{}.c{id}", view_key(k, &v.name));
+                match rig {
+                    None => p.add_residual(&name, Box::new(r), &[rb, frame, tool, cam], loss),
+                    Some((c, t)) => p.add_residual(&name, Box::new(RigCorner(r)), &[rb, frame, tool, c, t], loss),
+                }
                 .map_err(lsq_error)?;
+            }
         }
     }
-    Ok((p, Blocks { robot: rb, frame, tool, camera: cam }))
+    Ok((p, Blocks { robot: rb, frame, tool, camera: cam, others }))
 }
 
-fn read_back(p: &Problem, b: &Blocks, template: &CameraModel) -> Result<State> {
+fn read_back(p: &Problem, b: &Blocks, templates: &[CameraModel]) -> Result<State> {
+    let mut others = Vec::new();
+    for (&(c, r), template) in b.others.iter().zip(&templates[1..]) {
+        others.push((camera_with(template, &p.block(c).values)?, p.block(r).values.clone()));
+    }
     Ok(State {
         robot: p.block(b.robot).values.clone(),
         frame: p.block(b.frame).values.clone(),
         tool: p.block(b.tool).values.clone(),
-        camera: camera_with(template, &p.block(b.camera).values)?,
+        camera: camera_with(&templates[0], &p.block(b.camera).values)?,
+        others,
     })
 }
 
@@ -476,6 +339,32 @@ fn robust_sigma(p: &Problem) -> Result<f64> {
     Ok(1.4826 * a[a.len() / 2])
 }
 
+/// Checks one camera's joint readings against its views and the model.
+pub(super) fn check_joints(model: &RobotModel, data: &HandEyeData, joints: &[Vec<f64>]) -> Result<()> {
+    if joints.len() != data.views.len() {
+        return Err(CalibError::Data(format!("{} joint readings for {} images", joints.len(), data.views.len())));
+    }
+    if let Some((v, q)) = data.views.iter().zip(joints).find(|(_, q)| q.len() != model.dof()) {
+        return Err(CalibError::Data(format!(
+            "image {}: {} joint values, the model '{}' has {}",
+            v.name,
+            q.len(),
+            model.name(),
+            model.dof()
+        )));
+    }
+    Ok(())
+}
+
+/// `data` with the nominal robot's flange poses at `joints`.
+pub(super) fn with_nominal_poses(model: &RobotModel, data: &HandEyeData, joints: &[Vec<f64>]) -> Result<HandEyeData> {
+    let mut nominal = data.clone();
+    for (v, q) in nominal.views.iter_mut().zip(joints) {
+        v.t_base_flange = model.forward(q).map_err(|e| CalibError::Data(format!("image {}: {e}", v.name)))?;
+    }
+    Ok(nominal)
+}
+
 /// The joint adjustment of a recording with joint readings `joints` (one per view of `data`,
 /// in model order; the views' `t_base_flange` are not used) and the nominal robot `model` (see
 /// the module documentation for the method).
@@ -489,26 +378,12 @@ pub fn calibrate_joint(
     joints: &[Vec<f64>],
     options: &JointOptions,
 ) -> Result<JointCalibration> {
-    if joints.len() != data.views.len() {
-        return Err(CalibError::Data(format!("{} joint readings for {} images", joints.len(), data.views.len())));
-    }
-    if let Some((v, q)) = data.views.iter().zip(joints).find(|(_, q)| q.len() != model.dof()) {
-        return Err(CalibError::Data(format!(
-            "image {}: {} joint values, the model '{}' has {}",
-            v.name,
-            q.len(),
-            model.name(),
-            model.dof()
-        )));
-    }
+    check_joints(model, data, joints)?;
     if !options.kinematic.effects.is_empty() {
         return Err(CalibError::Data("the joint adjustment does not model effects".into()));
     }
     // 1. The hand-eye start with the nominal model's flange poses.
-    let mut nominal = data.clone();
-    for (v, q) in nominal.views.iter_mut().zip(joints) {
-        v.t_base_flange = model.forward(q).map_err(|e| CalibError::Data(format!("image {}: {e}", v.name)))?;
-    }
+    let nominal = with_nominal_poses(model, data, joints)?;
     let start = calibrate_hand_eye(&nominal, &options.hand_eye)?;
     calibrate_joint_from(model, data, joints, start, options)
 }
@@ -528,10 +403,22 @@ pub fn calibrate_joint_from(
     if joints.len() != data.views.len() {
         return Err(CalibError::Data(format!("{} joint readings for {} images", joints.len(), data.views.len())));
     }
-    let mut nominal = data.clone();
-    for (v, q) in nominal.views.iter_mut().zip(joints) {
-        v.t_base_flange = model.forward(q).map_err(|e| CalibError::Data(format!("image {}: {e}", v.name)))?;
-    }
+    with_nominal_poses(model, data, joints)?;
+    let (joint, _) = adjust(model, &[CamInput { data, joints }], start, &[], options)?;
+    Ok(joint)
+}
+
+/// The core of [`calibrate_joint_from`] and of the rig's [`rig::calibrate_joint_rig_from`]:
+/// camera 0 (the reference) with its hand-eye start, and each further camera with its starting
+/// camera and `T_camk_cam0` (`others0`, one per camera after the first).
+pub(super) fn adjust(
+    model: &RobotModel,
+    cams: &[CamInput],
+    start: HandEyeResult,
+    others0: &[(CameraModel, Isometry3<f64>)],
+    options: &JointOptions,
+) -> Result<(JointCalibration, Vec<OtherCamera>)> {
+    let data = cams[0].data;
     // 2. The robot parameters: the kinematic calibration's own selection.
     let kin = KinematicOptions {
         estimate_device_frame: true,
@@ -540,7 +427,7 @@ pub fn calibrate_joint_from(
         use_orientation: true,
         ..options.kinematic.clone()
     };
-    let rows = selection_rows(model, &nominal, joints, &start, &kin)?;
+    let rows = selection_rows(model, cams, &start, &kin)?;
     let refs: Vec<&PoseMeasurement> = rows.iter().collect();
     let (layout, free_all, _) = identifiable_candidates(model, &refs, &kin)?;
     let robot_idx: Vec<usize> =
@@ -571,18 +458,24 @@ pub fn calibrate_joint_from(
             tool_free: sub(&layout.tool),
         }),
         scales,
-        data,
-        joints,
+        cams,
         options: &options.hand_eye,
     };
     let hopts = &options.hand_eye;
-    let state0 = State { robot: robot0, frame: vec![0.0; 6], tool: vec![0.0; 6], camera: start.camera };
+    let templates: Vec<CameraModel> = std::iter::once(start.camera).chain(others0.iter().map(|o| o.0)).collect();
+    let state0 = State {
+        robot: robot0,
+        frame: vec![0.0; 6],
+        tool: vec![0.0; 6],
+        camera: start.camera,
+        others: others0.iter().map(|(c, t)| (*c, Se3::from_isometry(t).to_vec())).collect(),
+    };
     let (mut p, b) = build(&setup, &state0, Loss::Squared)?;
     let first = p.solve(&hopts.solver).map_err(lsq_error)?;
     let mut iterations = first.summary.iterations;
     let mut summary = first.summary;
     if let Some(loss) = hopts.second_loss(robust_sigma(&p)?) {
-        let state = read_back(&p, &b, &start.camera)?;
+        let state = read_back(&p, &b, &templates)?;
         let (p2, _) = build(&setup, &state, loss)?;
         p = p2;
         let second = p.solve(&hopts.solver).map_err(lsq_error)?;
@@ -592,7 +485,7 @@ pub fn calibrate_joint_from(
     // 4. Covariance (the full inverse; each block's part is its marginal covariance).
     let cov = p.covariance().map_err(lsq_error)?;
     let block = |id| cov.block(id).ok_or_else(|| CalibError::Numeric("covariance block missing".into()));
-    let state = read_back(&p, &b, &start.camera)?;
+    let state = read_back(&p, &b, &templates)?;
     let robot = state.robot.clone();
     let robot_cov = block(b.robot)?;
     let cam_cov = block(b.camera)?;
@@ -616,13 +509,32 @@ pub fn calibrate_joint_from(
         effects: Vec::new(),
         load_model: model.clone(),
     };
-    let mut views = data.views.clone();
-    for (v, q) in views.iter_mut().zip(joints) {
-        v.t_base_flange = calibrated.device_frame.inverse() * calibrated.predict(q)? * x.inverse();
-    }
     let fallback = hopts.fallback_corner_sigma_px;
-    let pnp = pnp_poses(&camera, &data.target_points_m, &views, fallback);
-    let figures = chain_figures(data.mount, &camera, &data.target_points_m, &views, &pnp, &Chain { x, w, scale: 1.0 });
+    let figures_of = |input: &CamInput, camera: &CameraModel, chain: &Chain| -> Result<ChainFigures> {
+        let mut views = input.data.views.clone();
+        for (v, q) in views.iter_mut().zip(input.joints) {
+            v.t_base_flange = calibrated.device_frame.inverse() * calibrated.predict(q)? * x.inverse();
+        }
+        let pnp = pnp_poses(camera, &input.data.target_points_m, &views, fallback);
+        Ok(chain_figures(input.data.mount, camera, &input.data.target_points_m, &views, &pnp, chain))
+    };
+    let figures = figures_of(&cams[0], &camera, &Chain { x, w, scale: 1.0 })?;
+    let mut others = Vec::new();
+    for (k, ((cam_k, t_k0), &(_, rig_id))) in state.others.iter().zip(&b.others).enumerate() {
+        let t_k0 = Se3::to_isometry(t_k0);
+        let chain = match data.mount {
+            Mount::EyeToHand => Chain { x, w: w * t_k0.inverse(), scale: 1.0 },
+            Mount::EyeInHand => Chain { x: x * t_k0.inverse(), w, scale: 1.0 },
+        };
+        let c_cov = block(b.others[k].0)?;
+        let r_cov = block(rig_id)?;
+        others.push(OtherCamera {
+            camera: *cam_k,
+            camera_std: (0..c_cov.nrows()).map(|i| c_cov[(i, i)].max(0.0).sqrt()).collect(),
+            t_cam_cam0: TransformEstimate { transform: t_k0, covariance: Matrix6::from_fn(|i, j| r_cov[(i, j)]) },
+            figures: figures_of(&cams[k + 1], cam_k, &chain)?,
+        });
+    }
     let mut params = Vec::new();
     let mut free = Vec::new();
     for (i, &start_value) in start_values.iter().enumerate().take(layout.model.end).skip(layout.offsets.start) {
@@ -649,7 +561,7 @@ pub fn calibrate_joint_from(
             nu: std.map(|s| (value - start_value).abs() / s),
         });
     }
-    Ok(JointCalibration {
+    let joint = JointCalibration {
         mount: data.mount,
         calibrated,
         camera,
@@ -666,7 +578,8 @@ pub fn calibrate_joint_from(
         iterations,
         termination: summary.termination.clone(),
         n_downweighted: summary.downweighted_blocks,
-    })
+    };
+    Ok((joint, others))
 }
 
 #[cfg(test)]

@@ -53,6 +53,9 @@ use ferrocal_vision::camera::{CameraModel, ImageSize};
 pub use closed::{ClosedForm, PosePair};
 pub use evaluate::{chain_figures, chain_residuals_px, Chain, ChainFigures, ViewFigures};
 pub use geometry::{MotionGeometry, MIN_ROTATION_DEG};
+pub use joint::rig::{
+    calibrate_joint_rig, calibrate_joint_rig_from, rig_transform_from_starts, RigCamera, RigJointCalibration,
+};
 pub use joint::{calibrate_joint, calibrate_joint_from, JointCalibration, JointOptions};
 pub use refine::{calibrate_hand_eye, check_camera_size, MAX_NOISE_ITERATIONS, MIN_TRAIN_VIEWS, NOISE_TOLERANCE};
 

@@ -65,6 +65,25 @@ pub(crate) struct ChainPoint {
     pub d_scale: Matrix3x1<f64>,
 }
 
+impl ChainPoint {
+    /// Carries the point into a further camera `k` of a rig, `p_k = T_k0 · p_0` (`t_k0` is
+    /// `T_camk_cam0`, this point being in the reference camera 0), the derivatives with it, and
+    /// returns the derivative of `p_k` with respect to `T_k0`'s tangent step (3 x 6, the `Se3`
+    /// product chart `t' = t + δt`, `R' = Exp(δr) R`).
+    pub(crate) fn move_to_camera(&mut self, t_k0: &Isometry3<f64>) -> nalgebra::Matrix3x6<f64> {
+        let r = t_k0.rotation.to_rotation_matrix().into_inner();
+        let rp = r * self.p_cam;
+        self.p_cam = rp + t_k0.translation.vector;
+        self.d_x = r * self.d_x;
+        self.d_w = r * self.d_w;
+        self.d_robot = r * self.d_robot;
+        self.d_scale = r * self.d_scale;
+        let mut d = nalgebra::Matrix3x6::zeros();
+        put(&mut d, Matrix3::identity(), -rp.cross_matrix());
+        d
+    }
+}
+
 fn put(d: &mut nalgebra::Matrix3x6<f64>, dt: Matrix3<f64>, dr: Matrix3<f64>) {
     d.fixed_view_mut::<3, 3>(0, 0).copy_from(&dt);
     d.fixed_view_mut::<3, 3>(0, 3).copy_from(&dr);

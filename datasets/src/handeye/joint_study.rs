@@ -193,7 +193,7 @@ impl JointStudyConfig {
     }
 
     /// Whether the plate on `t_base_flange` faces the camera and lies wholly in the image.
-    fn visible(&self, t_base_flange: &Isometry3<f64>, points: &[Point3<f64>]) -> bool {
+    pub(crate) fn visible(&self, t_base_flange: &Isometry3<f64>, points: &[Point3<f64>]) -> bool {
         if self.mount == Mount::EyeInHand {
             return self.visible_in_hand(t_base_flange, points);
         }
@@ -233,6 +233,18 @@ impl JointStudyConfig {
     }
 }
 
+/// One random joint reading in the study's UR5-like ranges.
+pub(crate) fn random_joints(rng: &mut ChaCha8Rng) -> Vec<f64> {
+    vec![
+        rng.random_range(-1.2..1.2),
+        rng.random_range(-2.4..-0.4),
+        rng.random_range(0.3..2.4),
+        rng.random_range(-3.1..3.1),
+        rng.random_range(-3.1..3.1),
+        rng.random_range(-3.1..3.1),
+    ]
+}
+
 /// Random joint readings (UR5-like ranges) whose plate the camera sees, for the nominal model.
 fn draw_poses(config: &JointStudyConfig, model: &RobotModel, n: usize, rng: &mut ChaCha8Rng) -> Result<Vec<Vec<f64>>> {
     let points = config.points();
@@ -243,14 +255,7 @@ fn draw_poses(config: &JointStudyConfig, model: &RobotModel, n: usize, rng: &mut
         if tries > 20_000 * n.max(1) {
             return Err(DatasetError::Input("joint study: the camera rarely sees the plate; check the cell".into()));
         }
-        let q = vec![
-            rng.random_range(-1.2..1.2),
-            rng.random_range(-2.4..-0.4),
-            rng.random_range(0.3..2.4),
-            rng.random_range(-3.1..3.1),
-            rng.random_range(-3.1..3.1),
-            rng.random_range(-3.1..3.1),
-        ];
+        let q = random_joints(rng);
         let Ok(t) = model.forward(&q) else { continue };
         if config.visible(&t, &points) {
             out.push(q);
@@ -356,7 +361,7 @@ pub(crate) fn score(cm: &CalibratedModel, test: &[&PoseMeasurement]) -> Result<S
 
 /// The free robot parameters of `params` against the same parameters of `truth` (the
 /// noise-free adjustment in the same gauge).
-fn coverage(params: &[ParamResult], truth: &[ParamResult]) -> Coverage {
+pub(crate) fn coverage(params: &[ParamResult], truth: &[ParamResult]) -> Coverage {
     let mut c = Coverage::default();
     for p in params.iter().filter(|p| p.free) {
         let (Some(sd), Some(t)) = (p.std, truth.iter().find(|t| t.name == p.name)) else { continue };
@@ -373,7 +378,7 @@ fn coverage(params: &[ParamResult], truth: &[ParamResult]) -> Coverage {
 /// the true chain's `joint<k>.theta_offset_rad`, whose nominal value is zero in the `ur5`
 /// preset), without regard to the gauge: parameters redundant with a frame or tool coordinate
 /// held at its start value differ from these by the start's error.
-fn coverage_raw(params: &[ParamResult], truth: &[(String, f64)]) -> Coverage {
+pub(crate) fn coverage_raw(params: &[ParamResult], truth: &[(String, f64)]) -> Coverage {
     let mut c = Coverage::default();
     for p in params.iter().filter(|p| p.free && !p.name.starts_with("frame.") && !p.name.starts_with("target_tool.")) {
         let Some(sd) = p.std else { continue };
@@ -408,11 +413,26 @@ pub(crate) struct Cell {
 /// Draws the cell of `seed` (poses, then the true robot's errors on the parameters the
 /// selection keeps free on the training poses).
 pub(crate) fn draw_cell(config: &JointStudyConfig, seed: u64) -> Result<Cell> {
-    let fail = |e: ferrocal_calib::CalibError| DatasetError::Input(format!("joint study, seed {seed}: {e}"));
     let nominal = RobotModel::load(&config.robot).map_err(|e| DatasetError::Config(e.to_string()))?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let train_q = draw_poses(config, &nominal, config.n_train, &mut rng)?;
     let test_q = draw_poses(config, &nominal, config.n_test, &mut rng)?;
+    let (truth, truth_values) = draw_truth(config, &nominal, &train_q, &mut rng).map_err(|e| match e {
+        DatasetError::Input(m) => DatasetError::Input(format!("joint study, seed {seed}: {m}")),
+        other => other,
+    })?;
+    Ok(Cell { nominal, truth, truth_values, train_q, test_q, rng })
+}
+
+/// The true robot of a cell: errors on the parameters the selection keeps free on the training
+/// poses `train_q` (the camera's table of the nominal chain, with orientations).
+pub(crate) fn draw_truth(
+    config: &JointStudyConfig,
+    nominal: &RobotModel,
+    train_q: &[Vec<f64>],
+    rng: &mut ChaCha8Rng,
+) -> Result<(TrueRobot, Vec<(String, f64)>)> {
+    let fail = |e: ferrocal_calib::CalibError| DatasetError::Input(e.to_string());
     // The true robot: errors on the parameters the selection keeps free on the training poses
     // (the camera's table of the nominal chain, with orientations: `W^-1 FK X`, the layout of
     // the joint adjustment for either mount).
@@ -429,7 +449,7 @@ pub(crate) fn draw_cell(config: &JointStudyConfig, seed: u64) -> Result<Cell> {
         })
         .collect();
     let refs: Vec<&PoseMeasurement> = sel_rows.iter().collect();
-    let (layout, free, _) = identifiable_candidates(&nominal, &refs, &KinematicOptions::default()).map_err(fail)?;
+    let (layout, free, _) = identifiable_candidates(nominal, &refs, &KinematicOptions::default()).map_err(fail)?;
     let params = nominal.parameters();
     let mut errors = GeometricErrors::default();
     let len = Normal::new(0.0, config.length_sigma_mm * 1e-3).map_err(|e| DatasetError::Input(e.to_string()))?;
@@ -440,21 +460,21 @@ pub(crate) fn draw_cell(config: &JointStudyConfig, seed: u64) -> Result<Cell> {
         let k = i - layout.offsets.start + 1;
         let name = format!("joint{k}.theta_offset_rad");
         if params.iter().any(|p| p.name == name) {
-            errors.offsets.insert(name, ang.sample(&mut rng));
+            errors.offsets.insert(name, ang.sample(rng));
         }
     }
     for &i in free.iter().filter(|&&i| layout.model.contains(&i)) {
         let p = &params[layout.model_index[i - layout.model.start]];
         let v = match p.unit {
-            ferrocal_robot::Unit::Metre => len.sample(&mut rng),
-            _ => ang.sample(&mut rng),
+            ferrocal_robot::Unit::Metre => len.sample(rng),
+            _ => ang.sample(rng),
         };
         errors.offsets.insert(p.name.clone(), v);
     }
-    let truth = TrueRobot::new(nominal.clone(), &errors, vec![], 0.0, &mut rng)?;
+    let truth = TrueRobot::new(nominal.clone(), &errors, vec![], 0.0, rng)?;
     let truth_values: Vec<(String, f64)> =
         truth.truth.parameters().into_iter().map(|p| (p.name.clone(), p.value)).collect();
-    Ok(Cell { nominal, truth, truth_values, train_q, test_q, rng })
+    Ok((truth, truth_values))
 }
 
 /// One seed of the study (see the module documentation).
@@ -603,7 +623,7 @@ pub struct JointStudySummary {
     pub joint_all_within_seeds: usize,
 }
 
-fn median(v: &mut [f64]) -> f64 {
+pub(crate) fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }

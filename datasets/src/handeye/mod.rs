@@ -2,8 +2,9 @@
 //! ROS-Industrial industrial_calibration sets ([`ic`]), images and poses to a recording with the
 //! camera files `--intrinsics` reads ([`recording`]), simulated recordings with the Monte
 //! Carlo study of the hand-eye covariance ([`sim`]), and the study of the camera-based robot
-//! calibration (two-step and joint adjustment) against a tracker's ([`joint_study`]), and the
-//! real positioner's weighting and baselines ([`positioner`]).
+//! calibration (two-step and joint adjustment) against a tracker's ([`joint_study`]) and with a
+//! rig of cameras ([`rig_study`]), and the real positioner's weighting and baselines
+//! ([`positioner`]).
 
 pub mod ic;
 pub mod ic_kinematic;
@@ -12,6 +13,7 @@ pub mod joint_study;
 pub mod poses;
 pub mod positioner;
 pub mod recording;
+pub mod rig_study;
 pub mod sim;
 pub mod workflow;
 
