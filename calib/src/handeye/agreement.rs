@@ -14,7 +14,7 @@
 //! has large residuals with every other image. The decisions are the caller's
 //! (`ferrocal_datasets::handeye::motion_check`): this module only measures.
 
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Matrix3x4, Matrix4, Rotation3, Translation3, UnitQuaternion, Vector3, Vector4};
 use serde::{Deserialize, Serialize};
 
 use super::Mount;
@@ -23,8 +23,20 @@ use super::Mount;
 /// travels along: their pitches are left out.
 pub const MIN_SCREW_ROTATION_DEG: f64 = 5.0;
 
+/// The smallest median rotation (degrees) and travel (millimetres) the disagreements are taken
+/// relative to: below them the motions are mostly noise (the real recordings: 27 to 103 deg,
+/// 95 to 400 mm).
+pub const MIN_RELATIVE_TO_DEG_MM: (f64, f64) = (10.0, 100.0);
+
 /// Fewest images the comparison needs (three pairs at least).
 pub const MIN_VIEWS: usize = 4;
+
+/// Up to this many images every pair is compared; beyond, each image with its
+/// [`NEIGHBOUR_PAIRS`] next ones.
+pub const MAX_ALL_PAIRS_VIEWS: usize = 200;
+
+/// Pairs per image beyond [`MAX_ALL_PAIRS_VIEWS`] images.
+pub const NEIGHBOUR_PAIRS: usize = 100;
 
 /// Re-weighting passes of the robust closed-form fit.
 const IRLS_PASSES: usize = 8;
@@ -73,23 +85,51 @@ pub struct MotionAgreement {
     pub residual_rotation_deg: f64,
     /// Median over pairs of the translation residual, millimetres.
     pub residual_translation_mm: f64,
+    /// The robust closed form's `X` (the module's conventions; the camera's travels scaled).
+    pub closed_form_x: Isometry3<f64>,
+    /// The robust closed form's scale of the camera's travels.
+    pub closed_form_scale: f64,
     /// Per image.
     pub views: Vec<ViewAgreement>,
 }
 
 impl MotionAgreement {
-    /// `rotation_disagreement_deg` over `median_rotation_deg`: scale-free, about 0.001 to 0.03
-    /// on real recordings.
-    pub fn relative_rotation(&self) -> f64 {
-        self.rotation_disagreement_deg / self.median_rotation_deg.max(1e-9)
+    /// The median residuals (deg, mm) of image `k`'s pairs with every other image with the
+    /// closed form of these figures, for the robot poses `flange` and the PnP poses
+    /// `t_camera_target` (e.g. image `k` given another row's pose): how well the image would fit.
+    pub fn view_residuals(
+        &self,
+        mount: Mount,
+        k: usize,
+        flange: &[Isometry3<f64>],
+        t_camera_target: &[Isometry3<f64>],
+    ) -> (f64, f64) {
+        let c = |i: usize| mount.closed_form_c(&t_camera_target[i]);
+        let (rot, trans): (Vec<f64>, Vec<f64>) = (0..flange.len().min(t_camera_target.len()))
+            .filter(|&j| j != k)
+            .map(|j| {
+                let (i, j) = (k.min(j), k.max(j));
+                let (a, b) = (flange[i].inverse() * flange[j], c(i) * c(j).inverse());
+                residual(&a, &b, &self.closed_form_x, self.closed_form_scale)
+            })
+            .unzip();
+        (median(&rot), median(&trans))
     }
 
-    /// `travel_disagreement_mm` over `median_travel_mm` (0 without screw pairs).
+    /// `rotation_disagreement_deg` over `median_rotation_deg` (at least
+    /// [`MIN_RELATIVE_TO_DEG_MM`]`.0`, so that a recording that hardly rotates is not judged
+    /// by its noise): scale-free, 0.002 to 0.07 on the real recordings.
+    pub fn relative_rotation(&self) -> f64 {
+        self.rotation_disagreement_deg / self.median_rotation_deg.max(MIN_RELATIVE_TO_DEG_MM.0)
+    }
+
+    /// `travel_disagreement_mm` over `median_travel_mm` (at least [`MIN_RELATIVE_TO_DEG_MM`]`.1`;
+    /// 0 without screw pairs).
     pub fn relative_travel(&self) -> f64 {
         if self.n_screw_pairs == 0 {
             0.0
         } else {
-            self.travel_disagreement_mm / self.median_travel_mm.max(1e-9)
+            self.travel_disagreement_mm / self.median_travel_mm.max(MIN_RELATIVE_TO_DEG_MM.1)
         }
     }
 }
@@ -163,12 +203,31 @@ struct Pair {
     b: Isometry3<f64>,
 }
 
-/// The robust closed form: `(R_X, t_X, s)` from the pairs with weights re-computed from the
-/// residuals, and the final residuals (deg, mm) of every pair.
-fn robust_closed_form(pairs: &[Pair]) -> Option<(Vec<f64>, Vec<f64>)> {
+/// The rotation (deg) and translation (mm) residuals of `A X = X B` for the closed form `X =
+/// (q_x, t_x)` with the camera's travels scaled by `s`.
+fn residual(a: &Isometry3<f64>, b: &Isometry3<f64>, x: &Isometry3<f64>, s: f64) -> (f64, f64) {
+    let q_x = x.rotation;
+    let rot = angle(&(a.rotation * q_x * b.rotation.inverse() * q_x.inverse())).to_degrees();
+    let ra = a.rotation.to_rotation_matrix().into_inner();
+    let e = (ra - Matrix3::identity()) * x.translation.vector - s * (q_x * b.translation.vector) + a.translation.vector;
+    (rot, e.norm() * 1e3)
+}
+
+/// The robust closed form's `X` and scale, and every pair's final residuals (deg, mm).
+struct ClosedFit {
+    x: Isometry3<f64>,
+    scale: f64,
+    rotation_deg: Vec<f64>,
+    translation_mm: Vec<f64>,
+}
+
+/// The robust closed form: `X` and the scale `s` from the pairs with weights re-computed from
+/// the residuals, and the final residuals (deg, mm) of every pair.
+fn robust_closed_form(pairs: &[Pair]) -> Option<ClosedFit> {
     let n = pairs.len();
     let mut w = vec![1.0; n];
     let mut res = (vec![0.0; n], vec![0.0; n]);
+    let mut fit = (Isometry3::identity(), 1.0);
     for _ in 0..IRLS_PASSES {
         // Rotation: R_X maps B's rotation vectors onto A's (weighted Kabsch).
         let mut h = Matrix3::zeros();
@@ -180,25 +239,25 @@ fn robust_closed_form(pairs: &[Pair]) -> Option<(Vec<f64>, Vec<f64>)> {
         let d = (vt.transpose() * u.transpose()).determinant().signum();
         let r_x = vt.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
         let r_x = Rotation3::from_matrix_unchecked(r_x);
-        let q_x = UnitQuaternion::from_rotation_matrix(&r_x);
-        // Translation and scale: (R_A - I) t_X - s R_X t_B = -t_A.
-        let mut m = DMatrix::zeros(3 * n, 4);
-        let mut rhs = DVector::zeros(3 * n);
-        for (k, (p, wk)) in pairs.iter().zip(&w).enumerate() {
-            let sw = wk.sqrt();
+        // Translation and scale: (R_A - I) t_X - s R_X t_B = -t_A, by weighted normal equations.
+        let mut normal = Matrix4::zeros();
+        let mut rhs = Vector4::zeros();
+        for (p, wk) in pairs.iter().zip(&w) {
             let ra = p.a.rotation.to_rotation_matrix().into_inner() - Matrix3::identity();
-            m.view_mut((3 * k, 0), (3, 3)).copy_from(&(ra * sw));
-            m.view_mut((3 * k, 3), (3, 1)).copy_from(&(-(r_x * p.b.translation.vector) * sw));
-            rhs.rows_mut(3 * k, 3).copy_from(&(-p.a.translation.vector * sw));
+            let mut m = Matrix3x4::zeros();
+            m.fixed_view_mut::<3, 3>(0, 0).copy_from(&ra);
+            m.set_column(3, &-(r_x * p.b.translation.vector));
+            normal += *wk * m.transpose() * m;
+            rhs += *wk * m.transpose() * -p.a.translation.vector;
         }
-        let sol = m.svd(true, true).solve(&rhs, 1e-12).ok()?;
-        let t_x = Vector3::new(sol[0], sol[1], sol[2]);
-        let s = sol[3];
+        let sol = normal.try_inverse()? * rhs;
+        let x = Isometry3::from_parts(
+            Translation3::new(sol[0], sol[1], sol[2]),
+            UnitQuaternion::from_rotation_matrix(&r_x),
+        );
+        fit = (x, sol[3]);
         for (k, p) in pairs.iter().enumerate() {
-            res.0[k] = angle(&(p.a.rotation * q_x * p.b.rotation.inverse() * q_x.inverse())).to_degrees();
-            let ra = p.a.rotation.to_rotation_matrix().into_inner();
-            let e = (ra - Matrix3::identity()) * t_x - s * (r_x * p.b.translation.vector) + p.a.translation.vector;
-            res.1[k] = e.norm() * 1e3;
+            (res.0[k], res.1[k]) = residual(&p.a, &p.b, &fit.0, fit.1);
         }
         // Cauchy weights on the residuals over their medians (floored far below any real noise,
         // so that an exact recording's rounding does not weigh).
@@ -208,7 +267,21 @@ fn robust_closed_form(pairs: &[Pair]) -> Option<(Vec<f64>, Vec<f64>)> {
             *wk = 1.0 / (1.0 + z * z);
         }
     }
-    res.0.iter().chain(&res.1).all(|v| v.is_finite()).then_some(res)
+    let finite = res.0.iter().chain(&res.1).all(|v| v.is_finite()) && fit.1.is_finite();
+    finite.then_some(ClosedFit { x: fit.0, scale: fit.1, rotation_deg: res.0, translation_mm: res.1 })
+}
+
+/// The pairs compared among `n` images: all of them up to [`MAX_ALL_PAIRS_VIEWS`] images, else
+/// each image with the next [`NEIGHBOUR_PAIRS`] (cyclically), so that the work grows linearly.
+fn pair_indices(n: usize) -> Vec<(usize, usize)> {
+    if n <= MAX_ALL_PAIRS_VIEWS {
+        (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).collect()
+    } else {
+        (0..n)
+            .flat_map(|i| (1..=NEIGHBOUR_PAIRS).map(move |d| (i, (i + d) % n)))
+            .map(|(i, j)| (i.min(j), i.max(j)))
+            .collect()
+    }
 }
 
 /// Compares the robot's relative motions (`flange[i]` = `T_base_flange` of image `i`) with the
@@ -224,12 +297,10 @@ pub fn motion_agreement(
         return None;
     }
     let c: Vec<Isometry3<f64>> = t_camera_target.iter().map(|t| mount.closed_form_c(t)).collect();
-    let mut pairs = Vec::new();
-    for i in 0..n {
-        for j in i + 1..n {
-            pairs.push(Pair { i, j, a: flange[i].inverse() * flange[j], b: c[i] * c[j].inverse() });
-        }
-    }
+    let pairs: Vec<Pair> = pair_indices(n)
+        .into_iter()
+        .map(|(i, j)| Pair { i, j, a: flange[i].inverse() * flange[j], b: c[i] * c[j].inverse() })
+        .collect();
     let screws: Vec<((f64, f64), (f64, f64))> = pairs.iter().map(|p| (screw(&p.a), screw(&p.b))).collect();
     let angle_diff: Vec<f64> = screws.iter().map(|(a, b)| (a.0 - b.0).abs().to_degrees()).collect();
     let angles: Vec<f64> = screws.iter().map(|(a, _)| a.0.to_degrees()).collect();
@@ -244,7 +315,8 @@ pub fn motion_agreement(
     let travel: Vec<f64> = screw_pairs.iter().map(|&k| screws[k].0 .1.abs() * 1e3).collect();
     let travel_diff: Vec<f64> =
         screw_pairs.iter().map(|&k| (screws[k].0 .1 - scale * screws[k].1 .1).abs() * 1e3).collect();
-    let (res_rot, res_trans) = robust_closed_form(&pairs)?;
+    let ClosedFit { x: closed_form_x, scale: closed_form_scale, rotation_deg: res_rot, translation_mm: res_trans } =
+        robust_closed_form(&pairs)?;
     let views = (0..n)
         .map(|v| {
             let of = |x: &[f64]| {
@@ -269,6 +341,8 @@ pub fn motion_agreement(
         travel_disagreement_mm: if travel_diff.is_empty() { 0.0 } else { median(&travel_diff) },
         residual_rotation_deg: median(&res_rot),
         residual_translation_mm: median(&res_trans),
+        closed_form_x,
+        closed_form_scale,
         views,
     })
 }
@@ -276,7 +350,6 @@ pub fn motion_agreement(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Translation3;
 
     fn pose(t: [f64; 3], r: [f64; 3]) -> Isometry3<f64> {
         Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), UnitQuaternion::from_scaled_axis(Vector3::from(r)))

@@ -307,10 +307,13 @@ pub fn check_motion(
 /// An image's residuals over the median pair's, `None` below the floors.
 fn view_ratio(a: &MotionAgreement, k: usize) -> Option<f64> {
     let v = &a.views[k];
-    let r = (v.residual_rotation_deg / a.residual_rotation_deg.max(1e-9))
-        .max(v.residual_translation_mm / a.residual_translation_mm.max(1e-9));
-    let above = v.residual_rotation_deg >= VIEW_FLOOR_DEG_MM.0 || v.residual_translation_mm >= VIEW_FLOOR_DEG_MM.1;
-    above.then_some(r)
+    ratio_of(a, (v.residual_rotation_deg, v.residual_translation_mm))
+}
+
+/// Median residuals `(deg, mm)` of an image over the median pair's, `None` below the floors.
+fn ratio_of(a: &MotionAgreement, (rot, trans): (f64, f64)) -> Option<f64> {
+    let r = (rot / a.residual_rotation_deg.max(1e-9)).max(trans / a.residual_translation_mm.max(1e-9));
+    (rot >= VIEW_FLOOR_DEG_MM.0 || trans >= VIEW_FLOOR_DEG_MM.1).then_some(r)
 }
 
 /// The images whose motions disagree with all the others', each with the row its board pose
@@ -350,8 +353,7 @@ fn flag_views(
                 let Some(pose) = pose.filter(|_| r != own) else { continue };
                 let mut trial = flange.to_vec();
                 trial[k] = pose;
-                let Some(b) = motion_agreement(mount, &trial, cams) else { continue };
-                let ratio = view_ratio(&b, k).unwrap_or(0.0);
+                let ratio = ratio_of(a, a.view_residuals(mount, k, &trial, cams)).unwrap_or(0.0);
                 if best.is_none_or(|x| ratio < x.0) {
                     best = Some((ratio, r));
                 }
@@ -367,8 +369,7 @@ fn flag_views(
             for m in (0..cams.len()).filter(|&m| m != k) {
                 let mut trial = cams.to_vec();
                 trial[k] = cams[m];
-                let Some(b) = motion_agreement(mount, flange, &trial) else { continue };
-                let ratio = view_ratio(&b, k).unwrap_or(0.0);
+                let ratio = ratio_of(a, a.view_residuals(mount, k, flange, &trial)).unwrap_or(0.0);
                 if best.is_none_or(|x| ratio < x.0) {
                     best = Some((ratio, m));
                 }
