@@ -432,3 +432,80 @@ fn flag_views(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ferrocal_calib::Split;
+    use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
+    use nalgebra::Vector3;
+
+    /// A UR5 joint table whose first joint, which stays within +-11 deg, is written in degrees
+    /// under `q1_rad` (below the table's own two-turn check): the motion check names the column;
+    /// the same table in radians passes, and a row 50 mm off is named and left out.
+    #[test]
+    fn a_joint_column_in_degrees_within_two_turns_is_named() {
+        let ur5 = RobotModel::load("ur5").unwrap();
+        let mount = Mount::EyeToHand;
+        let x = Isometry3::new(Vector3::new(0.02, -0.01, 0.08), Vector3::new(0.1, 0.2, -0.3));
+        let w = Isometry3::new(Vector3::new(0.9, 0.3, 1.4), Vector3::new(2.6, 0.1, 0.4));
+        let joints: Vec<Vec<f64>> = (0..10)
+            .map(|k| {
+                let f = k as f64;
+                vec![
+                    0.19 * (1.7 * f).sin(),
+                    -1.6 + 0.3 * f.cos(),
+                    1.4 + 0.2 * (0.9 * f).sin(),
+                    -1.4 + 0.4 * (1.3 * f).cos(),
+                    1.5 + 0.3 * f.sin(),
+                    0.5 * f,
+                ]
+            })
+            .collect();
+        let cams: Vec<Isometry3<f64>> =
+            joints.iter().map(|q| mount.t_camera_target(&x, &w, &ur5.forward(q).unwrap())).collect();
+        let camera = CameraModel::new(
+            Intrinsics { fx_px: 1000.0, fy_px: 1000.0, cx_px: 640.0, cy_px: 480.0 },
+            Distortion::None,
+            ImageSize { width_px: 1280, height_px: 960 },
+        )
+        .unwrap();
+        let check = |first_in_degrees: bool, off_m: f64| {
+            let mut text = String::from("image,q1_rad,q2_rad,q3_rad,q4_rad,q5_rad,q6_rad\n");
+            for (k, q) in joints.iter().enumerate() {
+                let q1 = if first_in_degrees { q[0].to_degrees() } else { q[0] };
+                text.push_str(&format!("{k}.png,{q1},{},{},{},{},{}\n", q[1], q[2], q[3], q[4], q[5]));
+            }
+            let table = super::super::poses::parse_handeye_poses(&text, std::path::Path::new("poses.csv")).unwrap();
+            let flange = table.flange_poses(Some(&ur5)).unwrap();
+            let views: Vec<HandEyeView> = flange
+                .iter()
+                .enumerate()
+                .map(|(k, f)| HandEyeView {
+                    name: format!("{k}.png"),
+                    split: Split::Train,
+                    t_base_flange: if k == 4 { Isometry3::translation(off_m, 0.0, 0.0) * f } else { *f },
+                    image_size: camera.image_size,
+                    point_ids: Vec::new(),
+                    corners_px: Vec::new(),
+                    covariances_px2: Vec::new(),
+                })
+                .collect();
+            let start = StartPoses {
+                views,
+                skipped: Vec::new(),
+                camera,
+                initial: None,
+                pnp: cams.iter().map(|c| Some(*c)).collect(),
+            };
+            check_motion(mount, &start, &table, Some(&ur5))
+        };
+        let e = check(true, 0.0).unwrap_err().to_string();
+        assert!(e.contains("poses.csv") && e.contains("the column q1_rad looks like degrees"), "{e}");
+        let clean = check(false, 0.0).unwrap();
+        assert!(clean.warnings.is_empty() && clean.flagged.is_empty(), "{clean:?}");
+        let off = check(false, 0.05).unwrap();
+        assert_eq!(off.flagged.len(), 1, "{off:?}");
+        assert!(off.flagged[0].dropped && off.flagged[0].image == "4.png" && off.flagged[0].line == 6, "{off:?}");
+    }
+}
