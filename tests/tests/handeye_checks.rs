@@ -61,8 +61,8 @@ fn translation_mm(r: &serde_json::Value) -> [f64; 3] {
 
 /// The clean real set passes the check (relative disagreements of 0.0024 in rotation and 0.0058 in
 /// travel, print scale 1.0007, no image named); the quaternions written x y z w under the
-/// `qw, qx, qy, qz` headers and the wrong `--mount` are refused naming the cause (exit 1, no
-/// JSON); an image paired with another image's robot pose is named with its line and left out.
+/// `qw, qx, qy, qz` headers (or w x y z under `qx, qy, qz, qw`) and the wrong `--mount` are
+/// refused naming the cause (exit 1, no JSON); an image paired with another image's robot pose is named with its line and left out.
 #[test]
 fn robot_motion_against_camera_motion_names_the_cause() {
     let tmp = tempfile::tempdir().unwrap();
@@ -85,6 +85,16 @@ fn robot_motion_against_camera_motion_names_the_cause() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("xyzw.csv") && err.contains("look written x y z w"), "{err}");
+    assert!(!res.exists());
+
+    // The reverse: values w x y z under columns named qx, qy, qz, qw.
+    let text = std::fs::read_to_string(&table).unwrap().replace(",qw,qx,qy,qz,", ",qx,qy,qz,qw,");
+    let wxyz = tmp.path().join("wxyz.csv");
+    std::fs::write(&wxyz, text).unwrap();
+    let out = handeye(&wxyz, "eye-to-hand", &res);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("look written w x y z (scalar first) under columns named for x y z w"), "{err}");
     assert!(!res.exists());
 
     // The wrong mount.
