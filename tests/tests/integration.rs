@@ -5,6 +5,7 @@ mod cli;
 mod compensate;
 mod coupled;
 mod handeye;
+mod handeye_checks;
 mod kill;
 mod measure;
 mod motion;

@@ -70,3 +70,63 @@ fn the_real_positioner_is_calibrated_from_camera_poses_within_the_source_thresho
     assert!(cal_mean < 0.95 * nom_mean && cal_std < 0.9 * nom_std, "{nom_mean} {nom_std} -> {cal_mean} {cal_std}");
     assert!(cal_deg <= nom_deg * 1.001, "{nom_deg} -> {cal_deg}");
 }
+
+/// `import ic-kinematic` on the real recording with its positions written in millimetres or its
+/// joint readings in degrees (the format takes metres and radians): refused naming the file, the
+/// line, the field, the observation and the likely unit, with the count of observations
+/// affected; nothing written.
+#[test]
+fn the_positioner_recording_in_millimetres_or_degrees_is_refused_naming_line_and_field() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(data("industrial_calibration/kinematic_calibration/measurements.yaml")).unwrap();
+    let scaled = |field: &dyn Fn(&str) -> bool, factor: f64| {
+        let mut in_joints = false;
+        let lines: Vec<String> = text
+            .lines()
+            .map(|l| {
+                let t = l.trim_start();
+                in_joints = t.starts_with("target_joints:") || (in_joints && t.starts_with('-'));
+                let (head, value) = match (t.split_once(": "), t.strip_prefix("- ")) {
+                    (Some((k, v)), _) if field(k) => (&l[..l.len() - v.len()], v),
+                    (_, Some(v)) if in_joints && field("-") => (&l[..l.len() - v.len()], v),
+                    _ => return l.to_string(),
+                };
+                format!("{head}{}", value.parse::<f64>().unwrap() * factor)
+            })
+            .collect();
+        lines.join("\n") + "\n"
+    };
+    let cases = [
+        (
+            "mm.yaml",
+            scaled(&|k| ["x", "y", "z"].contains(&k), 1000.0),
+            "line 8, column 'pose.x'",
+            "look like millimetres",
+        ),
+        (
+            "deg.yaml",
+            scaled(&|k| k == "-", 180.0 / std::f64::consts::PI),
+            "line 12, column 'target_joints[0]'",
+            "look like degrees",
+        ),
+    ];
+    for (name, yaml, at, unit) in cases {
+        let input = tmp.path().join(name);
+        std::fs::write(&input, yaml).unwrap();
+        let out_csv = tmp.path().join("out.csv");
+        let out = ferrocal()
+            .args(["import", "ic-kinematic", "--input"])
+            .arg(&input)
+            .arg("--out")
+            .arg(&out_csv)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name}: {err}");
+        assert!(
+            err.contains(name) && err.contains(at) && err.contains(unit) && err.contains("of 205 observations"),
+            "{name}: {err}"
+        );
+        assert!(!out_csv.exists());
+    }
+}

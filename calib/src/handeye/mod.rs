@@ -35,6 +35,7 @@
 //! `[t (m), r (rad)]`, the rotation error applied on the left (`R_true = Exp(r) R_estimated`),
 //! in frame `a` of `T_a_b`.
 
+pub mod agreement;
 pub mod closed;
 pub mod evaluate;
 pub mod geometry;
@@ -57,7 +58,10 @@ pub use joint::rig::{
     calibrate_joint_rig, calibrate_joint_rig_from, rig_transform_from_starts, RigCamera, RigJointCalibration,
 };
 pub use joint::{calibrate_joint, calibrate_joint_from, JointCalibration, JointOptions};
-pub use refine::{calibrate_hand_eye, check_camera_size, MAX_NOISE_ITERATIONS, MIN_TRAIN_VIEWS, NOISE_TOLERANCE};
+pub use refine::{
+    calibrate_hand_eye, calibrate_hand_eye_from, check_camera_size, start_poses, StartPoses, MAX_NOISE_ITERATIONS,
+    MIN_TRAIN_VIEWS, NOISE_TOLERANCE,
+};
 
 use crate::measurement::Split;
 

@@ -398,11 +398,44 @@ fn refine(setup: &Setup, camera: &CameraModel, start: &Chain) -> Result<Refined>
 /// form failed, with each method's reason), [`CalibError::Numeric`] (unidentifiable
 /// parameters).
 pub fn calibrate_hand_eye(data: &HandEyeData, options: &HandEyeOptions) -> Result<HandEyeResult> {
+    calibrate_hand_eye_from(data, options, start_poses(data, options)?)
+}
+
+/// Steps 1 and 2 of [`calibrate_hand_eye`]: the usable images, the camera the fit starts from
+/// and every image's PnP pose with it; for checks of the recording before the fit.
+#[derive(Clone, Debug)]
+pub struct StartPoses {
+    /// The images with enough corners.
+    pub views: Vec<HandEyeView>,
+    /// The images left out, and why.
+    pub skipped: Vec<SkippedView>,
+    /// The camera: given, or calibrated from the training images.
+    pub camera: CameraModel,
+    /// The calibration the camera came from, when it was calibrated.
+    pub initial: Option<ferrocal_vision::calib::CameraCalibration>,
+    /// `T_camera_target` of each of `views` by PnP with `camera` (`None` where PnP failed).
+    pub pnp: Vec<Option<Isometry3<f64>>>,
+}
+
+/// The usable images of `data`, the starting camera and the PnP poses (see [`StartPoses`]).
+/// Errors: those of [`calibrate_hand_eye`] before its closed forms.
+pub fn start_poses(data: &HandEyeData, options: &HandEyeOptions) -> Result<StartPoses> {
     options.validate()?;
-    let (views, mut skipped) = usable_views(data, options)?;
-    let (camera0, initial) = initial_camera(data, &views, options)?;
+    let (views, skipped) = usable_views(data, options)?;
+    let (camera, initial) = initial_camera(data, &views, options)?;
+    let pnp = pnp_poses(&camera, &data.target_points_m, &views, options.fallback_corner_sigma_px);
+    Ok(StartPoses { views, skipped, camera, initial, pnp })
+}
+
+/// [`calibrate_hand_eye`] from its first two steps, `start` ([`start_poses`] of the same `data`
+/// and `options`).
+pub fn calibrate_hand_eye_from(
+    data: &HandEyeData,
+    options: &HandEyeOptions,
+    start: StartPoses,
+) -> Result<HandEyeResult> {
+    let StartPoses { views, mut skipped, camera: camera0, initial, pnp: pnp0 } = start;
     let fallback = options.fallback_corner_sigma_px;
-    let pnp0 = pnp_poses(&camera0, &data.target_points_m, &views, fallback);
     for (v, p) in views.iter().zip(&pnp0) {
         if p.is_none() && v.split == Split::Train {
             skipped.push(SkippedView {

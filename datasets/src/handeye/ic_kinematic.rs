@@ -89,7 +89,86 @@ pub fn read_ic_kinematic(input: &Path, test_every: Option<usize>) -> Result<Meas
     if rows.is_empty() {
         return Err(DatasetError::Invalid { location: Location::line(&path, 1), message: "no observations".into() });
     }
+    check_units(&rows, &text, &path)?;
     Ok(MeasurementSet { source: path.display().to_string(), rows })
+}
+
+/// A target farther than this from the camera (metres) is not one the camera measured: the
+/// positions are in millimetres.
+pub const MAX_TARGET_DISTANCE_M: f64 = 50.0;
+
+/// A joint reading beyond this (radians, two turns) is not in radians.
+pub const MAX_JOINT_RAD: f64 = 2.0 * std::f64::consts::TAU;
+
+/// The 1-based line of `field` (`x`, ..., or the `index`-th item of `target_joints`) in the
+/// observation `key` of `text` (the key's own line when not found).
+fn value_line(text: &str, key: &str, field: &str, index: Option<usize>) -> u64 {
+    let lines: Vec<&str> = text.lines().collect();
+    let is_key = |l: &&str| !l.starts_with(' ') && l.trim_end().trim_end_matches(':').trim_matches(['\'', '"']) == key;
+    let Some(start) = lines.iter().position(is_key) else { return 1 };
+    let block = lines[start + 1..].iter().take_while(|l| l.starts_with(' ') || l.starts_with('-') || l.is_empty());
+    let mut in_list = false;
+    let mut item = 0;
+    for (k, l) in block.enumerate() {
+        let t = l.trim();
+        if t.starts_with(&format!("{field}:")) && index.is_none() {
+            return (start + k + 2) as u64;
+        }
+        if index.is_some() {
+            if t.starts_with("target_joints:") {
+                in_list = true;
+            } else if in_list && t.starts_with('-') {
+                if Some(item) == index {
+                    return (start + k + 2) as u64;
+                }
+                item += 1;
+            } else if in_list {
+                in_list = false;
+            }
+        }
+    }
+    start as u64 + 1
+}
+
+/// Refuses positions or joint readings that cannot be in the units the format names (metres,
+/// radians): a target more than [`MAX_TARGET_DISTANCE_M`] from the camera (millimetres), a joint
+/// beyond [`MAX_JOINT_RAD`] (degrees). The error names the file, the line, the field and the
+/// observation, how many observations are affected and the likely unit.
+fn check_units(rows: &[PoseMeasurement], text: &str, path: &Path) -> Result<()> {
+    for (c, axis) in ["x", "y", "z"].iter().enumerate() {
+        let bad: Vec<&PoseMeasurement> =
+            rows.iter().filter(|r| r.position_m[c].abs() > MAX_TARGET_DISTANCE_M).collect();
+        if let Some(r) = bad.first() {
+            return Err(DatasetError::Invalid {
+                location: Location::new(path, value_line(text, &r.pose_id, axis, None), format!("pose.{axis}")),
+                message: format!(
+                    "observation '{}': {axis} = {} m, more than {MAX_TARGET_DISTANCE_M} m from the camera ({} of {} observations): the positions look like millimetres; the format takes metres",
+                    r.pose_id,
+                    r.position_m[c],
+                    bad.len(),
+                    rows.len()
+                ),
+            });
+        }
+    }
+    let n_joints = rows.first().map_or(0, |r| r.q.len());
+    for j in 0..n_joints {
+        let bad: Vec<&PoseMeasurement> = rows.iter().filter(|r| r.q[j].abs() > MAX_JOINT_RAD).collect();
+        if let Some(r) = bad.first() {
+            return Err(DatasetError::Invalid {
+                location: Location::new(path, value_line(text, &r.pose_id, "", Some(j)), format!("target_joints[{j}]")),
+                message: format!(
+                    "observation '{}': joint {} reads {} rad, beyond two turns ({MAX_JOINT_RAD:.4} rad) ({} of {} observations): the readings look like degrees; the format takes radians",
+                    r.pose_id,
+                    j + 1,
+                    r.q[j],
+                    bad.len(),
+                    rows.len()
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The nominal two-axis positioner of the industrial_calibration kinematic example, as the
@@ -153,5 +232,16 @@ mod tests {
         std::fs::write(&p, format!("{}{}", obs("10", 0.1), obs("20", 0.2).replace("qw: 1.0", "qw: 0.5"))).unwrap();
         let e = read_ic_kinematic(&p, None).unwrap_err().to_string();
         assert!(e.contains("measurements.yaml") && e.contains("'20'") && e.contains("norm"), "{e}");
+
+        // Millimetres and degrees, named by line and field.
+        std::fs::write(&p, format!("{}{}", obs("10", 0.1), obs("20", 0.2).replace("z: 1.0", "z: 1000.0"))).unwrap();
+        let e = read_ic_kinematic(&p, None).unwrap_err().to_string();
+        assert!(
+            e.contains("line 23, column 'pose.z'") && e.contains("look like millimetres") && e.contains("1 of 2"),
+            "{e}"
+        );
+        std::fs::write(&p, format!("{}{}", obs("10", 0.1), obs("20", 28.6))).unwrap();
+        let e = read_ic_kinematic(&p, None).unwrap_err().to_string();
+        assert!(e.contains("line 25, column 'target_joints[0]'") && e.contains("look like degrees"), "{e}");
     }
 }

@@ -10,6 +10,7 @@ pub mod ic;
 pub mod ic_kinematic;
 pub mod joint_record;
 pub mod joint_study;
+pub mod motion_check;
 pub mod poses;
 pub mod positioner;
 pub mod recording;
@@ -19,6 +20,7 @@ pub mod workflow;
 
 pub use ic::{import_ic_handeye, read_ic_set, IcSet};
 pub use ic_kinematic::{ic_positioner_nominal, read_ic_kinematic};
+pub use motion_check::{check_motion, FlaggedView, MotionCheck};
 pub use poses::{read_handeye_poses, PoseRow, PosesTable, RobotReading};
 pub use recording::{load_recording, read_camera_file, Skipped};
 pub use sim::{

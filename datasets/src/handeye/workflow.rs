@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 
 use ferrocal_calib::handeye::opencv::{opencv_baselines, BaselineReport};
 use ferrocal_calib::handeye::{
-    calibrate_hand_eye, calibrate_joint_from, HandEyeData, HandEyeOptions, HandEyeResult, IntrinsicsMode,
-    JointCalibration, JointOptions, Mount,
+    calibrate_hand_eye_from, calibrate_joint_from, start_poses, HandEyeData, HandEyeOptions, HandEyeResult,
+    IntrinsicsMode, JointCalibration, JointOptions, Mount, StartPoses,
 };
 use ferrocal_lsq::Loss;
 use ferrocal_robot::RobotModel;
@@ -110,6 +110,8 @@ pub struct HandEyeInput {
     pub skipped: Vec<Skipped>,
     /// The recording.
     pub data: HandEyeData,
+    /// The robot's motions against the camera's, once [`HandEyeInput::check_motion`] ran.
+    pub motion: Option<super::MotionCheck>,
 }
 
 /// A hand-eye calibration with OpenCV's solvers on the same corners.
@@ -133,7 +135,7 @@ impl HandEyeInput {
         let mut skipped_images = Vec::new();
         let paths = expand_image_specs(&o.images, &mut skipped_images);
         let (data, skipped) = load_recording(&paths, &table, &flange, &pattern, o.mount)?;
-        Ok(Self { pattern, table, robot, paths, skipped_images, skipped, data })
+        Ok(Self { pattern, table, robot, paths, skipped_images, skipped, data, motion: None })
     }
 
     /// Every image left out while loading, with the reason: those no specification found, then
@@ -145,13 +147,43 @@ impl HandEyeInput {
 
     /// The hand-eye calibration of the recording with `options`, and OpenCV's solvers beside it.
     pub fn fit(&self, options: HandEyeOptions) -> Result<HandEyeFit> {
-        let result = calibrate_hand_eye(&self.data, &options).map_err(|e| {
-            DatasetError::from(e).context(format!(
-                "handeye: {} usable image(s) of {}",
-                self.data.views.len(),
-                self.paths.len()
-            ))
-        })?;
+        self.fit_from(options, None)
+    }
+
+    fn context(&self, e: impl Into<DatasetError>) -> DatasetError {
+        e.into().context(format!("handeye: {} usable image(s) of {}", self.data.views.len(), self.paths.len()))
+    }
+
+    /// The robot's motions against the camera's before the fit
+    /// ([`super::motion_check::check_motion`]): refuses a recording whose motions disagree,
+    /// naming the likely cause; images whose robot pose is far off are taken out of the
+    /// recording (the check says which and why). Returns the check and, when no image was taken
+    /// out, the fit's first steps for [`HandEyeInput::fit_from`] (the same numbers as without
+    /// the check).
+    pub fn check_motion(&mut self, options: &HandEyeOptions) -> Result<(&super::MotionCheck, Option<StartPoses>)> {
+        let start = start_poses(&self.data, options).map_err(|e| self.context(e))?;
+        let check = super::check_motion(self.data.mount, &start, &self.table, self.robot.as_ref())?;
+        let dropped: Vec<&str> = check.flagged.iter().filter(|f| f.dropped).map(|f| f.image.as_str()).collect();
+        let start = if dropped.is_empty() {
+            Some(start)
+        } else {
+            self.data.views.retain(|v| !dropped.contains(&v.name.as_str()));
+            for f in check.flagged.iter().filter(|f| f.dropped) {
+                self.skipped.push(Skipped { what: f.image.clone(), reason: f.reason.clone() });
+            }
+            None
+        };
+        Ok((self.motion.insert(check), start))
+    }
+
+    /// [`HandEyeInput::fit`] from the fit's first steps when given (of this recording and
+    /// `options`).
+    pub fn fit_from(&self, options: HandEyeOptions, start: Option<StartPoses>) -> Result<HandEyeFit> {
+        let start = match start {
+            Some(s) => s,
+            None => start_poses(&self.data, &options).map_err(|e| self.context(e))?,
+        };
+        let result = calibrate_hand_eye_from(&self.data, &options, start).map_err(|e| self.context(e))?;
         let opencv_camera = result.initial_camera.as_ref().map_or(result.camera, |c| c.camera);
         let baselines = opencv_baselines(&self.data, &options, &opencv_camera);
         Ok(HandEyeFit { options, result, baselines })

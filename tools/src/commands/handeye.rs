@@ -201,13 +201,22 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         robot_sigma_mm_deg: a.robot_sigma_mm.zip(a.robot_sigma_deg),
         exact_robot_poses: a.exact_robot_poses,
     };
-    let input = HandEyeInput::load(&run)?;
+    let mut input = HandEyeInput::load(&run)?;
+    let options = run.hand_eye_options()?;
+    // The robot's motions against the camera's before the fit: a recording that disagrees is
+    // refused with the likely cause; an image far off is named (and left out when clearly so).
+    let (motion, start) = input.check_motion(&options)?;
+    for w in &motion.warnings {
+        eprintln!("ferrocal handeye: warning: {w}");
+    }
+    let motion_check = verdict::motion_check(motion);
     for s in input.skipped_lines() {
         eprintln!("ferrocal: skipped {s}");
     }
-    let fit = input.fit(run.hand_eye_options()?)?;
+    let fit = input.fit_from(options, start)?;
     print_summary(&fit.result, best_baseline(&fit.baselines), input.table.source.as_deref());
     let mut checks = verdict::fit_checks(&vs.thresholds, &input.data, &fit.result);
+    checks.push(motion_check);
     let joint = match (&a.out, &a.robot) {
         (Some(out), Some(_)) => {
             let joint = input.joint_adjustment(&fit)?;

@@ -204,6 +204,9 @@ pub fn handeye_outputs(
         skipped.extend(input.skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
         skipped.extend(result.skipped.iter().map(|s| json!({"image": s.name, "reason": s.reason})));
         let mut v = json::handeye_json(result, baselines, Value::Array(skipped), source);
+        if let Some(m) = &input.motion {
+            v["motion_check"] = m.to_json();
+        }
         crate::verdict::add_verdict(&mut v, verdict);
         out.json_first(p, &v)?;
     }

@@ -131,3 +131,29 @@ pub fn joint_checks(t: &Thresholds, joint: &JointCalibration) -> Vec<Check> {
         .filter(|c| c.name.ends_with("chain_rms_px"))
         .collect()
 }
+
+/// The check of the robot's motions against the camera's before the fit
+/// ([`ferrocal_datasets::handeye::motion_check`]): a warning naming the images it found off (or
+/// the rough agreement), a pass with the figures otherwise.
+pub fn motion_check(m: &ferrocal_datasets::handeye::MotionCheck) -> Check {
+    let absent = match &m.agreement {
+        Some(a) => format!(
+            "robot and camera motions agree: rotation {} deg, travel {} mm at the median pair",
+            fmt_num(a.rotation_disagreement_deg),
+            fmt_num(a.travel_disagreement_mm)
+        ),
+        None => "robot and camera motions not compared (fewer than 4 images with a PnP pose)".into(),
+    };
+    let holds = match m.flagged.len() {
+        0 => m.warnings.join("; "),
+        n => format!(
+            "{n} image(s) whose robot pose disagrees with the camera: {}",
+            m.flagged
+                .iter()
+                .map(|f| format!("{} (line {}{})", f.image, f.line, if f.dropped { ", left out" } else { "" }))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    };
+    Check::flag("handeye.motion_check", &holds, &absent, !m.warnings.is_empty())
+}
