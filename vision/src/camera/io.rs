@@ -261,15 +261,13 @@ fn distortion_from(
             }
             return Ok(Distortion::None);
         }
-        Some("equidistant") | Some("fisheye") | Some("kannala_brandt") => DistortionKind::KannalaBrandt,
-        Some("plumb_bob") | Some("brown5") => {
-            if n == 0 {
-                return Ok(Distortion::None);
-            }
-            DistortionKind::Brown5
-        }
-        Some("rational_polynomial") | Some("rational8") => DistortionKind::Rational8,
-        Some(_) => return Err(unsupported()),
+        // Every other model by its name or alias (`DistortionKind::name`, `aliases`); plumb_bob
+        // without coefficients is the pinhole.
+        Some(name) => match name.parse::<DistortionKind>() {
+            Ok(DistortionKind::Brown5) if n == 0 => return Ok(Distortion::None),
+            Ok(kind) => kind,
+            Err(_) => return Err(unsupported()),
+        },
         None if fisheye => DistortionKind::KannalaBrandt,
         None => match n {
             0 => return Ok(Distortion::None),
