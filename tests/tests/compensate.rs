@@ -258,21 +258,7 @@ fn correct_writes_commands_that_the_calibrated_model_puts_on_the_nominal_poses()
     std::fs::write(&program, lines.join("\n") + "\n").unwrap();
     let out = tmp.path().join("corrected.csv");
     let progs = ["corrected.mod", "corrected.ngc", "corrected.script", "corrected.src"].map(|f| tmp.path().join(f));
-    ok(ferrocal()
-        .args(["correct", "--robot", "ur5", "--calibration"])
-        .arg(&cal)
-        .arg("--program")
-        .arg(&program)
-        .arg("--out")
-        .arg(&out)
-        .arg("--rapid")
-        .arg(&progs[0])
-        .arg("--gcode")
-        .arg(&progs[1])
-        .arg("--urscript")
-        .arg(&progs[2])
-        .arg("--krl")
-        .arg(&progs[3]));
+    ok(correct_cmd(&cal, &program, &out).args(program_flags(&progs)));
     let text = std::fs::read_to_string(&out).unwrap();
     let rows: Vec<Vec<&str>> = text.lines().filter(|l| !l.starts_with('#')).map(|l| l.split(',').collect()).collect();
     let program_header: Vec<&str> = lines[0].split(',').collect();
@@ -319,32 +305,14 @@ fn correct_writes_commands_that_the_calibrated_model_puts_on_the_nominal_poses()
     let script = std::fs::read_to_string(&progs[2]).unwrap();
     assert!(script.contains("def corrected():") && script.trim_end().ends_with("corrected()"));
     // An output onto an input is refused, and nothing is written.
-    let o = ferrocal_tests::run(
-        ferrocal()
-            .args(["correct", "--robot", "ur5", "--calibration"])
-            .arg(&cal)
-            .arg("--program")
-            .arg(&program)
-            .arg("--out")
-            .arg(tmp.path().join("again.csv"))
-            .arg("--rapid")
-            .arg(&program),
-    );
+    let o = ferrocal_tests::run(correct_cmd(&cal, &program, tmp.path().join("again.csv")).arg("--rapid").arg(&program));
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("would overwrite"));
     assert!(!tmp.path().join("again.csv").exists());
 
     let bad = tmp.path().join("bad.csv");
     std::fs::write(&bad, "pose_id,x_mm\n1,2\n").unwrap();
     let out2 = tmp.path().join("never.csv");
-    let o = ferrocal_tests::run(
-        ferrocal()
-            .args(["correct", "--robot", "ur5", "--calibration"])
-            .arg(&cal)
-            .arg("--program")
-            .arg(&bad)
-            .arg("--out")
-            .arg(&out2),
-    );
+    let o = ferrocal_tests::run(&mut correct_cmd(&cal, &bad, &out2));
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("bad.csv"));
     assert!(!out2.exists());
@@ -359,23 +327,8 @@ fn correct_writes_commands_that_the_calibrated_model_puts_on_the_nominal_poses()
     }
     std::fs::write(&named, &text).unwrap();
     let progs = ["named.mod", "named.ngc", "named.script", "named.src"].map(|f| tmp.path().join(f));
-    let o = ferrocal_tests::run(
-        ferrocal()
-            .args(["correct", "--robot", "ur5", "--calibration"])
-            .arg(&cal)
-            .arg("--program")
-            .arg(&named)
-            .arg("--out")
-            .arg(tmp.path().join("named_out.csv"))
-            .arg("--rapid")
-            .arg(&progs[0])
-            .arg("--gcode")
-            .arg(&progs[1])
-            .arg("--urscript")
-            .arg(&progs[2])
-            .arg("--krl")
-            .arg(&progs[3]),
-    );
+    let o =
+        ferrocal_tests::run(correct_cmd(&cal, &named, tmp.path().join("named_out.csv")).args(program_flags(&progs)));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for p in &progs {
         let t = std::fs::read_to_string(p).unwrap();
@@ -403,21 +356,30 @@ fn correct_writes_commands_that_the_calibrated_model_puts_on_the_nominal_poses()
     // An unknown motion word is refused naming the file, line and column; nothing is written.
     std::fs::write(&named, text.replacen(",linear\n", ",circular\n", 1)).unwrap();
     let out3 = tmp.path().join("never3.csv");
-    let o = ferrocal_tests::run(
-        ferrocal()
-            .args(["correct", "--robot", "ur5", "--calibration"])
-            .arg(&cal)
-            .arg("--program")
-            .arg(&named)
-            .arg("--out")
-            .arg(&out3),
-    );
+    let o = ferrocal_tests::run(&mut correct_cmd(&cal, &named, &out3));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         !o.status.success() && err.contains("named.csv") && err.contains("line 3") && err.contains("circular"),
         "{err}"
     );
     assert!(!out3.exists());
+}
+
+/// `ferrocal correct --robot ur5 --calibration CAL --program PROGRAM --out OUT`; more arguments may
+/// follow.
+fn correct_cmd(cal: &Path, program: &Path, out: impl AsRef<std::ffi::OsStr>) -> std::process::Command {
+    let mut c = ferrocal();
+    c.args(["correct", "--robot", "ur5", "--calibration"]).arg(cal).arg("--program").arg(program).arg("--out").arg(out);
+    c
+}
+
+/// The flags that write the four robot programs to `progs` (RAPID, G-code, URScript, KRL).
+fn program_flags(progs: &[std::path::PathBuf; 4]) -> Vec<std::ffi::OsString> {
+    ["--rapid", "--gcode", "--urscript", "--krl"]
+        .iter()
+        .zip(progs)
+        .flat_map(|(f, p)| [std::ffi::OsString::from(f), p.clone().into_os_string()])
+        .collect()
 }
 
 /// The joint values (degrees) of every move of a RAPID, G-code, URScript or KRL program that

@@ -64,10 +64,6 @@ fn k_matrix(camera: &CameraModel) -> [f64; 9] {
     [k.fx_px, 0.0, k.cx_px, 0.0, k.fy_px, k.cy_px, 0.0, 0.0, 1.0]
 }
 
-fn ros_model_name(kind: DistortionKind) -> &'static str {
-    kind.ros_name()
-}
-
 /// The OpenCV FileStorage YAML text of a camera.
 pub fn to_opencv_yaml(camera: &CameraModel) -> Result<String> {
     camera.validate()?;
@@ -78,7 +74,7 @@ pub fn to_opencv_yaml(camera: &CameraModel) -> Result<String> {
     };
     let model = match kind {
         DistortionKind::None => "none",
-        other => ros_model_name(other),
+        other => other.ros_name(),
     };
     let mut s = String::new();
     s.push_str("%YAML:1.0\n---\n");
@@ -124,7 +120,7 @@ fn ros_text(camera: &CameraModel, camera_name: &str, r: &[f64; 9], p: &[f64; 12]
     s.push_str(&format!("camera_name: {name}\n"));
     s.push_str("camera_matrix:\n  rows: 3\n  cols: 3\n");
     s.push_str(&format!("  data: [{}]\n", fmt_list(&k)));
-    s.push_str(&format!("distortion_model: {}\n", ros_model_name(kind)));
+    s.push_str(&format!("distortion_model: {}\n", kind.ros_name()));
     s.push_str(&format!("distortion_coefficients:\n  rows: 1\n  cols: {}\n", coeffs.len()));
     s.push_str(&format!("  data: [{}]\n", fmt_list(&coeffs)));
     s.push_str("rectification_matrix:\n  rows: 3\n  cols: 3\n");
@@ -444,7 +440,7 @@ pub fn to_opencv_stereo_yaml(pair: &StereoPair) -> Result<String> {
         cv_matrix(&mut s, &format!("D{i}"), 1, coeffs.len(), &coeffs);
         let model = match kind {
             DistortionKind::None => "none",
-            other => ros_model_name(other),
+            other => other.ros_name(),
         };
         s.push_str(&format!("distortion_model_{i}: {model}\n"));
     }
