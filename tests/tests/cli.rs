@@ -31,6 +31,44 @@ fn ur5_calibrate_and_evaluate_through_the_binary() {
     }
 }
 
+/// `--quiet` leaves the verdict line alone on stdout, `--verbose` adds the internals (what each
+/// fixed parameter trades against), the default ends with the files written and the verdict;
+/// the result is the same at every level.
+#[test]
+fn quiet_and_verbose_change_only_what_the_terminal_shows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let table = ur5_subset(tmp.path(), 200, false);
+    let mut stdout = Vec::new();
+    let mut results = Vec::new();
+    for level in ["", "--quiet", "--verbose"] {
+        let (cal, rep) = (tmp.path().join(format!("cal{level}.json")), tmp.path().join(format!("rep{level}.json")));
+        let mut cmd = calibrate_cmd("ur5", &table, &cal, &rep);
+        if !level.is_empty() {
+            cmd.arg(level);
+        }
+        let out = run(&mut cmd);
+        assert!(out.status.success(), "{level}");
+        stdout.push(String::from_utf8(out.stdout).unwrap());
+        results.push(json(&rep)["heldout"].clone());
+        let lines: Vec<&str> = stdout.last().unwrap().lines().collect();
+        let wrote = format!("wrote: {}, {}", cal.display(), rep.display());
+        match level {
+            "--quiet" => assert_eq!(lines.len(), 1, "--quiet printed {lines:?}"),
+            _ => assert_eq!(lines[lines.len() - 2], wrote, "{level}: {lines:?}"),
+        }
+        assert!(lines.last().unwrap().starts_with("verdict: pass: "), "{level}: {lines:?}");
+    }
+    let [normal, quiet, verbose] = [&stdout[0], &stdout[1], &stdout[2]];
+    assert!(
+        normal.contains("candidate parameters fixed as redundant") && !normal.contains("trades against"),
+        "{normal}"
+    );
+    assert!(verbose.contains("trades against") && verbose.contains("offset.q2_mrad"), "{verbose}");
+    let checks = |out: &str| out.lines().last().and_then(|l| l.split("; next:").next()).map(str::to_string);
+    assert_eq!(checks(normal), checks(quiet));
+    assert!(results.iter().all(|r| *r == results[0] && r.is_object()), "{results:?}");
+}
+
 /// Writes a measurement table of `rows` UR5 poses from the real recording, with joint 6
 /// optionally frozen.
 fn ur5_subset(dir: &Path, rows: usize, freeze_joint6: bool) -> PathBuf {

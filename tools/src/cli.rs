@@ -17,6 +17,14 @@ pub struct Cli {
     /// way, and stderr says that it failed its checks).
     #[arg(long, global = true)]
     pub keep: bool,
+    /// Print only the verdict line on stdout (warnings and errors still go to stderr; no
+    /// progress bars). The results are in the files written.
+    #[arg(long, short = 'q', global = true, conflicts_with = "verbose")]
+    pub quiet: bool,
+    /// Print the internals behind a result as well (e.g. which parameters a calibration fixed
+    /// and what each trades against, every identified parameter with its standard deviation).
+    #[arg(long, short = 'v', global = true)]
+    pub verbose: bool,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,

@@ -13,10 +13,17 @@ use ferrocal_report::report;
 use std::process::ExitCode;
 
 use clap::Parser;
+use ferrocal_report::term::{set_verbosity, Verbosity};
 
 fn main() -> ExitCode {
     restore_sigpipe();
     let args = cli::Cli::parse();
+    // Set once for the process: the demo's commands, run in-process, keep the demo's level.
+    set_verbosity(match (args.quiet, args.verbose) {
+        (true, _) => Verbosity::Quiet,
+        (false, true) => Verbosity::Verbose,
+        (false, false) => Verbosity::Normal,
+    });
     match commands::run(args) {
         Ok(code) => code,
         Err(e) => {

@@ -1,9 +1,12 @@
-//! Progress bars for long steps (hidden when stderr is not a terminal).
+//! Progress bars for long steps (hidden when stderr is not a terminal, and with `--quiet`).
 
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// A progress bar of `len` steps with a message.
 pub fn bar(len: u64, msg: &str) -> ProgressBar {
+    if quiet() {
+        return ProgressBar::hidden();
+    }
     let pb = ProgressBar::new(len);
     pb.set_style(
         ProgressStyle::with_template("{msg:>28} [{bar:40}] {pos}/{len} ({eta})")
@@ -17,6 +20,9 @@ pub fn bar(len: u64, msg: &str) -> ProgressBar {
 /// A spinner with the elapsed time, for a long step that reports no progress of its own
 /// (hidden when stderr is not a terminal, like the bars).
 pub fn spinner(msg: &str) -> ProgressBar {
+    if quiet() {
+        return ProgressBar::hidden();
+    }
     let pb = ProgressBar::new_spinner();
     pb.set_style(
         ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
@@ -25,6 +31,11 @@ pub fn spinner(msg: &str) -> ProgressBar {
     pb.set_message(msg.to_string());
     pb.enable_steady_tick(std::time::Duration::from_millis(250));
     pb
+}
+
+/// `--quiet`: no bars.
+fn quiet() -> bool {
+    !ferrocal_report::term::shows(ferrocal_report::term::Verbosity::Normal)
 }
 
 /// Progress bars by label: a new label finishes the previous bar; a bar finishes at its length.

@@ -209,7 +209,8 @@ fn display_name(name: &str, f: f64) -> String {
 
 /// The physical parameters a metrologist reads, for the terminal: the target-to-flange
 /// (tool) offset, the joint zero offsets (mrad, or mm for prismatic joints; "fixed" where the
-/// data could not identify them) and, for every fixed candidate, what it trades against.
+/// data could not identify them) and how many candidates were fixed as redundant
+/// ([`detail_lines`] says what each trades against).
 pub fn physical_summary(cal: &KinematicCalibration) -> Vec<String> {
     let mut out = Vec::new();
     let t = cal.calibrated.tool.translation.vector * 1e3;
@@ -234,6 +235,28 @@ pub fn physical_summary(cal: &KinematicCalibration) -> Vec<String> {
         })
         .collect();
     out.push(format!("joint zero offsets: {}", offsets.join(", ")));
+    let n_fixed = cal.trade_offs().len();
+    if n_fixed > 0 {
+        out.push(format!(
+            "{n_fixed} candidate parameters fixed as redundant with others (each at its start value; --verbose lists their trade-offs)"
+        ));
+    }
+    out
+}
+
+/// The internals behind [`physical_summary`] (`--verbose`): every identified parameter with its
+/// standard deviation, and what each parameter fixed as redundant trades against.
+pub fn detail_lines(cal: &KinematicCalibration) -> Vec<String> {
+    let mut out = vec!["parameters (value +- standard deviation; lengths in mm, angles in mrad):".to_string()];
+    for p in &cal.params {
+        let scale = if p.name.ends_with("_m") || p.name.ends_with("_rad") { 1e3 } else { 1.0 };
+        match p.std {
+            Some(sd) => {
+                out.push(format!("  {} {:+.4} +- {:.4}", display_name(&p.name, scale), p.value * scale, sd * scale))
+            }
+            None => out.push(format!("  {} {:+.4} fixed", display_name(&p.name, scale), p.value * scale)),
+        }
+    }
     let trades = ferrocal_calib::kinematic::describe_trade_offs(&cal.trade_offs());
     if !trades.is_empty() {
         out.push(format!(

@@ -118,7 +118,7 @@ pub fn stereo_json(
 /// warnings on stderr.
 pub fn print_camera(label: &str, cal: &CameraCalibration) {
     let k = cal.camera.intrinsics;
-    println!(
+    crate::say!(
         "{label}: fx {:.3} +- {:.3}, fy {:.3} +- {:.3}, cx {:.3} +- {:.3}, cy {:.3} +- {:.3} px; distortion {:?}; RMS {:.4} px over {} views",
         k.fx_px,
         cal.std[0],
@@ -134,7 +134,7 @@ pub fn print_camera(label: &str, cal: &CameraCalibration) {
     );
     if cal.summary.covariance_method != ferrocal_vision::calib::CovarianceMethod::Independent {
         let s = &cal.summary.std_independent;
-        println!(
+        crate::say!(
             "{label}: standard deviations by {} covariance; with corners independent: fx {:.3}, fy {:.3}, cx {:.3}, cy {:.3} px",
             cal.summary.covariance_method.name(),
             s[0],

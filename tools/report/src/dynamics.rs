@@ -426,11 +426,11 @@ pub fn demo_section(seed: u64, quick: bool) -> Result<Section> {
 
 /// Prints a linear fit's parameters with their standard deviations, and its figures.
 pub fn print_fit(f: &ferrocal_lsq::linear::LinearFit) {
-    println!("{:<18} {:>14} {:>12}", "parameter", "estimate", "std");
+    crate::say!("{:<18} {:>14} {:>12}", "parameter", "estimate", "std");
     for i in 0..f.values.len() {
-        println!("{:<18} {:>14.6} {:>12.6}", f.names[i], f.values[i], f.std[i]);
+        crate::say!("{:<18} {:>14.6} {:>12.6}", f.names[i], f.values[i], f.std[i]);
     }
-    println!("s0 = {:.4}, {} equations, redundancy {}, cond = {:.3e}", f.s0, f.n_rows, f.dof, f.condition_number);
+    crate::say!("s0 = {:.4}, {} equations, redundancy {}, cond = {:.3e}", f.s0, f.n_rows, f.dof, f.condition_number);
 }
 
 /// The verdict of `dynamics simulate`: the rows written (stream samples; static poses for the

@@ -14,7 +14,8 @@
 //! - [`demo`]: the sections of `ferrocal demo`;
 //! - [`robot`]: `ferrocal robot info` and a tool pose, as terminal lines and JSON;
 //! - [`outputs`]: a command's output files, composed first and written together;
-//! - [`verdict`]: how every command ends (the verdict line, its JSON, the exit status).
+//! - [`verdict`]: how every command ends (the verdict line, its JSON, the exit status);
+//! - [`term`]: how much the terminal shows (`--quiet`, `--verbose`).
 #![deny(missing_docs)]
 
 pub mod calibrate;
@@ -36,6 +37,7 @@ pub mod recording;
 pub mod report;
 pub mod robot;
 pub mod stiffness;
+pub mod term;
 pub mod verdict;
 
 pub use outputs::Outputs;

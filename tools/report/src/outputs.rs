@@ -59,8 +59,13 @@ impl Outputs {
         self.0.iter().map(|(p, _)| p.as_path())
     }
 
-    /// Writes every file as one commit ([`write_all_atomic`]).
+    /// Writes every file as one commit ([`write_all_atomic`]), then names them on stdout
+    /// (`wrote: ...`, unless `--quiet`).
     pub fn write(&self) -> Result<()> {
-        write_all_atomic(&self.0.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect::<Vec<_>>())
+        write_all_atomic(&self.0.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect::<Vec<_>>())?;
+        if let Some(line) = crate::term::wrote_line(self.paths()) {
+            crate::say!("{line}");
+        }
+        Ok(())
     }
 }

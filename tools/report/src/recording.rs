@@ -77,7 +77,7 @@ pub fn recording_verdict(
 pub fn print_summary(m: &RecordingMeasurement) {
     let c = &m.camera;
     match (c.calibration_rms_px, &c.std) {
-        (Some(rms), Some(std)) => println!(
+        (Some(rms), Some(std)) => crate::say!(
             "camera calibrated from {} views: fx {:.2} +- {:.2}, fy {:.2} +- {:.2}, cx {:.2} +- {:.2}, cy {:.2} +- {:.2} px, RMS {rms:.4} px",
             c.calibration_views,
             c.camera.intrinsics.fx_px,
@@ -89,12 +89,12 @@ pub fn print_summary(m: &RecordingMeasurement) {
             c.camera.intrinsics.cy_px,
             std[3]
         ),
-        _ => println!("camera given: fx {:.2}, fy {:.2} px", c.camera.intrinsics.fx_px, c.camera.intrinsics.fy_px),
+        _ => crate::say!("camera given: fx {:.2}, fy {:.2} px", c.camera.intrinsics.fx_px, c.camera.intrinsics.fy_px),
     }
     let mut sig: Vec<f64> = m.poses.iter().map(|p| p.sigma_position_rms_mm()).collect();
     sig.sort_by(f64::total_cmp);
     let rms: Vec<f64> = m.poses.iter().map(|p| p.estimate.rms_px).collect();
-    println!(
+    crate::say!(
         "{} image(s) measured, {} left out; median position sigma {:.4} mm; median reprojection RMS {:.4} px",
         m.poses.len(),
         m.skipped.len(),

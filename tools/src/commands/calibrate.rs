@@ -1,6 +1,8 @@
 //! `ferrocal calibrate` and `ferrocal evaluate`: kinematic calibration from a measurement table,
 //! and prediction of a table with a calibrated model.
 
+use ferrocal_report::term::say_lines;
+use ferrocal_report::{detail, say, tell};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -14,7 +16,7 @@ use ferrocal_datasets::calibration::{
     apply_calibration, calibrate_table, companion_path, evaluate_rows, export_calibration, CalibrateFlags,
 };
 use ferrocal_report::calibrate::{
-    calibrate_outputs, evaluate_line, evaluate_run_json, export_lines, summary_lines, CalibrateFiles,
+    calibrate_outputs, detail_lines, evaluate_line, evaluate_run_json, export_lines, summary_lines, CalibrateFiles,
 };
 use ferrocal_report::verdict::{add_verdict, VerdictSettings};
 use ferrocal_report::{check_outputs, write_all_atomic, write_atomic};
@@ -135,15 +137,20 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
     let run = calibrate_table(&model, &rows, &opts, !args.no_validation, &|| progress.inc(1))?;
     progress.finish_and_clear();
     for line in run.deliverable(&args.measurements, args.accept_unconverged)? {
-        eprintln!("{line}");
+        match line.starts_with("note: ") {
+            true => tell!("{line}"),
+            false => eprintln!("{line}"),
+        }
     }
     // Everything is composed first, then written together: a failing report leaves no
     // calibration file behind, and no output is half-set.
     let validation = run.validation.as_ref().map(|(v, b, a)| (v, b, a));
     let verdict = verdict::calibrate(&vs.thresholds, &run.cal, validation, &args.robot, &args.out);
     let settings = json!({"robot": args.robot, "options": opts});
-    calibrate_outputs(&run, &args.robot, model.name(), &args.measurements, settings, &verdict, &files)?.write()?;
-    summary_lines(&run, model.name()).iter().for_each(|l| println!("{l}"));
+    let outputs = calibrate_outputs(&run, &args.robot, model.name(), &args.measurements, settings, &verdict, &files)?;
+    say_lines(&summary_lines(&run, model.name()));
+    detail_lines(&run.cal).iter().for_each(|l| detail!("{l}"));
+    outputs.write()?;
     Ok(vs.conclude(&verdict))
 }
 
@@ -163,7 +170,7 @@ pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCod
     let verdict = verdict::evaluate(&vs.thresholds, &stats, &scored_words);
     add_verdict(&mut out, &verdict);
     write_atomic(&args.json, serde_json::to_string_pretty(&out)?.as_bytes())?;
-    println!("{}", evaluate_line(&scored_words, &stats));
+    say!("{}", evaluate_line(&scored_words, &stats));
     Ok(vs.conclude(&verdict))
 }
 
@@ -199,7 +206,7 @@ pub fn run_export(args: &ExportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     // Everything is composed first, then written.
     let ex = export_calibration(&cm, &args.robot, &args.calibration, args.urdf.as_deref(), args.dh.as_deref())?;
     write_all_atomic(&ex.files.iter().map(|(p, t)| (p.as_path(), t.as_bytes())).collect::<Vec<_>>())?;
-    export_lines(&ex, cm.effects.len()).iter().for_each(|l| println!("{l}"));
+    export_lines(&ex, cm.effects.len()).iter().for_each(|l| say!("{l}"));
     let (mm, deg) = ex.roundtrip_mm_deg();
     Ok(vs.conclude(&verdict::export(&vs.thresholds, mm, deg)))
 }

@@ -5,6 +5,7 @@
 //! and in the JSON's `skipped` list, and the batch goes on; too few usable views is an error that
 //! says how many were usable and why.
 
+use ferrocal_report::say;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -240,17 +241,17 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let run = found.calibrate(&pattern, &options, a.test_every)?;
     ferrocal_report::camera::print_camera("camera", &run.fit.calibration);
     if let Some(b) = &run.fit.circle_bias {
-        println!("{b}");
+        say!("{b}");
     }
     let held_out = a.test_every.map(|_| run.held_out()).transpose()?;
     if let Some(h) = &held_out {
-        println!("{}", held_out_line(h, run.test_views.len()));
+        say!("{}", held_out_line(h, run.test_views.len()));
         for v in h.views.iter().filter(|v| v.error.is_some()) {
             eprintln!("ferrocal: held-out view {}: {}", v.name, v.error.as_deref().unwrap_or(""));
         }
     }
     if a.compare_opencv {
-        println!("{}", compare_with_opencv(&run.paths, &pattern, &options)?);
+        say!("{}", compare_with_opencv(&run.paths, &pattern, &options)?);
     }
     let verdict = camera_verdict(&vs.thresholds, &run, held_out.as_ref());
     camera_outputs(&run, held_out.as_ref(), a.test_every, &verdict, &files)?.write()?;
@@ -283,12 +284,12 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let st = &run.calibration;
     ferrocal_report::camera::print_camera("left", st.left());
     ferrocal_report::camera::print_camera("right", st.right());
-    println!("{}", stereo_line(st, run.n_pairs));
+    say!("{}", stereo_line(st, run.n_pairs));
     // The rectification; a pair that cannot be rectified (a wide fisheye whose image corners
     // lie beyond 90 degrees) is an error only for the outputs that need it.
     let rectified = match run.rectify(files.need_rectification())? {
         Ok(r) => {
-            println!("{}", rectified_line(&r));
+            say!("{}", rectified_line(&r));
             Some(r)
         }
         Err(why) => {

@@ -2,6 +2,7 @@
 //! study is `ferrocal_datasets::render::corner_study`, the table `ferrocal_report::corner_study`).
 //! Writes `corner_study.md`, `.csv` and `.json`.
 
+use ferrocal_report::{say, tell};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -33,7 +34,7 @@ pub struct CornerStudyArgs {
 /// Runs the study.
 pub fn run(args: &CornerStudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let settings = CornerStudySettings { images: args.images, seed: args.seed, width: args.width };
-    let (rows, w, h) = corner_study(&settings, &|s| eprintln!("{s}"))?;
+    let (rows, w, h) = corner_study(&settings, &|s| tell!("{s}"))?;
     let md = markdown(&rows, args.images, args.seed, w, h);
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
     write_atomic(&args.out.join("corner_study.md"), md.as_bytes())?;
@@ -44,6 +45,6 @@ pub fn run(args: &CornerStudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     write_atomic(&args.out.join("corner_study.json"), &serde_json::to_vec_pretty(&rows)?)?;
     write_atomic(&args.out.join("verdict.json"), &serde_json::to_vec_pretty(&verdict.to_json())?)?;
     write_atomic(&args.out.join("corner_study.csv"), rows_csv(&rows)?.as_bytes())?;
-    println!("{md}");
+    say!("{md}");
     Ok(vs.conclude(&verdict))
 }

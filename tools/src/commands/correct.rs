@@ -2,6 +2,7 @@
 //! ([`ferrocal_datasets::correct`]), its outputs and its verdict
 //! ([`ferrocal_report::compensate::correct_verdict`]).
 
+use ferrocal_report::say;
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -66,11 +67,8 @@ pub fn run(a: &CorrectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let mut files = ferrocal_report::Outputs::default();
     files.text(&a.out, run.csv.as_str());
     programs.iter().for_each(|(p, t)| files.text(p, t.as_str()));
+    say!("{}", run.summary_line(&a.out));
     files.write()?;
-    for (path, _) in &programs {
-        println!("corrected program written to {}", path.display());
-    }
-    println!("{}", run.summary_line(&a.out));
     let linear_as_joint = run.linear_as_joint(&outputs);
     let verdict =
         ferrocal_report::compensate::correct_verdict(&vs.thresholds, &run, &a.out, &a.calibration, &linear_as_joint);

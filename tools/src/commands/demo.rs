@@ -11,6 +11,7 @@
 //! a user would call them. The report opens with a summary of every section's status; skipped
 //! and reported sections are not counted as passing, and a failed check exits 2.
 
+use ferrocal_report::{say, tell};
 use std::process::ExitCode;
 
 use anyhow::Result;
@@ -29,14 +30,14 @@ pub fn run(args: &DemoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let tick = |label: &str, pos: u64, len: u64| bars.tick(label, pos, len);
     let settings = json!({"samples": args.samples, "seed": args.seed, "data": args.data.display().to_string()});
     let prov = Provenance::new(settings);
-    eprintln!("ferrocal demo -> {}", args.out.display());
+    tell!("ferrocal demo -> {}", args.out.display());
     let d =
         DemoSettings { out: &args.out, data: &args.data, samples: args.samples, seed: args.seed, quick: args.quick };
     // The commands of their own run in-process; their error reaches the demo's as it reads.
     let run = |argv: &[String]| run_command(argv).map_err(|e| ReportError::msg(format!("{e:#}")));
     let report = demo_report(&d, prov, &tick, &run)?;
     let html = report.write(&args.out)?;
-    println!("{}", written_line(&report, &html));
+    say!("{}", written_line(&report, &html));
     Ok(ferrocal_report::verdict::conclude_report(vs, &args.out, "demo")?)
 }
 

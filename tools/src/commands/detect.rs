@@ -5,6 +5,7 @@
 //! `ferrocal_datasets::import::list_images`, the per-image results from
 //! `ferrocal_vision::detect::Detector`).
 
+use ferrocal_report::say;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -81,7 +82,7 @@ pub fn run(args: &DetectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let failed = results.iter().filter(|r| r.error.is_some()).count();
     let json = serde_json::to_vec_pretty(&results)?;
     write_atomic(&args.json, &json).with_context(|| format!("cannot write {}", args.json.display()))?;
-    println!("{}", summary_line(&results, &args.json));
+    say!("{}", summary_line(&results, &args.json));
     let verdict = verdict::detect(&vs.thresholds, results.len(), failed);
     // The JSON is an array per the spec: the verdict is on the terminal only. Failed images keep
     // their documented exit status 2; a failed verdict has at least one failed image.

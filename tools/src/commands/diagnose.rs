@@ -1,6 +1,7 @@
 //! `ferrocal diagnose`: the missing-physics analysis of a measurement table (JSON per
 //! `shared/spec/diagnose.md`, optional HTML report with the evidence).
 
+use ferrocal_report::say;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -101,11 +102,11 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     progress.finish_and_clear();
     // Composed first, then written together (no half-set outputs).
     let (out, verdict) = robot_outputs(&vs.thresholds, &rep, model.name(), compensated.as_ref(), &opts, &files)?;
-    out.write()?;
     if let (Some(path), Some(cal)) = (&args.out, &compensated) {
-        println!("{}", compensated_line(path, cal));
+        say!("{}", compensated_line(path, cal));
     }
-    summary_lines(&rep, model.name()).iter().for_each(|l| println!("{l}"));
+    summary_lines(&rep, model.name()).iter().for_each(|l| say!("{l}"));
+    out.write()?;
     Ok(vs.conclude(&verdict))
 }
 
@@ -135,7 +136,7 @@ fn run_camera(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         (h, Report::of(&title, prov, vec![camera_section(&rep, opts.folds, args.attribution.as_deref())]))
     });
     Outputs::json_and_report(&args.json, &rep_json, report, &verdict)?.write()?;
-    camera_summary_lines(&rep).iter().for_each(|l| println!("{l}"));
+    camera_summary_lines(&rep).iter().for_each(|l| say!("{l}"));
     Ok(vs.conclude(&verdict))
 }
 
@@ -154,6 +155,6 @@ fn run_forces(args: &DiagnoseArgs, path: &Path, vs: &VerdictSettings) -> Result<
         (h, Report::of(&title, prov, vec![force_section(&rep, opts.folds, args.attribution.as_deref())]))
     });
     Outputs::json_and_report(&args.json, &rep_json, report, &verdict)?.write()?;
-    force_summary_lines(&rep, n_poses).iter().for_each(|l| println!("{l}"));
+    force_summary_lines(&rep, n_poses).iter().for_each(|l| say!("{l}"));
     Ok(vs.conclude(&verdict))
 }

@@ -1,5 +1,6 @@
 //! `ferrocal doctor`: are the external libraries built and answering?
 
+use ferrocal_report::say;
 use std::process::ExitCode;
 
 use anyhow::Result;
@@ -10,7 +11,7 @@ use ferrocal_report::verdict::VerdictSettings;
 pub fn run(vs: &VerdictSettings) -> Result<ExitCode> {
     let mut libraries = Vec::new();
     for b in ferrocal_vision::backends::probe_backends() {
-        println!("{:<14} {:<4} {}  [{}]", b.name, if b.ok { "ok" } else { "FAIL" }, b.detail, b.role);
+        say!("{:<14} {:<4} {}  [{}]", b.name, if b.ok { "ok" } else { "FAIL" }, b.detail, b.role);
         libraries.push((b.name, b.ok));
     }
     Ok(vs.conclude_with(&ferrocal_calib::verdict::commands::doctor(&libraries), ExitCode::SUCCESS, 2))

@@ -8,6 +8,7 @@
 //!
 //! File formats: `docs/dynamics.md`, `ferrocal_datasets::formats::dynamics_tables`.
 
+use ferrocal_report::{say, tell};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -170,7 +171,7 @@ fn run_identify(a: &IdentifyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         cutoff_hz: a.cutoff_hz,
         period_samples: a.period_samples,
     })?;
-    println!("{} samples, {}", f.samples, d.label());
+    say!("{} samples, {}", f.samples, d.label());
     print_fit(&f.fit);
     // With --period-samples the weights are the noise measured from the repeated periods, and
     // s0 is held against 1.
@@ -186,7 +187,7 @@ fn run_identify(a: &IdentifyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
 
 fn run_identify_static(a: &IdentifyStaticArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (m, n_poses, f) = identify_static(a.model, &a.poses)?;
-    println!("{m}: {} from {n_poses} poses", m.description());
+    say!("{m}: {} from {n_poses} poses", m.description());
     print_fit(&f);
     let verdict = verdict::dynamics_identify(&vs.thresholds, &LinearFitFigures::of(&f, false));
     if let Some(p) = &a.json {
@@ -217,7 +218,6 @@ fn run_simulate(a: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let mut files = ferrocal_report::Outputs::default();
     tables.iter().for_each(|(name, text)| files.text(&a.out.join(name), text.as_str()));
     files.write()?;
-    println!("wrote {}", a.out.display());
     let hexapod = a.rig == RigArg::Hexapod;
     Ok(vs.conclude(&ferrocal_report::dynamics::simulate_verdict(&tables, &a.out, hexapod, a.periods, a.rate_hz)))
 }
@@ -226,8 +226,7 @@ fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (repeats, evaluations) =
         if a.quick { (a.repeats.min(20), a.evaluations.min(500)) } else { (a.repeats, a.evaluations) };
     let t0 = std::time::Instant::now();
-    let report = study_report(a.seed, a.quick, repeats, evaluations, &|s| {
-        eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64())
-    })?;
+    let report =
+        study_report(a.seed, a.quick, repeats, evaluations, &|s| tell!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64()))?;
     super::finish_study(&report, &a.out, t0, vs)
 }

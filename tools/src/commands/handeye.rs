@@ -3,6 +3,7 @@
 //! [`ferrocal_report::handeye`]. Also `handeye study` (the Monte Carlo check of the covariance)
 //! and `handeye simulate`.
 
+use ferrocal_report::{say, tell};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -221,7 +222,7 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         (Some(out), Some(_)) => {
             let joint = input.joint_adjustment(&fit)?;
             checks.extend(verdict::joint_checks(&vs.thresholds, &joint));
-            println!("{}", joint_line(&joint, out));
+            say!("{}", joint_line(&joint, out));
             Some(joint)
         }
         _ => None,
@@ -241,7 +242,7 @@ fn run_simulate(s: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let staged = ferrocal_report::StagedFolder::create(&s.out)?;
     let counts = (s.train, s.test, s.seed);
     let written = write_simulated_recording(mount_of(s.mount), s.robot.as_deref(), counts, staged.path(), &s.out)?;
-    eprintln!("{written}");
+    tell!("{written}");
     staged.commit()?;
     let counts = [("images", s.train + s.test)];
     let next = format!(
@@ -260,11 +261,11 @@ fn run_study(s: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         ferrocal_datasets::handeye::StudyMode { free_intrinsics: s.free_intrinsics, estimate_noise: s.estimate_noise };
     let rows = coverage_study(s.simulations, s.seed, mode, &|k, n| {
         if k % 20 == 0 || k == n {
-            eprintln!("handeye study: {k}/{n} simulations");
+            tell!("handeye study: {k}/{n} simulations");
         }
     });
     for r in &rows {
-        println!("{}", ferrocal_report::handeye::coverage_line(r));
+        say!("{}", ferrocal_report::handeye::coverage_line(r));
     }
     let v = ferrocal_report::handeye::study_verdict(&vs.thresholds, &rows);
     if let Some(p) = &s.json {

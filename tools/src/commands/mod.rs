@@ -58,6 +58,6 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
 /// stdout, then its verdict from the report's checks (a failed check exits 2).
 pub fn finish_study(report: &Report, out: &Path, t0: Instant, vs: &VerdictSettings) -> Result<ExitCode> {
     let html = report.write(out)?;
-    println!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
+    ferrocal_report::say!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
     Ok(ferrocal_report::verdict::conclude_report(vs, out, "study")?)
 }

@@ -3,6 +3,7 @@
 //! `ilc`, `track` and `leadthrough` one each, with the same code and the same sections; `cell`
 //! the compliant 3-DOF Gantry-Tau cell.
 
+use ferrocal_report::tell;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -153,7 +154,7 @@ pub enum Sensor {
 /// Runs `ferrocal motion`.
 pub fn run(a: &MotionArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
-    let progress = |s: &str| eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
+    let progress = |s: &str| tell!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
     let (report, common) = match &a.command {
         MotionCommand::Study(s) => {
             check_contact_force(s.contact_force_n)?;

@@ -1,6 +1,7 @@
 //! `ferrocal plan`: the arguments, and the flow of `ferrocal_report::plan` (plan file, workspace,
 //! selection, predicted and simulated calibration, path, programs, report).
 
+use ferrocal_report::{say, tell};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -48,7 +49,7 @@ pub struct PlanArgs {
 /// Runs `ferrocal plan`.
 pub fn run(args: &PlanArgs, vs: &ferrocal_report::verdict::VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
-    let log = |s: &str| eprintln!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
+    let log = |s: &str| tell!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64());
     let request = PlanRequest {
         plan: args.plan.clone(),
         out: args.out.clone(),
@@ -62,7 +63,7 @@ pub fn run(args: &PlanArgs, vs: &ferrocal_report::verdict::VerdictSettings) -> R
     let bars = crate::progress::Bars::default();
     let outcome =
         ferrocal_report::plan::run(&request, &log, &|k, n| bars.tick("simulated calibrations", k as u64, n as u64))?;
-    println!("{}", outcome.line());
+    say!("{}", outcome.line());
     // The plan's own checks (selection, sigma ratio, predicted accuracy, path) decide, as its
     // exit status always did; another failed section of the report (the Monte Carlo check of the
     // prediction on few runs) is a warning.

@@ -2,6 +2,7 @@
 //! by one camera into a measurement table with each pose's covariance
 //! ([`ferrocal_datasets::recording`]); its JSON and verdict by [`ferrocal_report::recording`].
 
+use ferrocal_report::{say, tell};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -57,7 +58,7 @@ pub fn run(
     ferrocal_report::check_outputs(&outputs, &input.inputs())?;
     let mount = mount_of(a.mount);
     let opts = RecordingOptions::new(mount, a.intrinsics.as_deref(), corner_sigma_px)?;
-    eprintln!("measuring {} image(s) of {} ...", input.paths.len(), poses.display());
+    tell!("measuring {} image(s) of {} ...", input.paths.len(), poses.display());
     let m = input.measure(&opts).with_context(|| format!("measure: {}", poses.display()))?;
     for s in input.skipped_lines(&m) {
         eprintln!("ferrocal measure: skipped {s}");
@@ -68,7 +69,7 @@ pub fn run(
     if let (Some(out), Some(rows)) = (out, &m.rows) {
         let text = input.table_text(rows, mount, m.source.as_deref());
         files.text(out, text.with_context(|| format!("writing {}", out.display()))?);
-        println!("table {} ({} rows)", out.display(), rows.rows.len());
+        say!("table {} ({} rows)", out.display(), rows.rows.len());
     }
     let total = m.poses.len() + m.skipped.len() + input.skipped_images.len();
     let verdict = recording_verdict(&vs.thresholds, &m, total, out.map(PathBuf::as_path));

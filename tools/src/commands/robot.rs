@@ -1,6 +1,7 @@
 //! `ferrocal robot ...`: model information, kinematics and safety checks, each ending with its
 //! verdict (`docs/verdicts.md`).
 
+use ferrocal_report::say;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
@@ -20,7 +21,7 @@ pub fn run(cmd: RobotCommand, vs: &VerdictSettings) -> Result<ExitCode> {
     match cmd {
         RobotCommand::Info { robot, json } => {
             let model = load(&robot)?;
-            info_lines(&model).iter().for_each(|l| println!("{l}"));
+            info_lines(&model).iter().for_each(|l| say!("{l}"));
             let v = verdict::robot_info(model.dof(), model.parameters().len(), &unlimited_joints(&model));
             if let Some(path) = json {
                 let mut j = info_json(&model);
@@ -32,7 +33,7 @@ pub fn run(cmd: RobotCommand, vs: &VerdictSettings) -> Result<ExitCode> {
         RobotCommand::Fk { robot, joints } => {
             let model = load(&robot)?;
             let q = parse_joints(&joints, &model)?;
-            pose_lines(&forward_within_limits(&model, &q, &joints)?).iter().for_each(|l| println!("{l}"));
+            pose_lines(&forward_within_limits(&model, &q, &joints)?).iter().for_each(|l| say!("{l}"));
             Ok(vs.conclude(&verdict::robot_fk(t, q.len(), &limit_margins(&model, &q))))
         }
         RobotCommand::Ik { robot, pose, seed } => {
@@ -41,7 +42,7 @@ pub fn run(cmd: RobotCommand, vs: &VerdictSettings) -> Result<ExitCode> {
             let seed = seed.map(|s| parse_joints(&s, &model)).transpose()?.unwrap_or_else(|| mid_limits(&model));
             let (q, outcome) = solve_ik(&model, &target, &seed).context("inverse kinematics")?;
             match (&q, &outcome) {
-                (Some(q), _) => println!("{}", format_joints(q, &model)),
+                (Some(q), _) => say!("{}", format_joints(q, &model)),
                 (None, IkOutcome::NoSolution(e)) => eprintln!("ferrocal: inverse kinematics: {e}"),
                 (None, _) => {}
             }
@@ -52,9 +53,9 @@ pub fn run(cmd: RobotCommand, vs: &VerdictSettings) -> Result<ExitCode> {
             let violations = std::cell::Cell::new(0usize);
             let ok = check_safety(&model, &safety, &joints, to.as_deref(), &|l| {
                 violations.set(violations.get() + 1);
-                println!("{l}");
+                say!("{l}");
             })?;
-            println!("{}", if ok { "safe" } else { "NOT safe" });
+            say!("{}", if ok { "safe" } else { "NOT safe" });
             // The exit status is the answer (3: not safe), with or without --keep: a safety
             // check has no result to keep.
             let v = verdict::robot_check(if ok { 0 } else { violations.get().max(1) });

@@ -1,6 +1,7 @@
 //! `ferrocal simulate` and `ferrocal import`: recorded sessions from a simulated cell, and real
 //! recordings converted into the measurement table.
 
+use ferrocal_report::{say, tell};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -36,7 +37,7 @@ pub fn run_simulate(args: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCod
     let cfg = cell_for_session(&args.config, &args.out, args.seed)?;
     let bars = crate::progress::Bars::default();
     let manifest = simulate(&cfg, &args.out, args.force, |k, n| bars.tick("simulating poses", k as u64, n as u64))?;
-    eprintln!("{}", session_summary(&manifest, &args.out));
+    tell!("{}", session_summary(&manifest, &args.out));
     let counts = [("poses", manifest.n_poses)];
     let next = if manifest.cameras.is_empty() {
         format!(
@@ -116,8 +117,8 @@ pub fn run_import(args: &ImportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     if let (Some(p), Some(urdf)) = (&args.robot_out, &t.urdf) {
         out.text(p, urdf.as_str());
     }
+    say!("imported {} rows ({} marked test)", t.set.rows.len(), t.n_test());
     out.write()?;
-    println!("{} rows written to {}", t.set.rows.len(), args.out.display());
     Ok(vs.conclude(&verdict::import(&vs.thresholds, t.set.rows.len(), t.n_test(), &args.out)))
 }
 
@@ -162,7 +163,7 @@ pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode>
     let inputs: Vec<&Path> =
         [args.tracker.as_deref(), args.robot.as_deref().map(Path::new)].into_iter().flatten().collect();
     ferrocal_report::check_outputs(&outputs, &inputs)?;
-    eprintln!("measuring {} ...", session.display());
+    tell!("measuring {} ...", session.display());
     let m = measure_session(session, &opts).with_context(|| format!("measure: {}", session.display()))?;
     for s in &m.skipped {
         eprintln!("ferrocal measure: skipped {s}");
@@ -176,10 +177,10 @@ pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode>
     // The table and the summary are composed first and written together at the end.
     let mut files = Outputs::default();
     files.text(out, m.table_text(session).with_context(|| format!("writing {}", out.display()))?);
-    println!("{}", session_line(&m, out));
+    say!("{}", session_line(&m, out));
     let comparison = args.tracker.as_ref().zip(args.robot.as_ref());
     let comparison = comparison.map(|(t, r)| m.compare_with_tracker_table(t, r)).transpose()?;
-    comparison.iter().for_each(|c| println!("{}", tracker_line(c)));
+    comparison.iter().for_each(|c| say!("{}", tracker_line(c)));
     let verdict = session_verdict(&vs.thresholds, &m, out);
     if let Some(j) = &args.json {
         files.json(j, &session_json(&m, session, comparison.as_ref(), &verdict))?;

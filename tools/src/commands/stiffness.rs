@@ -11,6 +11,7 @@
 //!
 //! File format: `docs/stiffness.md`.
 
+use ferrocal_report::say;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -121,7 +122,7 @@ fn run_simulate(a: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
     write_atomic(&a.out.join("deflections.csv"), sim.csv.as_bytes())?;
     write_atomic(&a.out.join("truth.json"), serde_json::to_string_pretty(&sim.truth)?.as_bytes())?;
-    println!("wrote {} ({} measurements)", a.out.join("deflections.csv").display(), sim.measurements);
+    say!("wrote {} ({} measurements)", a.out.join("deflections.csv").display(), sim.measurements);
     let next = format!(
         "identify from it: ferrocal stiffness identify --measurements {}",
         a.out.join("deflections.csv").display()
@@ -140,7 +141,7 @@ fn run_identify(a: &IdentifyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         }
     };
     let (red, prior_red) = (&id.reduction, &id.prior);
-    identify_lines(red, prior_red).iter().for_each(|l| println!("{l}"));
+    identify_lines(red, prior_red).iter().for_each(|l| say!("{l}"));
     let ok = red.physical_problems.is_empty();
     if !ok {
         eprintln!("error: the estimate is not physical: {}", red.physical_problems.join("; "));
@@ -150,7 +151,7 @@ fn run_identify(a: &IdentifyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         let html = identify_report(&a.model, a.nu_threshold, &a.measurements, red, prior_red).write(out)?;
         let params = complete_parameters(&id.problem, red);
         write_atomic(&out.join("parameters.json"), serde_json::to_string_pretty(&params)?.as_bytes())?;
-        println!("wrote {}", html.display());
+        say!("wrote {}", html.display());
     }
     let s0 = red.steps.last().map_or(red.fit.s0, |s| s.s0);
     let verdict = verdict::stiffness_identify(&vs.thresholds, &red.physical_problems, s0, red.param.len());

@@ -30,7 +30,7 @@ pub fn print_summary(
 ) {
     let p = r.hand_eye.transform.translation.vector * 1e3;
     let s = r.hand_eye.translation_std_mm();
-    println!(
+    crate::say!(
         "{} {}: translation [{:.3}, {:.3}, {:.3}] +- [{:.3}, {:.3}, {:.3}] mm, rotation std {:.4?} deg",
         r.mount.name(),
         r.mount.hand_eye_name(),
@@ -44,7 +44,7 @@ pub fn print_summary(
     );
     let f = &r.figures;
     let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.4}"));
-    println!(
+    crate::say!(
         "chain RMS: train {:.4} px, held-out {} px; PnP agreement: train {} mm / {} deg, held-out {} mm / {} deg",
         f.train_rms_px,
         opt(f.heldout_rms_px),
@@ -54,7 +54,7 @@ pub fn print_summary(
         opt(f.heldout_pnp_rotation_deg)
     );
     if let Some(b) = best.and_then(|b| b.figures.as_ref().map(|f| (b, f))) {
-        println!(
+        crate::say!(
             "OpenCV best ({} {}): train {:.4} px, held-out {} px",
             b.0.function,
             b.0.method,
@@ -63,7 +63,7 @@ pub fn print_summary(
         );
     }
     if let Some(src) = source {
-        println!("data: {src}");
+        crate::say!("data: {src}");
     }
     for w in &r.warnings {
         eprintln!("ferrocal handeye: warning: {w}");
@@ -97,7 +97,7 @@ pub fn import_ic_summary(
     vs: &crate::verdict::VerdictSettings,
 ) -> ExitCode {
     let n_test = set.rows.iter().filter(|r| r.2 == ferrocal_calib::Split::Test).count();
-    println!(
+    crate::say!(
         "{} rows ({n_test} test) written to {}; mount {}{}",
         set.rows.len(),
         out.display(),
