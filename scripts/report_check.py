@@ -2,9 +2,11 @@
 """Renders ferrocal's HTML reports in a real headless browser and checks their layout.
 
 For each report: a screenshot at 1400 px width (PNG, the whole page with its details folded),
-the page's height in screens of 1400 x 900 px, and every element that sticks out to the right of
-the page (a layout bug: a table or figure wider than the window). Fails (exit 1) when an element
-overflows or a report is longer than --max-screens before its folded details.
+the page's height in screens of 1400 x 900 px, every element that sticks out to the right of
+the page (a layout bug: a table or figure wider than the window), and every 3-D scene turned by
+its script (at the default angle it must draw what the Rust side drew; at other angles it must
+stay inside its figure). Fails (exit 1) when an element overflows, a scene is drawn wrong, or a
+report is longer than --max-screens before its folded details.
 
     scripts/report_check.py --out out/screens                 # makes the reports, then checks them
     scripts/report_check.py --out out/screens a.html b.html   # checks the given reports only
@@ -39,10 +41,37 @@ window.addEventListener('load', () => {
       if (!inScroller) over.push(e.tagName.toLowerCase() + (e.id ? '#' + e.id : '') + ' ' + Math.round(r.right) + 'px');
     }
   }
+  // Every 3-D scene: the script, turned to the default angle, draws what Rust drew (within the
+  // 0.1 px rounding); turned to other angles, everything stays inside the figure.
+  const scenes = [];
+  const coords = (svg) => [...svg.querySelectorAll('[data-p]')].flatMap((e) => {
+    const t = e.tagName.toLowerCase();
+    if (t === 'circle') return [+e.getAttribute('cx'), +e.getAttribute('cy')];
+    if (t === 'text') return [+e.getAttribute('x'), +e.getAttribute('y')];
+    return e.getAttribute('points').split(/[ ,]/).map(Number);
+  });
+  document.querySelectorAll('svg.scene3d').forEach((svg, i) => {
+    const drawn = coords(svg);
+    let worst = 0, outside = 0;
+    if (typeof svg.turn !== 'function') { scenes.push({scene: i, error: 'no script'}); return; }
+    svg.turn(...svg.home);
+    coords(svg).forEach((v, j) => { worst = Math.max(worst, Math.abs(v - drawn[j])); });
+    const [w, h] = svg.getAttribute('viewBox').split(' ').slice(2).map(Number);
+    for (const [a, b] of [[0, 0], [1.2, 0.9], [-2.5, -0.6], [3.0, 1.5]]) {
+      svg.turn(a, b);
+      const c = coords(svg);
+      for (let j = 0; j + 1 < c.length; j += 2) {
+        if (!(c[j] >= 0 && c[j] <= w && c[j + 1] >= 0 && c[j + 1] <= h)) outside += 1;
+      }
+    }
+    svg.turn(...svg.home);
+    scenes.push({scene: i, values: drawn.length, worst_px: worst, outside: outside});
+  });
   const out = document.createElement('pre');
   out.id = 'ferrocal-layout';
   out.textContent = JSON.stringify({height: document.documentElement.scrollHeight,
-                                    width: document.documentElement.scrollWidth, viewport: w, overflow: over});
+                                    width: document.documentElement.scrollWidth, viewport: w, overflow: over,
+                                    scenes: scenes});
   document.body.appendChild(out);
 });
 </script>
@@ -135,13 +164,15 @@ def main():
             continue
         r = check(html, a.out)
         rows.append(r)
-        bad = "error" in r or r["overflow"] or r["screens"] > a.max_screens
+        bad_scenes = [s for s in r.get("scenes", []) if "error" in s or s["worst_px"] > 0.11 or s["outside"]]
+        bad = "error" in r or r["overflow"] or r["screens"] > a.max_screens or bad_scenes
         failed |= bool(bad)
         if "error" in r:
             print(f"FAIL {html}: {r['error']}")
             continue
         print(f"{'FAIL' if bad else 'ok  '} {html}: {r['height']} px = {r['screens']:.1f} screens of "
               f"{WIDTH_PX} x {SCREEN_PX}, {len(r['overflow'])} overflowing element(s) {r['overflow'][:5]}; "
+              f"{len(r.get('scenes', []))} 3-D scene(s), {len(bad_scenes)} drawn wrong {bad_scenes[:3]}; "
               f"screenshot {r['screenshot']}")
     (a.out / "layout.json").write_text(json.dumps(rows, indent=1))
     print(f"{sum(1 for r in rows if 'error' not in r)} report(s) checked; "

@@ -57,6 +57,11 @@ fn handeye_on_a_rendered_chessboard_recording() {
     assert_eq!(r["opencv"].as_array().unwrap().len(), 7);
     let page = std::fs::read_to_string(&html).unwrap();
     assert!(page.contains("Chain residual per image") && page.contains("calibrateRobotWorldHandEye"));
+    // The cell in 3-D: the fixed camera, one target outline per image (16), the flange dots.
+    let cell = page.split("id=\"cell-3d\"").nth(1).expect("the 3-D cell section");
+    let cell = cell.split("</svg>").next().unwrap();
+    assert!(cell.contains("class=\"scene3d\"") && cell.contains(">camera</text>"));
+    assert_eq!(cell.matches("<polygon ").count(), 16 + 1, "16 target outlines and the camera's image plane");
     ferrocal_tests::assert_verdict_box(&html, &r);
     // A camera file of another resolution (the same numbers, a 640 x 480 image size) is refused
     // with both sizes named, by `handeye` and by `measure`.

@@ -12,7 +12,7 @@
 //! uncertainty that the intrinsics carry; the uncertainty of where the camera sits (which mrcal
 //! also marginalises) is not included.
 
-use nalgebra::{DMatrix, Point2, Point3};
+use nalgebra::{DMatrix, Isometry3, Point2, Point3, Vector3};
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use serde_json::json;
@@ -24,6 +24,7 @@ use ferrocal_vision::calib::{
 use ferrocal_vision::camera::io::StereoPair;
 use ferrocal_vision::camera::CameraModel;
 
+use crate::plot::Scene3d;
 use crate::report::{Provenance, Report, Section};
 
 /// Width of the image plots, pixels of the SVG.
@@ -201,54 +202,40 @@ fn image_section(cal: &CameraCalibration, residuals: &[(Point2<f64>, [f64; 2])])
 
 fn extrinsics(cal: &CameraCalibration, target: &PlanarTarget) -> Section {
     let mut s = Section::new("extrinsics", "Target poses in the camera frame");
-    // The target's outline: its points' bounding rectangle on its plane.
+    let boards: Vec<Isometry3<f64>> = cal.views.iter().filter(|v| v.used).map(|v| v.t_cam_target).collect();
+    let svg = board_scene("The camera and the board poses", &[(Isometry3::identity(), "camera")], &boards, target);
+    s.figure(
+        "In 3-D, in the camera's frame (drag to turn): the camera's viewing pyramid along its optical axis (+z), each used view's target outline (a dot on its origin corner).",
+        svg,
+    );
+    s
+}
+
+/// The cameras (`t_frame_camera`, label) and the target outlines at `boards` (`t_frame_target`)
+/// in one frame whose first camera looks along +z with image rows down (-y drawn up), as a 3-D
+/// figure the reader turns.
+fn board_scene(
+    title: &str,
+    cameras: &[(Isometry3<f64>, &str)],
+    boards: &[Isometry3<f64>],
+    target: &PlanarTarget,
+) -> String {
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for p in &target.points_m {
         (x0, x1, y0, y1) = (x0.min(p.x), x1.max(p.x), y0.min(p.y), y1.max(p.y));
     }
-    let outline = [
-        Point3::new(x0, y0, 0.0),
-        Point3::new(x1, y0, 0.0),
-        Point3::new(x1, y1, 0.0),
-        Point3::new(x0, y1, 0.0),
-        Point3::new(x0, y0, 0.0),
-    ];
-    let views: Vec<Vec<Point3<f64>>> =
-        cal.views.iter().filter(|v| v.used).map(|v| outline.iter().map(|p| v.t_cam_target * p).collect()).collect();
-    for (title, a, b, a_name) in [
-        ("Seen from above (x against z)", 0usize, 2usize, "x [m]"),
-        ("Seen from the side (y against z)", 1, 2, "y [m]"),
-    ] {
-        let mut svg = String::new();
-        {
-            let root = SVGBackend::with_string(&mut svg, (PLOT_W, 420)).into_drawing_area();
-            let _ = root.fill(&WHITE);
-            let all = views.iter().flatten();
-            let (lo_a, hi_a) = all.clone().fold((0.0f64, 0.0f64), |(l, h), p| (l.min(p[a]), h.max(p[a])));
-            let hi_b = all.fold(0.0f64, |h, p| h.max(p[b])) * 1.1 + 1e-3;
-            let pad = 0.1 * (hi_a - lo_a).max(1e-3);
-            if let Ok(mut chart) = ChartBuilder::on(&root)
-                .caption(title, ("sans-serif", 16))
-                .margin(10)
-                .x_label_area_size(35)
-                .y_label_area_size(50)
-                .build_cartesian_2d(0.0..hi_b, (lo_a - pad)..(hi_a + pad))
-            {
-                let _ = chart.configure_mesh().x_desc("z [m] (along the optical axis)").y_desc(a_name).draw();
-                let _ = chart.draw_series(std::iter::once(Circle::new((0.0, 0.0), 5, BLACK.filled())));
-                for (i, v) in views.iter().enumerate() {
-                    let c = Palette99::pick(i);
-                    let _ = chart.draw_series(std::iter::once(PathElement::new(
-                        v.iter().map(|p| (p[b], p[a])).collect::<Vec<_>>(),
-                        c.stroke_width(2),
-                    )));
-                }
-            }
-            let _ = root.present();
-        }
-        s.figure(&format!("{title}: the camera at the origin (black), each used view's target outline"), svg);
+    let outline = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)].map(|(x, y)| Point3::new(x, y, 0.0));
+    let depth = boards.iter().map(|t| t.translation.vector.norm()).fold(0.0, f64::max).max(1e-3);
+    let mut sc = Scene3d::new(title, "m").with_up(-Vector3::y());
+    for (i, t) in boards.iter().enumerate() {
+        let k = 1 + i % 5;
+        sc.outline(&outline.map(|p| t * p), k, 1.5);
+        sc.dots(&[t * outline[0]], k, 2.5);
     }
-    s
+    for (i, (t, label)) in cameras.iter().enumerate() {
+        sc.camera(t, 0.15 * depth, if i == 0 { 5 } else { 0 }, label);
+    }
+    sc.to_svg()
 }
 
 /// The camera parameter covariance in the model's full parameter order (a fixed aspect ratio's
@@ -425,72 +412,16 @@ fn rig_summary(st: &StereoCalibration, pair: &StereoPair) -> Section {
     s
 }
 
-/// The two cameras (centre and optical axis) and every used board pose in the left camera's
-/// frame, from above and from the side.
+/// The two cameras and every used board pose in the left camera's frame, in 3-D.
 fn rig_views(st: &StereoCalibration, target: &PlanarTarget) -> Section {
     let mut s = Section::new("rig-3d", "The rig and the board poses in 3-D");
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    for p in &target.points_m {
-        (x0, x1, y0, y1) = (x0.min(p.x), x1.max(p.x), y0.min(p.y), y1.max(p.y));
-    }
-    let outline = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)].map(|(x, y)| Point3::new(x, y, 0.0));
-    let boards: Vec<Vec<Point3<f64>>> = st
-        .left()
-        .views
-        .iter()
-        .filter(|v| v.used)
-        .map(|v| outline.iter().map(|p| v.t_cam_target * p).collect())
-        .collect();
-    // Cameras: centre and a point along the optical axis, in the left frame.
+    let boards: Vec<Isometry3<f64>> = st.left().views.iter().filter(|v| v.used).map(|v| v.t_cam_target).collect();
     let t_left_right = st.t_right_left.inverse();
-    let depth = boards.iter().flatten().map(|p| p.z).fold(0.0f64, f64::max).max(1e-3);
-    let axis = 0.15 * depth;
-    let cams = [
-        ("left", Point3::origin(), Point3::new(0.0, 0.0, axis)),
-        ("right", t_left_right * Point3::origin(), t_left_right * Point3::new(0.0, 0.0, axis)),
-    ];
-    for (title, a, a_name) in
-        [("Seen from above (x against z)", 0usize, "x [m]"), ("Seen from the side (y against z)", 1, "y [m]")]
-    {
-        let mut svg = String::new();
-        {
-            let root = SVGBackend::with_string(&mut svg, (PLOT_W, 420)).into_drawing_area();
-            let _ = root.fill(&WHITE);
-            let pts = boards.iter().flatten().chain(cams.iter().flat_map(|c| [&c.1, &c.2]));
-            let (lo_a, hi_a) = pts.clone().fold((0.0f64, 0.0f64), |(l, h), p| (l.min(p[a]), h.max(p[a])));
-            let (lo_z, hi_z) = pts.fold((0.0f64, 0.0f64), |(l, h), p| (l.min(p.z), h.max(p.z)));
-            let pad = 0.1 * (hi_a - lo_a).max(1e-3);
-            let pad_z = 0.05 * (hi_z - lo_z).max(1e-3);
-            if let Ok(mut chart) = ChartBuilder::on(&root)
-                .caption(title, ("sans-serif", 16))
-                .margin(10)
-                .x_label_area_size(35)
-                .y_label_area_size(50)
-                .build_cartesian_2d((lo_z - pad_z)..(hi_z + pad_z), (lo_a - pad)..(hi_a + pad))
-            {
-                let _ = chart.configure_mesh().x_desc("z [m] (left camera's optical axis)").y_desc(a_name).draw();
-                for (i, b) in boards.iter().enumerate() {
-                    let _ = chart.draw_series(std::iter::once(PathElement::new(
-                        b.iter().map(|p| (p.z, p[a])).collect::<Vec<_>>(),
-                        Palette99::pick(i).stroke_width(2),
-                    )));
-                }
-                for (k, (_, c, tip)) in cams.iter().enumerate() {
-                    let colour = if k == 0 { BLACK } else { RGBColor(214, 39, 40) };
-                    let _ = chart.draw_series(std::iter::once(Circle::new((c.z, c[a]), 5, colour.filled())));
-                    let _ = chart.draw_series(std::iter::once(PathElement::new(
-                        vec![(c.z, c[a]), (tip.z, tip[a])],
-                        colour.stroke_width(2),
-                    )));
-                }
-            }
-            let _ = root.present();
-        }
-        s.figure(
-            &format!("{title}, in the left camera's frame: the left camera (black) and the right camera (red) with their optical axes, each used board pose's outline."),
-            svg,
-        );
-    }
+    let cameras = [(Isometry3::identity(), "left"), (t_left_right, "right")];
+    s.figure(
+        "In the left camera's frame (drag to turn): both cameras' viewing pyramids, each used board pose's outline (a dot on its origin corner).",
+        board_scene("The rig and the board poses", &cameras, &boards, target),
+    );
     s.data = json!({"right_centre_in_left_m": (t_left_right * Point3::origin()).coords.as_slice(), "n_boards": boards.len()});
     s
 }

@@ -205,16 +205,21 @@ fn tool_positions(model: &RobotModel, poses: &[&Vec<f64>]) -> Vec<Vector3<f64>> 
     poses.iter().filter_map(|q| model.forward(q).ok().map(|t| t.translation.vector * 1e3)).collect()
 }
 
-fn projections(title: &str, series: &[(&str, Vec<Vector3<f64>>, bool)]) -> (String, String) {
-    let xy: Vec<Vec<(f64, f64)>> = series.iter().map(|s| s.1.iter().map(|p| (p.x, p.y)).collect()).collect();
-    let xz: Vec<Vec<(f64, f64)>> = series.iter().map(|s| s.1.iter().map(|p| (p.x, p.z)).collect()).collect();
-    fn mk<'a>(series: &'a [(&'a str, Vec<Vector3<f64>>, bool)], pts: &'a [Vec<(f64, f64)>]) -> Vec<Series<'a>> {
-        series.iter().zip(pts).map(|(s, p)| Series { name: s.0, points: p, line: s.2 }).collect()
+/// Tool positions (mm, in the robot's base frame, +z up) as a 3-D figure the reader turns: one
+/// colour per series, drawn as a line (`true`) or as dots, with the base frame.
+fn positions_scene(title: &str, series: &[(&str, Vec<Vector3<f64>>, bool)]) -> String {
+    let mut sc = plot::Scene3d::new(title, "mm");
+    let extent = series.iter().flat_map(|s| s.1.iter().map(|p| p.norm())).fold(0.0, f64::max).max(1.0);
+    sc.frame(&nalgebra::Isometry3::identity(), 0.12 * extent, "base");
+    for (k, (name, pts, line)) in series.iter().enumerate() {
+        let pts: Vec<nalgebra::Point3<f64>> = pts.iter().map(|p| nalgebra::Point3::from(*p)).collect();
+        match line {
+            true => sc.line(&pts, k, 1.5),
+            false => sc.dots(&pts, k, if pts.len() > 200 { 1.5 } else { 3.0 }),
+        }
+        sc.legend(k, name);
     }
-    (
-        plot::xy_plot(&format!("{title}: top view"), "x (mm)", "y (mm)", &mk(series, &xy)),
-        plot::xy_plot(&format!("{title}: side view"), "x (mm)", "z (mm)", &mk(series, &xz)),
-    )
+    sc.to_svg()
 }
 
 fn summary_section(
@@ -359,11 +364,11 @@ fn workspace_section(model: &RobotModel, d: &PlanDesign) -> Section {
             w.unmeasurable.iter().map(|(r, n)| vec![r.clone(), n.to_string()]).collect(),
         );
     }
-    let step = (d.map.measurable.len() / 2500).max(1);
+    let step = (d.map.measurable.len() / 800).max(1);
     let region: Vec<&Vec<f64>> = d.map.measurable.iter().step_by(step).map(|c| &c.q).collect();
     let grid: Vec<&Vec<f64>> = d.grid_indices.iter().map(|&k| &d.kinematic.poses[k]).collect();
     let chosen: Vec<&Vec<f64>> = d.chosen.iter().map(|&k| &d.kinematic.poses[k]).collect();
-    let (a, b) = projections(
+    let scene = positions_scene(
         "Tool positions",
         &[
             ("measurable region", tool_positions(model, &region), false),
@@ -371,8 +376,10 @@ fn workspace_section(model: &RobotModel, d: &PlanDesign) -> Section {
             ("chosen", tool_positions(model, &chosen), false),
         ],
     );
-    s.figure("Measurable region (sampled), the source's regular grid and the chosen poses, top view", a);
-    s.figure("The same, side view", b);
+    s.figure(
+        "Measurable region (sampled), the source's regular grid and the chosen poses, in mm in the robot's base frame (drag to turn)",
+        scene,
+    );
     s.data = serde_json::to_value(w).unwrap_or_default();
     s
 }
@@ -586,12 +593,11 @@ fn path_section(
     ));
     let all: Vec<&Vec<f64>> = path.steps.iter().map(|s| &s.q).collect();
     let meas: Vec<&Vec<f64>> = path.steps.iter().filter(|s| s.kind == StepKind::Measure).map(|s| &s.q).collect();
-    let (a, b) = projections(
+    let scene = positions_scene(
         "Path",
         &[("path", tool_positions(model, &all), true), ("measurements", tool_positions(model, &meas), false)],
     );
-    s.figure("The path of the tool, top view", a);
-    s.figure("The path of the tool, side view", b);
+    s.figure("The path of the tool, in mm in the robot's base frame (drag to turn)", scene);
     s.table(
         "Files",
         &["file", "what"],

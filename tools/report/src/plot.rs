@@ -2,6 +2,9 @@
 
 use plotters::prelude::*;
 
+pub mod scene3d;
+pub use scene3d::Scene3d;
+
 /// Colours of successive series.
 const PALETTE: [RGBColor; 6] = [
     RGBColor(31, 119, 180),

@@ -8,6 +8,7 @@ pub mod demo;
 pub mod html;
 pub mod joint_demo;
 pub mod json;
+pub mod scene;
 pub mod verdict;
 
 use std::path::Path;
@@ -192,7 +193,8 @@ pub fn handeye_outputs(
         let settings = json!({"pattern": pattern, "mount": mount, "options": format!("{:?}", fit.options)});
         let mut prov = Provenance::new(settings);
         prov.add_input(&run.poses);
-        let sections = html::handeye_sections(result, baselines, source);
+        let mut sections = html::handeye_sections(result, baselines, source);
+        sections.insert(1.min(sections.len()), scene::cell_section(result, &input.data));
         out.html(h, Report::of(&format!("Hand-eye calibration ({mount}, {pattern})"), prov, sections), verdict);
     }
     if let Some(p) = files.json {
