@@ -251,11 +251,12 @@ fn camera_calibrate_own_corners_beat_opencvs_recipe_on_held_out_views() {
     assert!(cv_test > 2.0 * own_test, "held out: OpenCV recipe {cv_test} px, own {own_test} px");
     let fx = own["fx"].as_f64().unwrap();
     assert!((fx / 535.9157 - 1.0).abs() < 0.005, "fx {fx}");
-    // The report: per-view bars, residual vectors, coverage, two views of the poses, the
-    // projection uncertainty map.
+    // The report: per-view bars, residual vectors, coverage, the poses in 3-D (one view that
+    // turns), the projection uncertainty map.
     assert_verdict_box(&tmp.path().join("own.html"), &own);
     let html = std::fs::read_to_string(tmp.path().join("own.html")).unwrap();
-    assert!(html.matches("<svg").count() >= 6, "report figures");
+    assert!(html.matches("<svg").count() >= 5, "report figures");
+    assert_eq!(html.matches("class=\"scene3d\"").count(), 1, "the camera and the board poses in 3-D");
     assert!(html.contains("Projection uncertainty") && html.contains("held out") && html.contains("left01.jpg"));
 }
 
@@ -365,6 +366,13 @@ fn demo_writes_its_report() {
     let he = &r["sections"]["handeye-real"];
     assert_eq!(he["check"], "pass", "{}", he["status"]);
     assert_eq!(he["data"]["warnings"].as_array().map(Vec::len), Some(0), "{}", he["data"]["warnings"]);
+    // The report opens with the pipeline as a story, then the summary of every check: each of
+    // the five steps ran at least one stage and shows a figure.
+    let ids: Vec<&str> = html.split("<section id=\"").skip(1).map(|s| s.split('"').next().unwrap()).collect();
+    assert_eq!(ids[..2], ["story", "summary"], "{ids:?}");
+    let story = html.split("<section id=\"story\">").nth(1).unwrap().split("<section id=").next().unwrap();
+    assert!(!story.contains("No stage of this step ran"), "a step of the story is empty");
+    assert_eq!(story.matches("<figcaption>Step ").count(), 5, "one figure per step");
 }
 
 #[test]

@@ -22,6 +22,7 @@ use crate::report::{inline_png, Block, Section};
 
 mod camera;
 pub mod pipeline;
+pub mod story;
 pub use camera::{camera_diagnose, camera_own_corners, camera_real, camera_real_skipped, printed_targets_section};
 
 /// Progress of a long step: `(label, position, length)`.

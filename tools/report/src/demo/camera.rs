@@ -71,6 +71,22 @@ pub fn camera_own_corners(runs: &[(&str, Value, Value)]) -> Section {
         &["camera", "corners", "fx [px]", "fit RMS [px]", "held-out RMS [px]"],
         rows,
     );
+    // Per held-out view: both corner sources side by side (bars by view, coloured by source).
+    let mut bars = Vec::new();
+    for (side, own, cv) in runs {
+        for (name, v) in [("own corners", own), ("OpenCV recipe", cv)] {
+            for view in v["held_out"]["views"].as_array().into_iter().flatten() {
+                let rms = view["rms_px"].as_f64().unwrap_or(f64::NAN);
+                let image = view["name"].as_str().unwrap_or("?").trim_end_matches(".jpg");
+                bars.push((format!("{side} {image}"), name.to_string(), rms));
+            }
+        }
+    }
+    bars.sort_by(|a, b| a.0.cmp(&b.0));
+    s.figure(
+        "Reprojection error of each held-out view (its pose fitted, the camera fixed): the project's corners against OpenCV's recipe on the same images.",
+        crate::plot::bar_chart("Held-out views", "RMS [px]", &bars),
+    );
     s.data = json!({"runs": runs.iter().map(|(side, own, cv)| json!({"camera": side, "own": own, "opencv": cv})).collect::<Vec<_>>()});
     s.check(Check::all("own corners on held-out views", &verdicts));
     s

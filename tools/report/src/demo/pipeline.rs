@@ -1,5 +1,6 @@
 //! The run of `ferrocal demo` ([`demo_report`]): every stage's section in order, the report
-//! opening with a summary of every section's status. The sections that are commands of their
+//! opening with the pipeline as a story ([`super::story`]) and a summary of every section's
+//! status. The sections that are commands of their
 //! own (camera, plan, diagnose) run through the binary's command line in-process
 //! ([`RunCommand`]), as a user would call them.
 
@@ -83,8 +84,13 @@ pub fn demo_report(d: &DemoSettings, mut prov: Provenance, tick: Tick, run: RunC
     s.push(crate::motion::demo_section(d.seed)?);
     s.push(crate::motion_cell::demo_section(d.seed)?);
     s.iter_mut().for_each(reported_unless_checked);
+    // The story first (open), then the summary of every check and every stage, each folded
+    // under its heading (the verdict box above the story counts the checks).
     let summary = report.summary_section();
+    let story = super::story::story_section(&report.sections);
     report.sections.insert(0, summary);
+    report.sections.insert(0, story);
+    report.open_sections = 1;
     report.provenance = prov;
     Ok(report)
 }

@@ -57,6 +57,7 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
     let mut data_json = Vec::new();
     let mut warnings = Vec::new();
     let mut scales = Vec::new();
+    let mut cells: Vec<(String, String)> = Vec::new();
     for (k, set) in SETS.iter().enumerate() {
         tick("hand-eye (real)", k as u64, SETS.len() as u64);
         let dir = root.join(set.folder);
@@ -93,6 +94,10 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
             warnings.extend(r.warnings.iter().map(|w| format!("{} ({}): {w}", set.folder, label)));
             if let Some((v, sd)) = r.target_scale {
                 scales.push(format!("{} ({label}): {v:.5} +- {sd:.5}", set.folder));
+            }
+            if runs.is_empty() {
+                let (caption, svg) = super::scene::cell_figure(&r, &rec);
+                cells.push((format!("{} ({}, {label}): {caption}", set.folder, ic.mount.name()), svg));
             }
             runs.push(Run { label, ours: r.figures, opencv });
         }
@@ -195,6 +200,9 @@ pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result
     ));
     for w in &warnings {
         s.text(format!("The tool's warning on {w}."));
+    }
+    for (caption, svg) in cells {
+        s.figure(&caption, svg);
     }
     let ok = checks.iter().all(|c| c.0);
     let detail = checks.iter().map(|c| format!("{} {}", if c.0 { "ok:" } else { "FAILED:" }, c.1)).collect::<Vec<_>>();

@@ -24,6 +24,13 @@ fn in_mm(t: &Isometry3<f64>) -> Isometry3<f64> {
 /// camera and the target outline at every drawn image.
 pub fn cell_section(r: &HandEyeResult, data: &HandEyeData) -> Section {
     let mut s = Section::new("cell-3d", "The cell in 3-D");
+    let (caption, svg) = cell_figure(r, data);
+    s.figure(&caption, svg);
+    s
+}
+
+/// The figure of [`cell_section`]: its caption and SVG.
+pub fn cell_figure(r: &HandEyeResult, data: &HandEyeData) -> (String, String) {
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for p in &data.target_points_m {
         (x0, x1, y0, y1) = (x0.min(p.x), x1.max(p.x), y0.min(p.y), y1.max(p.y));
@@ -71,14 +78,11 @@ pub fn cell_section(r: &HandEyeResult, data: &HandEyeData) -> Section {
         }
     }
     let drawn = flanges.len().div_ceil(step);
-    s.figure(
-        &format!(
-            "The fitted cell, in mm in the robot's base frame (drag to turn): the flange at each of the {} images, the {} at {drawn} of them{}.",
-            flanges.len(),
-            if r.mount == Mount::EyeInHand { "camera" } else { "target" },
-            if step > 1 { format!(" (every {step}th)") } else { String::new() }
-        ),
-        sc.to_svg(),
+    let caption = format!(
+        "The fitted cell, in mm in the robot's base frame (drag to turn): the flange at each of the {} images, the {} at {drawn} of them{}.",
+        flanges.len(),
+        if r.mount == Mount::EyeInHand { "camera" } else { "target" },
+        if step > 1 { format!(" (every {step}th)") } else { String::new() }
     );
-    s
+    (caption, sc.to_svg())
 }
