@@ -112,17 +112,21 @@ fn check_physical(
     offsets: &[f64],
     kinds: &[ferrocal_robot::JointKind],
 ) -> Result<()> {
-    let hint = |change: f64, unit: ferrocal_robot::Unit| -> String {
-        match unit {
-            ferrocal_robot::Unit::Radian if change.to_radians().abs() <= MAX_JOINT_CHANGE_RAD => {
-                format!(" (read as degrees it would be {:.4} rad: was it written in degrees?)", change.to_radians())
-            }
-            ferrocal_robot::Unit::Metre if (change / 1000.0).abs() <= MAX_JOINT_CHANGE_M => {
-                format!(" (read as millimetres it would be {:.4} m: was it written in millimetres?)", change / 1000.0)
-            }
-            _ => String::new(),
-        }
+    // The value `v` of a parameter whose nominal value is `nominal`, read in the other unit: the
+    // whole value (a twist of 90 for pi/2), or the change from the nominal value.
+    let hint = |v: f64, nominal: f64, unit: ferrocal_robot::Unit| -> String {
+        let (scale, limit, name, symbol) = match unit {
+            ferrocal_robot::Unit::Radian => (1f64.to_radians(), MAX_JOINT_CHANGE_RAD, "degrees", "rad"),
+            ferrocal_robot::Unit::Metre => (1e-3, MAX_JOINT_CHANGE_M, "millimetres", "m"),
+            _ => return String::new(),
+        };
+        let change = [v * scale - nominal, (v - nominal) * scale].into_iter().find(|c| c.abs() <= limit);
+        change.map_or(String::new(), |c| {
+            format!(" (read as {name} it would change it by {c:.4} {symbol}: was it written in {name}?)")
+        })
     };
+    // 6 decimals for a plausible number, an exponent for 1e308.
+    let show = |v: f64| if v.abs() < 1e6 { format!("{v:.6}") } else { format!("{v:.3e}") };
     for (p, v) in info.iter().zip(values) {
         if !(p.name.starts_with("joint") || p.name.starts_with("mimic")) {
             continue;
@@ -135,10 +139,15 @@ fn check_physical(
         };
         if change.abs() > limit {
             return Err(CalibError::Data(format!(
-                "parameter '{}' changes the nominal model by {change:.6} {}, beyond the {limit} a calibration can make{}: the file is not a calibration of this robot",
+                "parameter '{}' = {} {} changes the nominal model ({} {}) by {} {}, beyond the {limit} a calibration can make{}: the file is not a calibration of this robot",
                 p.name,
+                show(*v),
                 p.unit.symbol(),
-                hint(change, p.unit)
+                show(p.value),
+                p.unit.symbol(),
+                show(change),
+                p.unit.symbol(),
+                hint(*v, p.value, p.unit)
             )));
         }
     }
@@ -149,10 +158,11 @@ fn check_physical(
         };
         if o.abs() > limit {
             return Err(CalibError::Data(format!(
-                "joint offset {} is {o:.6} {}, beyond the {limit} a calibration can make{}: the file is not a calibration of this robot",
+                "joint offset {} is {} {}, beyond the {limit} a calibration can make{}: the file is not a calibration of this robot",
                 k + 1,
+                show(*o),
                 unit.symbol(),
-                hint(*o, unit)
+                hint(*o, 0.0, unit)
             )));
         }
     }

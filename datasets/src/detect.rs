@@ -52,6 +52,21 @@ pub fn detect_images(
     if entries.is_empty() {
         return Err(DatasetError::Input("no images given".into()));
     }
+    // Globs or folders that match no image file at all: no images (exit 1 as documented), not
+    // a batch of failed images (exit 2).
+    let unmatched: Vec<&str> = entries
+        .iter()
+        .filter_map(|e| match e {
+            Err((name, reason)) if reason == "no image files match" => Some(name.as_str()),
+            _ => None,
+        })
+        .collect();
+    if unmatched.len() == entries.len() {
+        return Err(DatasetError::Input(format!(
+            "no images given: no image file matches {}; check the path (and quote a glob)",
+            unmatched.join(", ")
+        )));
+    }
     let mut detector = Detector::new(pattern, options, background)?;
     let mut results: Vec<ImageResult> = Vec::with_capacity(entries.len());
     for entry in entries {

@@ -27,6 +27,8 @@ use crate::error::DatasetError;
 mod agreement;
 use agreement::compare_cameras;
 pub use agreement::{disagrees, CameraAgreement, Hypothesis, PoseAgreement};
+mod screen;
+pub use screen::{screen_reprojection, ReprojectionOutlier, ReprojectionScreen, ReprojectionScreening};
 
 /// Corners of one image with the detector's covariance of each (px^2), when it gave one.
 #[derive(Clone, Debug)]
@@ -201,6 +203,9 @@ pub struct SessionMeasurement {
     pub joint_kinds: Vec<ferrocal_robot::JointKind>,
     /// Each camera's own pose of the target against camera 0's (see [`CameraAgreement`]).
     pub agreement: CameraAgreement,
+    /// Poses whose reprojection RMS is far above the others' ([`screen_reprojection`]); those
+    /// left out are also in `skipped`.
+    pub reprojection: ReprojectionScreening,
 }
 
 /// The target's corner points in its own frame, in the order of the session's corner files.
@@ -485,6 +490,17 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
             Err(e) => skipped.push(format!("pose {}: {e}", row.pose_id)),
         }
     }
+    // Poses whose corners do not fit one view of the target in every camera: named, left out
+    // up to a cap (`poses` and `rows` are parallel).
+    let names: Vec<String> = poses.iter().map(|p: &MeasuredPose| format!("pose {}", p.pose_id)).collect();
+    let rms: Vec<f64> = poses.iter().map(|p| p.estimate.rms_px).collect();
+    let reprojection = screen_reprojection(&names, &rms, &ReprojectionScreen::default());
+    let keep: Vec<bool> = names.iter().map(|n| !reprojection.left_out(n)).collect();
+    let mut kept = keep.iter();
+    rows.retain(|_| *kept.next().expect("parallel"));
+    let mut kept = keep.iter();
+    poses.retain(|_| *kept.next().expect("parallel"));
+    skipped.extend(reprojection.flagged.iter().filter(|o| o.left_out).map(|o| o.describe(reprojection.median_rms_px)));
     skipped.extend(notes);
     let agreement = {
         let pose_ids: Vec<String> = joints.iter().map(|r| r.pose_id.clone()).collect();
@@ -510,6 +526,7 @@ pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasu
     };
     Ok(SessionMeasurement {
         agreement,
+        reprojection,
         rig,
         poses,
         rows: MeasurementSet { source: format!("cameras of {}", dir.display()), rows },

@@ -34,6 +34,7 @@ use ferrocal_vision::pose::{estimate_pose_rig, CameraRig, CornerNoise, PoseEstim
 use crate::error::{DatasetError, Result};
 use crate::handeye::poses::{PosesTable, RobotReading};
 use crate::handeye::recording::{load_recording, Skipped};
+use crate::measure::{screen_reprojection, ReprojectionScreen, ReprojectionScreening};
 
 /// Settings of [`measure_recording`].
 #[derive(Clone, Debug, PartialEq)]
@@ -119,6 +120,9 @@ pub struct RecordingMeasurement {
     pub skipped: Vec<Skipped>,
     /// The data's source and licence from the poses table.
     pub source: Option<String>,
+    /// Images whose reprojection RMS is far above the others' ([`screen_reprojection`]); those
+    /// left out are also in `skipped`.
+    pub reprojection: ReprojectionScreening,
 }
 
 fn stem(name: &str) -> String {
@@ -154,12 +158,21 @@ pub fn measure_recording(
     let (data, mut skipped) = load_recording(images, table, &flange, pattern, opts.mount)?;
     let (camera, measured, more) = measure_views(&data, opts)?;
     skipped.extend(more);
+    // Images whose corners do not fit one view of the target: named, left out up to a cap.
+    let (names, rms): (Vec<String>, Vec<f64>) =
+        measured.iter().map(|(_, p)| (p.image.clone(), p.estimate.rms_px)).unzip();
+    let reprojection = screen_reprojection(&names, &rms, &ReprojectionScreen::default());
     let by_image: std::collections::HashMap<&str, usize> =
         table.rows.iter().enumerate().map(|(i, r)| (r.image.as_str(), i)).collect();
     let mut poses = Vec::new();
     let mut rows = Vec::new();
     for (k, pose) in measured {
         let v = &data.views[k];
+        if reprojection.left_out(&pose.image) {
+            let o = reprojection.flagged.iter().find(|o| o.what == pose.image).expect("flagged");
+            skipped.push(Skipped { what: v.name.clone(), reason: o.describe(reprojection.median_rms_px) });
+            continue;
+        }
         let row = &table.rows[by_image[v.name.as_str()]];
         if let RobotReading::Joints(q) = &row.robot {
             let mut m = pose_row(&pose, q);
@@ -182,7 +195,7 @@ pub fn measure_recording(
         source: format!("camera measurement of the images of {}", table.file.display()),
         rows,
     });
-    Ok(RecordingMeasurement { camera, poses, rows, skipped, source: table.source.clone() })
+    Ok(RecordingMeasurement { camera, poses, rows, skipped, source: table.source.clone(), reprojection })
 }
 
 /// The measurement-table row of one measured view with joint readings `q`: the measured pose

@@ -6,6 +6,7 @@ mod compensate;
 mod coupled;
 mod handeye;
 mod handeye_checks;
+mod hostile;
 mod kill;
 mod measure;
 mod motion;

@@ -234,4 +234,16 @@ fn swapped_or_shifted_image_lists_and_a_board_in_the_wrong_unit_are_refused() {
     assert_eq!(s["verdict"]["status"], "warning");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("cameras disagree on 1 of") && stdout.contains("0005 (camera 1"), "{stdout}");
+    // Its corners in the two cameras do not fit one pose of the target: its reprojection RMS is
+    // far above the other poses', so it is named and left out of the table.
+    let screened = &s["reprojection_outliers"];
+    eprintln!("outlier pose: {screened}");
+    let flagged: Vec<&str> =
+        screened["flagged"].as_array().unwrap().iter().map(|o| o["what"].as_str().unwrap()).collect();
+    assert_eq!(flagged, vec!["pose 0005"], "{screened}");
+    assert_eq!(screened["flagged"][0]["left_out"], true);
+    assert!(stdout.contains("(left out): pose 0005"), "{stdout}");
+    let clean = json(&tmp.path().join("clean.json"));
+    assert_eq!(clean["reprojection_outliers"]["flagged"].as_array().map(Vec::len), Some(0));
+    assert_eq!(s["n_measured"].as_u64().unwrap() + 1, clean["n_measured"].as_u64().unwrap());
 }

@@ -466,6 +466,9 @@ fn a_typo_row_in_the_ur5_table_is_named_and_its_result_matches_the_clean_table()
     let (clean, _) = calibrate(&table, "clean");
     assert_eq!(clean["dropped_rows"].as_array().map(Vec::len), Some(0), "{}", clean["dropped_rows"]);
     let clean_mm = clean["heldout"]["after"]["mean_mm"].as_f64().unwrap();
+    // The clean table's largest row against the threshold of 12 (measured 4.32).
+    let clean_ratio = clean["largest_residual_ratio"].as_f64().unwrap();
+    assert!(clean_ratio > 2.0 && clean_ratio < 6.0, "{clean_ratio}");
     // The data rows after the comment and the header.
     let lines: Vec<&str> = text.lines().collect();
     let header = lines.iter().position(|l| l.starts_with("pose_id")).unwrap();
@@ -490,9 +493,68 @@ fn a_typo_row_in_the_ur5_table_is_named_and_its_result_matches_the_clean_table()
         assert!(stderr.contains(&format!("row '{id}' (line {})", row + 1)) && stderr.contains("typo"), "{stderr}");
         assert_eq!(rep["verdict"]["status"], "warning", "{}", rep["verdict"]);
         let mm = rep["heldout"]["after"]["mean_mm"].as_f64().unwrap();
-        eprintln!("case {case}: row {id} dropped; held-out mean {mm:.4} mm against the clean table's {clean_mm:.4} mm");
+        let ratio = rep["dropped_rows"][0]["ratio"].as_f64().unwrap();
+        eprintln!(
+            "case {case}: row {id} dropped at {ratio:.0} times the scale; held-out mean {mm:.4} mm against the clean table's {clean_mm:.4} mm (largest clean row {clean_ratio:.2})"
+        );
         assert!((mm - clean_mm).abs() <= 0.05 * clean_mm, "case {case}: {mm} vs {clean_mm}");
     }
+    // Every tenth row 50 mm off (100 rows, beyond the cap of 10 rows or 5 %): not typos but a
+    // broken table; nothing is dropped, the verdict fails (exit 1) and says what to check.
+    let mut bad: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    for row in (header + 1..lines.len()).step_by(10) {
+        let mut cells: Vec<String> = lines[row].split(',').map(str::to_string).collect();
+        cells[ix] = format!("{}", cells[ix].parse::<f64>().unwrap() + 50.0);
+        bad[row] = cells.join(",");
+    }
+    let csv = tmp.path().join("typo_many.csv");
+    std::fs::write(&csv, bad.join("\n") + "\n").unwrap();
+    let rep_path = tmp.path().join("many.json");
+    let out = run(ferrocal()
+        .args(["calibrate", "--robot", "ur5", "--no-validation", "--measurements"])
+        .arg(&csv)
+        .arg("--out")
+        .arg(tmp.path().join("many_cal.json"))
+        .arg("--json")
+        .arg(&rep_path));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let rep = json(&rep_path);
+    assert_eq!(rep["dropped_rows"].as_array().map(Vec::len), Some(0));
+    assert_eq!(rep["verdict"]["status"], "fail", "{}", rep["verdict"]);
+    let note = rep["outlier_note"].as_str().unwrap();
+    assert!(note.contains("100 of 1000 rows") && note.contains("too many to be typos"), "{note}");
+    assert!(stderr.contains("calibrate.rows_beyond") && stderr.contains("--keep"), "{stderr}");
+}
+
+/// The UR10 series B table (1495 poses in several arm configurations) is clean but its tracker
+/// states sigmas of 0.002-0.057 mm against residuals of 0.36 mm (median): over the stated sigma,
+/// 17 rows stood beyond 8 times the others. The residual test's noise floor and threshold of 12
+/// keep every row (the largest stands at 9.1 times the scale).
+#[test]
+fn the_clean_ur10_series_b_table_loses_no_row_to_the_residual_test() {
+    let tmp = tempfile::tempdir().unwrap();
+    let table = tmp.path().join("ur10b.csv");
+    run(ferrocal()
+        .args(["import", "ur10", "--input"])
+        .arg(data("ur10_tracker/Series_B/measurements_joint_configurations.csv"))
+        .arg("--out")
+        .arg(&table));
+    let rep = tmp.path().join("rep.json");
+    let out = run(ferrocal()
+        .args(["calibrate", "--robot", "ur10", "--no-validation", "--measurements"])
+        .arg(&table)
+        .arg("--out")
+        .arg(tmp.path().join("cal.json"))
+        .arg("--json")
+        .arg(&rep));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rep = json(&rep);
+    assert_eq!(rep["dropped_rows"].as_array().map(Vec::len), Some(0), "{}", rep["dropped_rows"]);
+    assert!(rep["outlier_note"].is_null(), "{}", rep["outlier_note"]);
+    let ratio = rep["largest_residual_ratio"].as_f64().unwrap();
+    eprintln!("UR10 series B: largest row at {ratio:.2} times the scale");
+    assert!(ratio > 5.0 && ratio < 12.0, "{ratio}");
 }
 
 #[cfg(unix)]

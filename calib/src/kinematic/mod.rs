@@ -224,6 +224,9 @@ pub struct KinematicCalibration {
     pub dropped_rows: Vec<DroppedRow>,
     /// Why the residual test dropped nothing although rows were beyond its threshold.
     pub outlier_note: Option<String>,
+    /// The residual test's statistic at its last round: the largest normalised residual of the
+    /// rows kept over their robust scale (compared with the threshold); `None` without the test.
+    pub largest_residual_ratio: Option<f64>,
 }
 
 impl KinematicCalibration {
@@ -404,6 +407,7 @@ pub fn calibrate(
         advice,
         dropped_rows: Vec::new(),
         outlier_note: None,
+        largest_residual_ratio: None,
     })
 }
 

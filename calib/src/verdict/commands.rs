@@ -75,15 +75,29 @@ pub fn calibrate(
         .iter()
         .map(|d| format!("'{}'{}", d.pose_id, d.line.map(|l| format!(" (line {l})")).unwrap_or_default()))
         .collect();
-    checks.push(Check::flag(
-        "calibrate.dropped_rows",
-        &format!("{} row(s) far beyond the others dropped: {}", dropped.len(), dropped.join(", ")),
-        "no row far beyond the others",
-        !dropped.is_empty(),
-    ));
+    checks.push(match &cal.outlier_note {
+        // Too many rows beyond the residual test's threshold to be typos: the noise model, the
+        // units or the model is off by far; not delivered as good (`--keep` keeps it).
+        Some(note) => Check {
+            name: "calibrate.rows_beyond".into(),
+            value: 1.0,
+            limit: 0.0,
+            status: Status::Fail,
+            what: format!("{note} (fail)"),
+        },
+        None => Check::flag(
+            "calibrate.dropped_rows",
+            &format!("{} row(s) far beyond the others dropped: {}", dropped.len(), dropped.join(", ")),
+            "no row far beyond the others",
+            !dropped.is_empty(),
+        ),
+    });
     let advice = cal.advice.first().cloned().unwrap_or_default();
     Verdict::with_next(checks, |c| {
         match c.map(|c| c.name.as_str()) {
+        Some("calibrate.rows_beyond") => format!(
+            "check the table's units (the column headers), --robot and --sigma-mm, and run ferrocal diagnose --robot {robot} --measurements <the table> for what the model leaves out; --keep delivers this calibration anyway"
+        ),
         Some("calibrate.dropped_rows") => format!(
             "check {} in the table for a typo (a wrong digit, swapped columns, another unit), correct or remove it, and calibrate again",
             dropped.join(", ")

@@ -34,6 +34,9 @@ pub struct ImportedTable {
     pub table: String,
     /// The source's nominal robot as URDF (the kinematic-calibration sets, when asked for).
     pub urdf: Option<String>,
+    /// What the reader warns about (a measurement table: units that do not fit the header, a
+    /// last line without a line end), each naming the file.
+    pub warnings: Vec<String>,
 }
 
 impl ImportedTable {
@@ -60,6 +63,7 @@ pub fn import_table(
         (s, vec![JointKind::Revolute; n])
     };
     let mut urdf = None;
+    let mut warnings = Vec::new();
     let (set, kinds) = match source {
         ImportSource::IcKinematic => {
             let s = crate::handeye::read_ic_kinematic(input, test_every)?;
@@ -72,6 +76,7 @@ pub fn import_table(
         ImportSource::Ur10 => revolute(super::import_ur10_measurements(input)?),
         ImportSource::Table => {
             let t = super::read_measurements(input)?;
+            warnings = t.warnings.clone();
             let k = t.joint_kinds();
             (t.set, k)
         }
@@ -89,5 +94,5 @@ pub fn import_table(
     opts.length_unit = LengthUnit::Mm;
     opts.comments = vec![format!("imported by ferrocal {} from {}", env!("CARGO_PKG_VERSION"), input.display())];
     let table = measurements_to_string(&set, &opts).map_err(|e| e.context(format!("writing {}", out.display())))?;
-    Ok(ImportedTable { set, table, urdf })
+    Ok(ImportedTable { set, table, urdf, warnings })
 }

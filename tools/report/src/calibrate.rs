@@ -300,6 +300,7 @@ pub fn calibrate_outputs(
     }
     summary["dropped_rows"] = json!(cal.dropped_rows);
     summary["outlier_note"] = json!(cal.outlier_note);
+    summary["largest_residual_ratio"] = json!(cal.largest_residual_ratio);
     add_verdict(&mut summary, verdict);
     if let Some(j) = files.json {
         out.json(j, &summary)?;

@@ -39,6 +39,7 @@ pub fn recording_json(
         "camera": m.camera,
         "n_measured": m.poses.len(),
         "skipped": skipped,
+        "reprojection_outliers": m.reprojection,
         "poses": m.poses.iter().map(|p| json!({
             "image": p.image,
             "split": p.split,
@@ -70,7 +71,7 @@ pub fn recording_verdict(
             ("median reprojection RMS of the poses", r.get(r.len() / 2).copied().unwrap_or(f64::NAN))
         }
     };
-    crate::verdict::measure_verdict(t, m.poses.len(), total, label, rms, out)
+    crate::verdict::measure_verdict(t, m.poses.len(), total, label, rms, &m.reprojection, out)
 }
 
 /// Prints the summary of a recording's measurement: the camera and the poses' precision.
@@ -120,6 +121,7 @@ pub fn session_json(
         "session": session.display().to_string(),
         "n_measured": m.rows.rows.len(),
         "skipped": m.skipped,
+        "reprojection_outliers": m.reprojection,
         "rig_rms_px": m.rig.rms_px,
         "median_position_sigma_mm": m.median_sigma_mm(),
         "camera_agreement": m.agreement.poses,
@@ -142,8 +144,15 @@ pub fn session_verdict(
     out: &Path,
 ) -> ferrocal_calib::verdict::Verdict {
     let n = m.rows.rows.len();
-    let mut v =
-        crate::verdict::measure_verdict(t, n, n + m.skipped.len(), "rig calibration RMS", m.rig.rms_px, Some(out));
+    let mut v = crate::verdict::measure_verdict(
+        t,
+        n,
+        n + m.skipped.len(),
+        "rig calibration RMS",
+        m.rig.rms_px,
+        &m.reprojection,
+        Some(out),
+    );
     // The cameras' agreement pose by pose (a larger disagreeing fraction was refused before).
     let l = &t.measure;
     let a = &m.agreement;

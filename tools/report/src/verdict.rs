@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use crate::error::{Context, Result};
 use ferrocal_calib::verdict::{Check, Thresholds, Verdict};
+use ferrocal_datasets::measure::{ReprojectionScreen, ReprojectionScreening};
 use serde_json::Value;
 
 /// The global settings of the verdicts: the limits and whether a failed result is kept.
@@ -126,17 +127,21 @@ pub fn report_checks(report: &Value, section: &str, failed_fail: f64, skipped_wa
     out
 }
 
-/// `measure` (both forms): the fraction of the poses measured and the camera's reprojection RMS
-/// (`rms_label` says which RMS: the calibration's, or the median of the poses' own).
+/// `measure` (both forms): the fraction of the poses measured, the camera's reprojection RMS
+/// (`rms_label` says which RMS: the calibration's, or the median of the poses' own) and the
+/// images (poses) whose reprojection RMS is far above the others' (`screening`, a warning).
 pub fn measure_verdict(
     t: &Thresholds,
     measured: usize,
     total: usize,
     rms_label: &str,
     rms_px: f64,
+    screening: &ReprojectionScreening,
     out: Option<&Path>,
 ) -> Verdict {
     let l = &t.measure;
+    let flagged: Vec<&str> = screening.flagged.iter().map(|o| o.what.as_str()).collect();
+    let left_out = if screening.note.is_some() { "kept: too many to leave out" } else { "left out" };
     let checks = vec![
         Check::at_least(
             "measure.measured_fraction",
@@ -147,6 +152,18 @@ pub fn measure_verdict(
             l.measured_fraction_fail,
         ),
         Check::at_most("measure.rms_px", rms_label, "px", rms_px, l.rms_px_warn, l.rms_px_fail),
+        Check::flag(
+            "measure.reprojection_outliers",
+            &format!(
+                "{} with a reprojection RMS of {} times the median's ({:.3} px) or more ({left_out}): {}",
+                flagged.len(),
+                ferrocal_calib::verdict::fmt_num(ReprojectionScreen::default().ratio),
+                screening.median_rms_px,
+                flagged.join(", ")
+            ),
+            "no image far above the others' reprojection RMS",
+            !flagged.is_empty(),
+        ),
     ];
     let table = out.map_or("<the table>".to_string(), |p| p.display().to_string());
     Verdict::with_next(checks, |c| {
@@ -155,6 +172,10 @@ pub fn measure_verdict(
         Some("measure.measured_fraction") => {
             "read why the images were left out (stderr and the JSON's skipped list); fix the pattern string or retake them".into()
         }
+        Some("measure.reprojection_outliers") => format!(
+            "look at {} (a wrong detection, blur, a reflection, a partly covered target, another pose's image) and retake or remove them",
+            flagged.join(", ")
+        ),
         _ => "the camera model fits the images poorly: calibrate the camera on its own (ferrocal camera calibrate) and pass it as --intrinsics".into(),
     }
     })

@@ -111,6 +111,9 @@ pub fn run_import(args: &ImportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     };
     let (robot_out, units) = (args.robot_out.is_some(), args.user_units);
     let t = import_table(source, &args.input, &args.out, args.test_every, robot_out, units)?;
+    for w in &t.warnings {
+        eprintln!("warning: {w}");
+    }
     // Every output is composed first and all are written as one commit at the end.
     let mut out = Outputs::default();
     out.text(&args.out, t.table.as_str());
