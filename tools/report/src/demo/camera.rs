@@ -73,12 +73,13 @@ pub fn camera_own_corners(runs: &[(&str, Value, Value)]) -> Section {
     );
     // Per held-out view: both corner sources side by side (bars by view, coloured by source).
     let mut bars = Vec::new();
-    for (side, own, cv) in runs {
+    for (_, own, cv) in runs {
         for (name, v) in [("own corners", own), ("OpenCV recipe", cv)] {
             for view in v["held_out"]["views"].as_array().into_iter().flatten() {
                 let rms = view["rms_px"].as_f64().unwrap_or(f64::NAN);
-                let image = view["name"].as_str().unwrap_or("?").trim_end_matches(".jpg");
-                bars.push((format!("{side} {image}"), name.to_string(), rms));
+                let image = view["name"].as_str().unwrap_or("?");
+                let stem = Path::new(image).file_stem().map_or(image.into(), |s| s.to_string_lossy());
+                bars.push((stem.to_string(), name.to_string(), rms));
             }
         }
     }
