@@ -180,8 +180,19 @@ pub const HALF_RESOLUTION_MIN_SIDE_PX: u32 = 800;
 /// OpenCV's decoding does not find it anyway).
 const MIN_MARKER_SIDE_PX: f64 = 8.0;
 
+/// Markers decoded at half resolution whose side (full-resolution pixels) is below this are
+/// decoded again in their full-resolution window: their outlines at half resolution (cells of
+/// 2.5 px or less) are too coarse to predict the corners from.
+const REDECODE_BELOW_SIDE_PX: f64 = 30.0;
+
+/// Mean side of a quadrilateral, pixels.
+fn mean_side(q: &[Vector2<f64>]) -> f64 {
+    0.25 * (0..4).map(|k| (q[k] - q[(k + 1) % 4]).norm()).sum::<f64>()
+}
+
 /// The board's markers, coarse to fine: OpenCV's decoding on the image at half resolution;
-/// then, for every marker of the board not decoded there (or decoded twice), the homography
+/// then, for every marker of the board not decoded there (or decoded twice, or smaller than
+/// [`REDECODE_BELOW_SIDE_PX`], whose outline is then taken from the window), the homography
 /// of the (up to four) nearest decoded markers predicts its outline, and OpenCV decodes the
 /// full-resolution window around that outline (half a marker side of margin). A marker is
 /// taken from the window only with the id expected there, and only when its predicted outline
@@ -210,10 +221,18 @@ pub fn board_markers(img: &GrayImage, board: &CharucoBoard, options: &CharucoOpt
     if unique.len() < 2 {
         return Ok((detect_markers(img, board.dictionary, options.markers)?, 0));
     }
+    let small: Vec<usize> = unique
+        .iter()
+        .filter(|(m, _)| {
+            let q: Vec<Vector2<f64>> = m.corners_px.iter().map(|p| p.coords).collect();
+            mean_side(&q) < REDECODE_BELOW_SIDE_PX
+        })
+        .map(|(m, _)| m.id as usize)
+        .collect();
     let (w, h) = (f64::from(img.width()), f64::from(img.height()));
     let mut extra = Vec::new();
     let mut windows = 0;
-    for id in (0..n).filter(|&k| seen[k] != 1) {
+    for id in (0..n).filter(|&k| seen[k] != 1 || small.contains(&k)) {
         let (r, c) = squares[id];
         let mut near = unique.clone();
         let d2 = |s: (u32, u32)| (i64::from(s.0) - i64::from(r)).pow(2) + (i64::from(s.1) - i64::from(c)).pow(2);
@@ -222,7 +241,7 @@ pub fn board_markers(img: &GrayImage, board: &CharucoBoard, options: &CharucoOpt
         let Some(hm) = markers_homography(board, &near) else { continue };
         let quad: Option<Vec<Vector2<f64>>> = board.marker_corners_m(r, c).iter().map(|p| apply(&hm, *p)).collect();
         let Some(quad) = quad else { continue };
-        let side = 0.25 * (0..4).map(|k| (quad[k] - quad[(k + 1) % 4]).norm()).sum::<f64>();
+        let side = mean_side(&quad);
         let inside = quad.iter().all(|q| q.x >= 1.0 && q.y >= 1.0 && q.x <= w - 2.0 && q.y <= h - 2.0);
         if side.is_nan() || side < MIN_MARKER_SIDE_PX || !inside {
             continue;
@@ -245,9 +264,10 @@ pub fn board_markers(img: &GrayImage, board: &CharucoBoard, options: &CharucoOpt
             extra.push(Marker { id: m.id, corners_px: m.corners_px.map(|p| Point2::new(p.x + x0, p.y + y0)) });
         }
     }
-    // A marker decoded twice at half resolution and once in its window: the window's wins.
-    let twice: Vec<u32> = extra.iter().map(|m| m.id).filter(|&id| seen[id as usize] > 1).collect();
-    found.retain(|m| !twice.contains(&m.id));
+    // A marker decoded at half resolution (twice, or small) and again in its window: the
+    // window's wins.
+    let replaced: Vec<u32> = extra.iter().map(|m| m.id).filter(|&id| seen[id as usize] >= 1).collect();
+    found.retain(|m| !replaced.contains(&m.id));
     found.extend(extra);
     Ok((found, windows))
 }
