@@ -25,6 +25,12 @@ pub fn median_background_of(specs: &[String]) -> Result<Option<GrayImage>> {
     Ok(Some(median_background(&frames).map_err(|e| DatasetError::from(e).context("background median"))?))
 }
 
+/// One line per image with its per-stage wall times (the results that carry them), for the
+/// terminal: `<image>: read ... ms / candidates ... / total ... ms`.
+pub fn timing_lines(results: &[ImageResult]) -> Vec<String> {
+    results.iter().filter_map(|r| r.timings.as_ref().map(|t| format!("{}: {t}", r.image))).collect()
+}
+
 /// The terminal line of a batch's results written to `json`: in how many images the pattern
 /// was found, how many failed.
 pub fn summary_line(results: &[ImageResult], json: &std::path::Path) -> String {
@@ -40,12 +46,14 @@ pub fn summary_line(results: &[ImageResult], json: &std::path::Path) -> String {
 
 /// Finds `pattern` in every image of `specs` (files, folders or globs; refused when they name
 /// none) with `options`, against `background` when given: one result per image, in order. A
-/// failed image's reason is also given to `warn`, naming the image, as it happens.
+/// failed image's reason is also given to `warn`, naming the image, as it happens. With
+/// `timed`, every result carries its per-stage wall times ([`ImageResult::timings`]).
 pub fn detect_images(
     specs: &[String],
     pattern: Pattern,
     options: DetectOptions,
     background: Option<GrayImage>,
+    timed: bool,
     warn: &dyn Fn(&str),
 ) -> Result<Vec<ImageResult>> {
     let entries = image_entries(specs);
@@ -67,7 +75,7 @@ pub fn detect_images(
             unmatched.join(", ")
         )));
     }
-    let mut detector = Detector::new(pattern, options, background)?;
+    let mut detector = Detector::new(pattern, options, background)?.with_timings(timed);
     let mut results: Vec<ImageResult> = Vec::with_capacity(entries.len());
     for entry in entries {
         let r = match entry {

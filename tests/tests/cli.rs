@@ -238,6 +238,12 @@ fn camera_calibrate_own_corners_beat_opencvs_recipe_on_held_out_views() {
             .arg("--report")
             .arg(tmp.path().join(format!("{corners}.html"))));
         assert!(out.status.success());
+        // The terminal ends with the files written, then the verdict.
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let lines: Vec<&str> = stdout.lines().collect();
+        let wrote = lines[lines.len() - 2];
+        assert!(wrote.starts_with("wrote: ") && wrote.contains(&format!("{corners}.json")), "{stdout}");
+        assert!(wrote.contains(&format!("{corners}.html")) && lines[lines.len() - 1].starts_with("verdict: "));
         json(&j)
     };
     let own = held_out("own");

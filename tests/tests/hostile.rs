@@ -89,7 +89,7 @@ const CASES: &[Case] = &[
         },
         args: &["import", "table", "--input", "{d}/cr.csv", "--out", "{d}/cr_out.csv"],
         exit: 0,
-        says: &["40 rows written"],
+        says: &["imported 40 rows"],
         absent: &[],
     },
     Case {
@@ -381,7 +381,7 @@ const CASES: &[Case] = &[
         edit: nothing,
         args: &["import", "table", "--input", "{d}/small.csv", "--out", "{d}/{long}"],
         exit: 0,
-        says: &["40 rows written"],
+        says: &["imported 40 rows"],
         absent: &[],
     },
 ];

@@ -46,6 +46,19 @@ fn detect_reports_bad_images_and_the_batch_continues() {
             || a[1]["image"].as_str().unwrap().contains("b_empty.png")
     );
     assert!(a[2]["error"].as_str().unwrap().contains("not found"));
+    assert!(a[0].get("timings").is_none());
+    // --timings: every stage per image, printed and in the JSON (unreadable files have none).
+    let args = ["detect", "--images", path(&dir), "--pattern", "chessboard:4x3:20mm", "--json", path(&json)];
+    let out = ferrocal(&[&args[..], &["--timings"]].concat());
+    assert_eq!(out.status.code(), Some(2));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let t = &v[0]["timings"];
+    for stage in ["read_ms", "candidates_ms", "grid_ms", "refine_ms", "covariance_ms", "total_ms"] {
+        assert!(t[stage].as_f64().is_some_and(|ms| ms >= 0.0), "{stage}: {t}");
+    }
+    assert_eq!(t["corners"].as_u64(), Some(12));
+    let printed = String::from_utf8_lossy(&out.stdout);
+    assert!(printed.contains("a_board.png: read") && printed.contains("refinement"), "{printed}");
     let out = ferrocal(&["detect", "--images", path(&dir), "--pattern", "chessboard:4x3", "--json", path(&json)]);
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.code() == Some(1) && e.contains("'chessboard:4x3'") && e.contains("expected"), "{e}");

@@ -6,7 +6,12 @@
 //! ```text
 //! cargo run --release -p ferrocal-vision --example realistic -- time [runs] [--threads N]
 //! cargo run --release -p ferrocal-vision --example realistic -- write <dir>
+//! cargo run --release -p ferrocal-vision --example realistic -- charuco [runs] [--threads N]
 //! ```
+//!
+//! `charuco` runs only the ChArUco part: per image, ferrocal with the markers decoded at
+//! full resolution (the detector before the coarse-to-fine marker search), ferrocal as it is
+//! (half resolution first) and OpenCV, interleaved.
 //!
 //! `--threads 1` runs ferrocal (rayon) and OpenCV on one thread each. The shared real images
 //! are the ROS-Industrial industrial_calibration example data (Apache-2.0,
@@ -71,6 +76,7 @@ fn main() {
     match args.first().map(String::as_str) {
         Some("write") => write(args.get(1).expect("write <dir>")),
         Some("markers") => markers(),
+        Some("charuco") => charuco(args.get(1).and_then(|a| a.parse().ok()).unwrap_or(3)),
         _ => {
             let runs: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(3);
             time(runs, threads);
@@ -185,62 +191,7 @@ fn time(runs: usize, threads: Option<usize>) {
     for l in stage_lines {
         println!("{l}");
     }
-    // ChArUco on the shared real images.
-    println!("\n### ChArUco 5x7, real 1600x1200 images (ROS-Industrial industrial_calibration example data, Apache-2.0, test_set_charuco/images/0..15.png)\n");
-    let pattern: Pattern = "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250".parse().unwrap();
-    let Pattern::Charuco(board) = pattern else { unreachable!() };
-    let (mut sum_ours, mut sum_cv) = (0.0, 0.0);
-    let (mut found_ours, mut found_cv, mut corners_ours, mut corners_cv) = (0, 0, 0, 0);
-    let mut stage_lines = Vec::new();
-    for k in 0..16 {
-        let path = format!(
-            "{}/../../shared/data/industrial_calibration/test_set_charuco/images/{k}.png",
-            env!("CARGO_MANIFEST_DIR")
-        );
-        let img = load_gray(&path).unwrap();
-        let options = DetectOptions::default();
-        let (first, timings) = detect_timed(&img, &pattern, &options, None);
-        if let Ok(d) = &first {
-            found_ours += 1;
-            corners_ours += d[0].corners.len();
-        }
-        let cv = opencv_charuco_corners(&img, &board, MarkerParams::OpenCv, 2).unwrap();
-        if !cv.is_empty() {
-            found_cv += 1;
-            corners_cv += cv.len();
-        }
-        let (mut t_ours, mut t_cv) = (Vec::new(), Vec::new());
-        for _ in 0..runs {
-            let t0 = Instant::now();
-            let _ = detect(&img, &pattern, &options, None);
-            t_ours.push(t0.elapsed().as_secs_f64() * 1e3);
-            let t0 = Instant::now();
-            let _ = opencv_charuco_corners(&img, &board, MarkerParams::OpenCv, 2);
-            t_cv.push(t0.elapsed().as_secs_f64() * 1e3);
-        }
-        sum_ours += median(t_ours);
-        sum_cv += median(t_cv);
-        stage_lines.push(format!(
-            "- {k}.png: {} corners; {}",
-            first.as_ref().map_or_else(|e| e.to_string(), |d| d[0].corners.len().to_string()),
-            stages_line(&timings)
-        ));
-    }
-    println!("| method | sum of medians over 16 images, ms | per image ms | ratio | boards found | corners |");
-    println!("|---|---|---|---|---|---|");
-    println!(
-        "| ferrocal (OpenCV markers, tolerant parameters + edge model with covariances) | {sum_ours:.0} | {:.1} | {:.2} | {found_ours}/16 | {corners_ours} |",
-        sum_ours / 16.0,
-        sum_ours / sum_cv
-    );
-    println!(
-        "| OpenCV detectMarkers + interpolateCornersCharuco | {sum_cv:.0} | {:.1} | 1.00 | {found_cv}/16 | {corners_cv} |",
-        sum_cv / 16.0
-    );
-    println!("\nferrocal per stage:\n");
-    for l in stage_lines {
-        println!("{l}");
-    }
+    charuco(runs);
     // Chessboard 9x6 on OpenCV's stereo sample.
     let pattern: Pattern = "chessboard:9x6:25mm".parse().unwrap();
     let (mut sum_ours, mut sum_sb, mut f_ours, mut f_sb) = (0.0, 0.0, 0, 0);
@@ -269,6 +220,102 @@ fn time(runs: usize, threads: Option<usize>) {
     println!("| method | sum of medians ms | ratio | found |\n|---|---|---|---|");
     println!("| ferrocal detect + refinement | {sum_ours:.0} | {:.2} | {f_ours}/{n} |", sum_ours / sum_sb);
     println!("| OpenCV findChessboardCornersSB | {sum_sb:.0} | 1.00 | {f_sb}/{n} |");
+}
+
+/// ChArUco on the shared real images: per image, ferrocal with the markers decoded at full
+/// resolution, ferrocal coarse to fine (the default) and OpenCV's detectMarkers +
+/// interpolateCornersCharuco, interleaved, medians; corners found by each; the largest shift
+/// of a corner found by both ferrocal variants.
+fn charuco(runs: usize) {
+    println!("\n### ChArUco 5x7, real 1600x1200 images (ROS-Industrial industrial_calibration example data, Apache-2.0, test_set_charuco/images/0..15.png)\n");
+    let pattern: Pattern = "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250".parse().unwrap();
+    let Pattern::Charuco(board) = pattern else { unreachable!() };
+    let fine = DetectOptions::default();
+    let mut full = DetectOptions::default();
+    full.charuco.half_resolution_first = false;
+    let (mut sums, mut found, mut corners) = ([0.0; 3], [0usize; 3], [0usize; 3]);
+    let mut stage_lines = Vec::new();
+    println!("| image | ms full-res markers | ms coarse-to-fine | ms OpenCV | ratio coarse-to-fine / OpenCV | corners full-res / coarse-to-fine / OpenCV | largest shift px |");
+    println!("|---|---|---|---|---|---|---|");
+    for k in 0..16 {
+        let path = format!(
+            "{}/../../shared/data/industrial_calibration/test_set_charuco/images/{k}.png",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        let img = load_gray(&path).unwrap();
+        let (d_full, t_full) = detect_timed(&img, &pattern, &full, None);
+        let (d_fine, t_fine) = detect_timed(&img, &pattern, &fine, None);
+        let cv = opencv_charuco_corners(&img, &board, MarkerParams::OpenCv, 2).unwrap();
+        let count = |d: &ferrocal_vision::Result<Vec<ferrocal_vision::detect::Detection>>| {
+            d.as_ref().map_or(0, |d| d[0].corners.len())
+        };
+        let n = [count(&d_full), count(&d_fine), cv.len()];
+        for (j, nj) in n.iter().enumerate() {
+            corners[j] += nj;
+            found[j] += usize::from(*nj > 0);
+        }
+        let mut shift: f64 = 0.0;
+        if let (Ok(a), Ok(b)) = (&d_full, &d_fine) {
+            for c in &a[0].corners {
+                if let Some(q) = b[0].corners.iter().find(|q| q.point_id == c.point_id) {
+                    shift = shift.max((q.position_px - c.position_px).norm());
+                }
+            }
+        }
+        let mut t: [Vec<f64>; 3] = Default::default();
+        for _ in 0..runs {
+            let t0 = Instant::now();
+            let _ = detect(&img, &pattern, &full, None);
+            t[0].push(t0.elapsed().as_secs_f64() * 1e3);
+            let t0 = Instant::now();
+            let _ = detect(&img, &pattern, &fine, None);
+            t[1].push(t0.elapsed().as_secs_f64() * 1e3);
+            let t0 = Instant::now();
+            let _ = opencv_charuco_corners(&img, &board, MarkerParams::OpenCv, 2);
+            t[2].push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        let m = t.map(median);
+        for j in 0..3 {
+            sums[j] += m[j];
+        }
+        println!(
+            "| {k}.png | {:.0} | {:.0} | {:.0} | {:.2} | {} / {} / {} | {shift:.1e} |",
+            m[0],
+            m[1],
+            m[2],
+            m[1] / m[2],
+            n[0],
+            n[1],
+            n[2]
+        );
+        stage_lines.push(format!("- {k}.png full-res markers: {}", stages_line(&t_full)));
+        stage_lines.push(format!("- {k}.png coarse-to-fine: {}", stages_line(&t_fine)));
+    }
+    println!(
+        "| **all 16** (sum of medians) | **{:.0}** | **{:.0}** | **{:.0}** | **{:.2}** | {} / {} / {} | |",
+        sums[0],
+        sums[1],
+        sums[2],
+        sums[1] / sums[2],
+        corners[0],
+        corners[1],
+        corners[2]
+    );
+    println!(
+        "\nper image: full-res markers {:.1} ms ({:.2} x OpenCV), coarse-to-fine {:.1} ms ({:.2} x OpenCV), OpenCV {:.1} ms; boards found {} / {} / {} of 16",
+        sums[0] / 16.0,
+        sums[0] / sums[2],
+        sums[1] / 16.0,
+        sums[1] / sums[2],
+        sums[2] / 16.0,
+        found[0],
+        found[1],
+        found[2]
+    );
+    println!("\nferrocal per stage (first run):\n");
+    for l in stage_lines {
+        println!("{l}");
+    }
 }
 
 /// Marker decoding on the shared ChArUco images under several OpenCV parameter sets: markers

@@ -90,6 +90,30 @@ fn charuco_set_every_image_gives_corners_with_ids_and_calibrates() {
     println!("{}", compare_with_opencv(&paths, &pattern, &CalibrationOptions::default()).unwrap());
 }
 
+#[test]
+fn charuco_markers_coarse_to_fine_keep_every_marker_of_the_full_resolution_pass() {
+    use ferrocal_vision::detect::charuco::{board_markers, CharucoOptions};
+    let DetectPattern::Charuco(board) = CHARUCO.parse().unwrap() else { unreachable!() };
+    let paths = images("test_set_charuco");
+    // 2: a tilted board, markers missed at half resolution; 7: one marker only the windows decode.
+    for k in [2, 7] {
+        let img = load_gray(&paths[k]).unwrap();
+        let ids = |m: &[ferrocal_vision::detect::aruco::Marker]| {
+            let mut v: Vec<u32> = m.iter().map(|m| m.id).filter(|&i| i < board.n_markers()).collect();
+            v.sort();
+            v
+        };
+        let full = ids(&detect_markers(&img, board.dictionary, MarkerParams::Tolerant).unwrap());
+        let (found, windows) = board_markers(&img, &board, &CharucoOptions::default()).unwrap();
+        let fine = ids(&found);
+        println!("{k}.png: full resolution {full:?}, coarse to fine {fine:?} ({windows} windows)");
+        assert!(full.iter().all(|i| fine.contains(i)), "{k}.png: full {full:?}, coarse to fine {fine:?}");
+        let mut dedup = fine.clone();
+        dedup.dedup();
+        assert_eq!(dedup, fine, "{k}.png: an id twice");
+    }
+}
+
 /// Counts the dark pixels within `r` px of `c` (darker than the mean of the square around).
 fn dark_area(img: &image::GrayImage, c: Point2<f64>, r: f64) -> usize {
     let (x0, x1) = ((c.x - r).floor().max(0.0) as u32, ((c.x + r).ceil() as u32).min(img.width() - 1));

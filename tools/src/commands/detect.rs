@@ -11,7 +11,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use ferrocal_datasets::detect::{detect_images, median_background_of, summary_line};
+use ferrocal_datasets::detect::{detect_images, median_background_of, summary_line, timing_lines};
 use ferrocal_vision::detect::{AprilTagOptions, DetectOptions, Pattern, TagBackend, TagRefine};
 
 use ferrocal_calib::verdict::commands as verdict;
@@ -63,6 +63,11 @@ pub struct DetectArgs {
     /// AprilTags: refit the tag borders with the edge model and report covariances.
     #[arg(long)]
     pub tag_edge_refine: bool,
+    /// Print the wall time of every stage per image (reading, candidate search, grid growth,
+    /// refinement, covariance) and add it to each image's JSON entry as `timings`
+    /// (milliseconds).
+    #[arg(long)]
+    pub timings: bool,
     /// AprilTags: the decoder, `c` (the AprilTag C library) or `kornia` (kornia-apriltag).
     #[arg(long, default_value = "c", value_parser = ["c", "kornia"])]
     pub tag_backend: String,
@@ -78,7 +83,11 @@ pub fn run(args: &DetectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         ..AprilTagOptions::default()
     };
     let background = median_background_of(&args.background)?;
-    let results = detect_images(&args.images, pattern, options, background, &|e| eprintln!("ferrocal: {e}"))?;
+    let results =
+        detect_images(&args.images, pattern, options, background, args.timings, &|e| eprintln!("ferrocal: {e}"))?;
+    for line in timing_lines(&results) {
+        say!("{line}");
+    }
     let failed = results.iter().filter(|r| r.error.is_some()).count();
     let json = serde_json::to_vec_pretty(&results)?;
     write_atomic(&args.json, &json).with_context(|| format!("cannot write {}", args.json.display()))?;

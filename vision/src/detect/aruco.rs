@@ -267,6 +267,24 @@ pub fn detect_markers(img: &GrayImage, dictionary: ArucoDictionary, params: Mark
     Ok(out)
 }
 
+/// The 8-bit image at half resolution: the mean of each 2 x 2 block (an odd last row or column
+/// is dropped). Pixel `(x, y)` of the result covers `(2x, 2y)` to `(2x + 1, 2y + 1)` of the
+/// source, so its centre is at `(2x + 0.5, 2y + 0.5)` there.
+pub fn half_resolution(img: &GrayImage) -> GrayImage {
+    let (w, h) = (img.width() / 2, img.height() / 2);
+    let src = img.as_raw();
+    let sw = img.width() as usize;
+    let mut out = Vec::with_capacity(w as usize * h as usize);
+    for y in 0..h as usize {
+        let (r0, r1) = (&src[2 * y * sw..(2 * y + 1) * sw], &src[(2 * y + 1) * sw..(2 * y + 2) * sw]);
+        for x in 0..w as usize {
+            let s = u16::from(r0[2 * x]) + u16::from(r0[2 * x + 1]) + u16::from(r1[2 * x]) + u16::from(r1[2 * x + 1]);
+            out.push(((s + 2) / 4) as u8);
+        }
+    }
+    GrayImage::from_raw(w, h, out).expect("w * h values")
+}
+
 /// The bits of marker `id` of `dictionary` as printed, row by row from the top-left,
 /// including the one-cell black border (`true` = white): `(n + 2)^2` values for an `n x n`
 /// code. From OpenCV's `drawMarker` (for drawing boards in simulations).
@@ -393,6 +411,15 @@ mod tests {
         for d in ArucoDictionary::ALL {
             assert_eq!(d.name().parse::<ArucoDictionary>().unwrap(), d);
         }
+    }
+
+    #[test]
+    fn half_resolution_is_the_mean_of_each_2x2_block() {
+        let img = GrayImage::from_fn(5, 3, |x, y| image::Luma([(10 * x + 100 * y) as u8]));
+        let half = half_resolution(&img);
+        assert_eq!((half.width(), half.height()), (2, 1));
+        // Block (0, 0): 0, 10, 100, 110; block (1, 0): 20, 30, 120, 130.
+        assert_eq!(half.as_raw(), &vec![55, 75]);
     }
 
     #[test]

@@ -17,8 +17,10 @@
 //! Corner `(i, j)` is at `((j + 1 - cols / 2) square, (rows / 2 - i - 1) square, 0)`.
 //!
 //! # Detection
-//! 1. OpenCV's `detectMarkers` finds and decodes the markers ([`super::aruco`]); markers of
-//!    other ids, and ids seen twice, are dropped.
+//! 1. OpenCV's `detectMarkers` finds and decodes the markers ([`super::aruco`]), coarse to
+//!    fine: on the image at half resolution, then around the predicted places of the board's
+//!    missing markers at full resolution ([`board_markers`]); markers of other ids, and ids
+//!    seen twice, are dropped.
 //! 2. Every grid point of the board (inner corners and the board's outer corners) that
 //!    touches a square with a decoded marker is predicted through the homography of those
 //!    markers' corners (local, so lens distortion matters little).
@@ -35,7 +37,7 @@ use image::GrayImage;
 use nalgebra::{Matrix3, Point2, Point3, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::aruco::{detect_markers, ArucoDictionary, Marker, MarkerParams};
+use super::aruco::{detect_markers, half_resolution, ArucoDictionary, Marker, MarkerParams};
 use super::image::GrayF32;
 use super::{Corner, DetectOptions, Detection, StageTimings};
 use crate::error::{Result, VisionError};
@@ -157,12 +159,117 @@ pub struct CharucoOptions {
     pub min_markers: u32,
     /// OpenCV's marker detection parameters.
     pub markers: MarkerParams,
+    /// Decode the markers on the image at half resolution first (a quarter of the pixels) and
+    /// look for the board's missing markers at full resolution only around the places the
+    /// decoded ones predict ([`board_markers`]); `false` decodes the whole image at full
+    /// resolution. Images whose shorter side is below [`HALF_RESOLUTION_MIN_SIDE_PX`] are
+    /// always decoded at full resolution.
+    pub half_resolution_first: bool,
 }
 
 impl Default for CharucoOptions {
     fn default() -> Self {
-        Self { min_markers: 2, markers: MarkerParams::Tolerant }
+        Self { min_markers: 2, markers: MarkerParams::Tolerant, half_resolution_first: true }
     }
+}
+
+/// Shorter image side below which [`CharucoOptions::half_resolution_first`] is not used, pixels.
+pub const HALF_RESOLUTION_MIN_SIDE_PX: u32 = 800;
+
+/// Smallest predicted marker side for which a missing marker is looked for, pixels (below it
+/// OpenCV's decoding does not find it anyway).
+const MIN_MARKER_SIDE_PX: f64 = 8.0;
+
+/// Markers decoded at half resolution whose side (full-resolution pixels) is below this are
+/// decoded again in their full-resolution window: their outlines at half resolution (cells of
+/// 2.5 px or less) are too coarse to predict the corners from.
+const REDECODE_BELOW_SIDE_PX: f64 = 30.0;
+
+/// Mean side of a quadrilateral, pixels.
+fn mean_side(q: &[Vector2<f64>]) -> f64 {
+    0.25 * (0..4).map(|k| (q[k] - q[(k + 1) % 4]).norm()).sum::<f64>()
+}
+
+/// The board's markers, coarse to fine: OpenCV's decoding on the image at half resolution;
+/// then, for every marker of the board not decoded there (or decoded twice, or smaller than
+/// [`REDECODE_BELOW_SIDE_PX`], whose outline is then taken from the window), the homography
+/// of the (up to four) nearest decoded markers predicts its outline, and OpenCV decodes the
+/// full-resolution window around that outline (half a marker side of margin). A marker is
+/// taken from the window only with the id expected there, and only when its predicted outline
+/// lies inside the image. With fewer than two distinct board markers at half resolution, the
+/// whole image is decoded at full resolution (what `half_resolution_first: false` does).
+/// Returns every decoded marker (other ids included) and the number of windows decoded.
+pub fn board_markers(img: &GrayImage, board: &CharucoBoard, options: &CharucoOptions) -> Result<(Vec<Marker>, usize)> {
+    if !options.half_resolution_first || img.width().min(img.height()) < HALF_RESOLUTION_MIN_SIDE_PX {
+        return Ok((detect_markers(img, board.dictionary, options.markers)?, 0));
+    }
+    let half = half_resolution(img);
+    let mut found: Vec<Marker> = detect_markers(&half, board.dictionary, options.markers)?
+        .into_iter()
+        .map(|m| Marker { id: m.id, corners_px: m.corners_px.map(|p| Point2::new(2.0 * p.x + 0.5, 2.0 * p.y + 0.5)) })
+        .collect();
+    let n = board.n_markers() as usize;
+    let mut seen = vec![0usize; n];
+    for m in &found {
+        if let Some(k) = seen.get_mut(m.id as usize) {
+            *k += 1;
+        }
+    }
+    let squares = board.marker_squares();
+    let unique: Vec<(&Marker, (u32, u32))> =
+        found.iter().filter(|m| seen.get(m.id as usize) == Some(&1)).map(|m| (m, squares[m.id as usize])).collect();
+    if unique.len() < 2 {
+        return Ok((detect_markers(img, board.dictionary, options.markers)?, 0));
+    }
+    let small: Vec<usize> = unique
+        .iter()
+        .filter(|(m, _)| {
+            let q: Vec<Vector2<f64>> = m.corners_px.iter().map(|p| p.coords).collect();
+            mean_side(&q) < REDECODE_BELOW_SIDE_PX
+        })
+        .map(|(m, _)| m.id as usize)
+        .collect();
+    let (w, h) = (f64::from(img.width()), f64::from(img.height()));
+    let mut extra = Vec::new();
+    let mut windows = 0;
+    for id in (0..n).filter(|&k| seen[k] != 1 || small.contains(&k)) {
+        let (r, c) = squares[id];
+        let mut near = unique.clone();
+        let d2 = |s: (u32, u32)| (i64::from(s.0) - i64::from(r)).pow(2) + (i64::from(s.1) - i64::from(c)).pow(2);
+        near.sort_by_key(|(_, s)| d2(*s));
+        near.truncate(4);
+        let Some(hm) = markers_homography(board, &near) else { continue };
+        let quad: Option<Vec<Vector2<f64>>> = board.marker_corners_m(r, c).iter().map(|p| apply(&hm, *p)).collect();
+        let Some(quad) = quad else { continue };
+        let side = mean_side(&quad);
+        let inside = quad.iter().all(|q| q.x >= 1.0 && q.y >= 1.0 && q.x <= w - 2.0 && q.y <= h - 2.0);
+        if side.is_nan() || side < MIN_MARKER_SIDE_PX || !inside {
+            continue;
+        }
+        let margin = 0.5 * side + 4.0;
+        let lo = |f: fn(&Vector2<f64>) -> f64| quad.iter().map(f).fold(f64::INFINITY, f64::min) - margin;
+        let hi = |f: fn(&Vector2<f64>) -> f64| quad.iter().map(f).fold(f64::NEG_INFINITY, f64::max) + margin;
+        let (x0, y0) = (lo(|q| q.x).max(0.0).floor(), lo(|q| q.y).max(0.0).floor());
+        let (x1, y1) = (hi(|q| q.x).min(w - 1.0).ceil(), hi(|q| q.y).min(h - 1.0).ceil());
+        let (cw, ch) = (x1 - x0 + 1.0, y1 - y0 + 1.0);
+        // A prediction this large is extrapolated too far to be worth a window.
+        if cw * ch > 0.25 * w * h {
+            continue;
+        }
+        let crop = image::imageops::crop_imm(img, x0 as u32, y0 as u32, cw as u32, ch as u32).to_image();
+        windows += 1;
+        if let Some(m) =
+            detect_markers(&crop, board.dictionary, options.markers)?.into_iter().find(|m| m.id as usize == id)
+        {
+            extra.push(Marker { id: m.id, corners_px: m.corners_px.map(|p| Point2::new(p.x + x0, p.y + y0)) });
+        }
+    }
+    // A marker decoded at half resolution (twice, or small) and again in its window: the
+    // window's wins.
+    let replaced: Vec<u32> = extra.iter().map(|m| m.id).filter(|&id| seen[id as usize] >= 1).collect();
+    found.retain(|m| !replaced.contains(&m.id));
+    found.extend(extra);
+    Ok((found, windows))
 }
 
 fn apply(h: &Matrix3<f64>, p: Point2<f64>) -> Option<Vector2<f64>> {
@@ -192,7 +299,7 @@ pub(crate) fn detect_charuco(
     let not_found = |reason: String| VisionError::PatternNotFound { pattern: pattern_text.to_string(), reason };
     let squares = board.marker_squares();
     let t0 = Instant::now();
-    let mut markers = detect_markers(img, board.dictionary, options.charuco.markers)?;
+    let (mut markers, _windows) = board_markers(img, board, &options.charuco)?;
     let decoded = markers.len();
     let t1 = Instant::now();
     if let Some(t) = timings.as_deref_mut() {

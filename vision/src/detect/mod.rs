@@ -183,6 +183,34 @@ pub struct StageTimings {
     pub refine_passes: usize,
     /// Pixels of the image.
     pub image_px: usize,
+    /// Reading and decoding the image file ([`Detector::detect_file`] only; not in
+    /// [`StageTimings::total_ms`]).
+    #[serde(default)]
+    pub read_ms: f64,
+}
+
+impl std::fmt::Display for StageTimings {
+    /// One line: `read 21.0 ms / candidates 12.3 ms (17) / grid 0.3 ms / refinement 20.1 ms
+    /// (1 pass, 48 lines, 51072 px) / covariance 7.2 ms / total 41.0 ms`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "read {:.1} ms / convert {:.1} ms / candidates {:.1} ms ({}) / grid {:.1} ms / refinement {:.1} ms \
+             ({} pass{}, {} lines, {} px) / covariance {:.1} ms / total {:.1} ms",
+            self.read_ms,
+            self.convert_ms,
+            self.candidates_ms,
+            self.candidates,
+            self.grid_ms,
+            self.refine_ms,
+            self.refine_passes,
+            if self.refine_passes == 1 { "" } else { "es" },
+            self.lines,
+            self.band_pixels,
+            self.covariance_ms,
+            self.total_ms
+        )
+    }
 }
 
 impl StageTimings {
@@ -377,12 +405,15 @@ pub struct ImageResult {
     /// Why the image failed (unreadable, empty, pattern not found), when it did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// Wall time of each stage, when asked for ([`Detector::with_timings`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timings: Option<StageTimings>,
 }
 
 impl ImageResult {
     /// A failed entry.
     pub fn failed(image: impl Into<String>, error: impl Into<String>) -> Self {
-        Self { image: image.into(), detections: Vec::new(), error: Some(error.into()) }
+        Self { image: image.into(), detections: Vec::new(), error: Some(error.into()), timings: None }
     }
 }
 
@@ -394,13 +425,21 @@ pub struct Detector {
     options: DetectOptions,
     background: Option<GrayImage>,
     tags: Option<AprilTagDetector>,
+    timed: bool,
 }
 
 impl Detector {
     /// A detector for `pattern`; `background` is the median background for the plate.
     pub fn new(pattern: Pattern, options: DetectOptions, background: Option<GrayImage>) -> Result<Self> {
         options.refine_options.validate()?;
-        Ok(Self { pattern, options, background, tags: None })
+        Ok(Self { pattern, options, background, tags: None, timed: false })
+    }
+
+    /// With `on`, [`Detector::detect_file`] measures every stage ([`StageTimings`], the file's
+    /// reading included) and returns the times in [`ImageResult::timings`].
+    pub fn with_timings(mut self, on: bool) -> Self {
+        self.timed = on;
+        self
     }
 
     /// The pattern.
@@ -416,16 +455,40 @@ impl Detector {
     /// Reads and detects one file; every failure is reported in the result, never raised.
     pub fn detect_file(&mut self, path: &Path) -> ImageResult {
         let name = path.display().to_string();
+        let t0 = std::time::Instant::now();
         let img = match load_gray(path) {
             Ok(i) => i,
             Err(e) => return ImageResult::failed(name, e.to_string()),
         };
-        match self.detect(&img) {
-            Ok(d) => {
-                ImageResult { image: name, detections: d.iter().map(DetectionRecord::from).collect(), error: None }
-            }
-            Err(e) => ImageResult::failed(name, e.to_string()),
+        let mut timings = self.timed.then(|| StageTimings {
+            image_px: img.width() as usize * img.height() as usize,
+            read_ms: t0.elapsed().as_secs_f64() * 1e3,
+            ..Default::default()
+        });
+        let t1 = std::time::Instant::now();
+        let found = detect_inner(
+            &img,
+            &self.pattern,
+            &self.options,
+            self.background.as_ref(),
+            &mut self.tags,
+            timings.as_mut(),
+        );
+        if let Some(t) = timings.as_mut() {
+            StageTimings::add_since(&mut t.total_ms, t1);
+            t.corners = found.as_ref().map_or(0, |d| d.iter().map(|d| d.corners.len()).sum());
         }
+        let mut r = match found {
+            Ok(d) => ImageResult {
+                image: name,
+                detections: d.iter().map(DetectionRecord::from).collect(),
+                error: None,
+                timings: None,
+            },
+            Err(e) => ImageResult::failed(name, e.to_string()),
+        };
+        r.timings = timings;
+        r
     }
 }
 
