@@ -67,6 +67,15 @@ fn quiet_and_verbose_change_only_what_the_terminal_shows() {
     let checks = |out: &str| out.lines().last().and_then(|l| l.split("; next:").next()).map(str::to_string);
     assert_eq!(checks(normal), checks(quiet));
     assert!(results.iter().all(|r| *r == results[0] && r.is_object()), "{results:?}");
+    // `--json` is optional in every command: `evaluate` without it prints its figures and verdict.
+    let out = run(ferrocal()
+        .args(["evaluate", "--robot", "ur5", "--calibration"])
+        .arg(tmp.path().join("cal.json"))
+        .arg("--measurements")
+        .arg(&table));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(out.status.success() && text.contains("scored on ") && !text.contains("wrote:"), "{text}");
+    assert!(text.lines().last().unwrap().starts_with("verdict: "), "{text}");
 }
 
 /// Writes a measurement table of `rows` UR5 poses from the real recording, with joint 6

@@ -207,18 +207,26 @@ fn handeye_corners_out_reproduces_the_heldout_figure() {
     let csv = tmp.path().join("poses.csv");
     ok(ferrocal().args(["import", "ic-handeye", "--test-every", "2", "--input"]).arg(&set).arg("--out").arg(&csv));
     let (res, corners) = (tmp.path().join("r.json"), tmp.path().join("corners.json"));
+    // No --pattern, no --mount: both come from the lines `import` wrote into the table's header.
     ok(ferrocal()
         .args(["handeye", "--images"])
         .arg(set.join("images"))
         .arg("--poses")
         .arg(&csv)
-        .args(["--pattern", "circlegrid:10x10:25.4mm:modified", "--mount", "eye-in-hand", "--json"])
+        .arg("--json")
         .arg(&res)
         .arg("--corners-out")
         .arg(&corners));
     let (r, c) = (json(&res), json(&corners));
     assert_eq!(c["mount"], "eye-in-hand");
     assert_eq!(c["pattern"], "circlegrid:10x10:25.4mm:modified");
+    // A table without those lines and no flags: refused, naming the flag and the file.
+    let bare = tmp.path().join("bare.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    std::fs::write(&bare, text.lines().filter(|l| !l.starts_with("# pattern:")).collect::<Vec<_>>().join("\n")).unwrap();
+    let out = ferrocal().args(["handeye", "--images"]).arg(set.join("images")).arg("--poses").arg(&bare).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--pattern is required") && err.contains("bare.csv"), "{err}");
     assert_eq!(c["data_source"], "ROS-Industrial industrial_calibration example data, Apache-2.0");
     let target: Vec<nalgebra::Point3<f64>> =
         c["target_points_m"].as_array().unwrap().iter().map(|p| nalgebra::Point3::from(vec3(p))).collect();

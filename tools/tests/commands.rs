@@ -167,7 +167,9 @@ fn camera_stereo_exports_the_rectified_pair_and_a_report() {
 
     // The report: both cameras' figures, the rig in 3-D, the rectification check.
     let html = std::fs::read_to_string(f("report.html")).unwrap();
-    assert!(html.matches("<svg").count() >= 11, "report figures");
+    assert!(html.matches("<svg").count() >= 10, "report figures");
+    // The rig and the board poses as one 3-D view that turns.
+    assert_eq!(html.matches("class=\"scene3d\"").count(), 1, "3-D view");
     for s in ["Left camera: Reprojection error per view", "Right camera: Residuals", "The rig and the board poses"] {
         assert!(html.contains(s), "{s}");
     }

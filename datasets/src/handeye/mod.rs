@@ -21,7 +21,7 @@ pub mod workflow;
 pub use ic::{import_ic_handeye, read_ic_set, IcSet};
 pub use ic_kinematic::{ic_positioner_nominal, read_ic_kinematic};
 pub use motion_check::{check_motion, FlaggedView, MotionCheck};
-pub use poses::{read_handeye_poses, PoseRow, PosesTable, RobotReading};
+pub use poses::{read_handeye_poses, read_poses_header, PoseRow, PosesHeader, PosesTable, RobotReading};
 pub use recording::{load_recording, read_camera_file, Skipped};
 pub use sim::{
     coverage_study, simulate_hand_eye, write_rendered_recording, CoverageSummary, HandEyeSimConfig, HandEyeTruth,

@@ -72,6 +72,43 @@ pub fn read_handeye_poses(path: impl AsRef<Path>) -> Result<PosesTable> {
     parse_handeye_poses(&text, path)
 }
 
+/// What an importer wrote into a poses table's leading comment lines (`# mount: eye-in-hand`,
+/// `# pattern: chessboard:9x6:25mm`): the defaults of `handeye`'s `--mount` and `--pattern`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PosesHeader {
+    /// `# mount:`, if present.
+    pub mount: Option<ferrocal_calib::handeye::Mount>,
+    /// `# pattern:`, if present (the pattern's text, as `--pattern` takes it).
+    pub pattern: Option<String>,
+}
+
+/// Reads the leading comment lines of the poses table at `path` ([`PosesHeader`]); a mount
+/// other than `eye-in-hand` or `eye-to-hand` is refused naming the file and line.
+pub fn read_poses_header(path: impl AsRef<Path>) -> Result<PosesHeader> {
+    use ferrocal_calib::handeye::Mount;
+    let path = path.as_ref();
+    let text = crate::import::table::read_text(path)?;
+    let mut header = PosesHeader::default();
+    for (i, line) in text.lines().enumerate().take_while(|(_, l)| l.trim_start().starts_with('#')) {
+        let body = line.trim_start().trim_start_matches('#').trim();
+        if let Some(m) = body.strip_prefix("mount:").map(str::trim) {
+            header.mount = Some(match m {
+                "eye-in-hand" => Mount::EyeInHand,
+                "eye-to-hand" => Mount::EyeToHand,
+                _ => {
+                    return Err(DatasetError::Invalid {
+                        location: Location::line(path, i as u64 + 1),
+                        message: format!("'# mount: {m}' is not a mount; use eye-in-hand or eye-to-hand"),
+                    })
+                }
+            });
+        } else if let Some(p) = body.strip_prefix("pattern:").map(str::trim).filter(|p| !p.is_empty()) {
+            header.pattern = Some(p.to_string());
+        }
+    }
+    Ok(header)
+}
+
 /// The joint columns `q1_<u>, q2_<u>, ...` of a header, in order, with their units.
 fn joint_columns(t: &Table) -> Result<Vec<(usize, JointUnit)>> {
     let mut found: Vec<(usize, usize, JointUnit)> = Vec::new();

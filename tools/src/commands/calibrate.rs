@@ -95,7 +95,7 @@ pub struct EvaluateArgs {
     /// with a `split` column is scored on its `test` rows only (`"rows_scored": "test"`), else
     /// (no column, or no row marked `test`) on every row (`"all"`).
     #[arg(long)]
-    pub json: PathBuf,
+    pub json: Option<PathBuf>,
     /// First refit only the device frame and the measured point on the tool on this table, so
     /// that a model calibrated in one device's frame (a camera) is scored against another's (a
     /// tracker); the robot's parameters, joint offsets and effects stay as calibrated.
@@ -155,7 +155,8 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
 }
 
 pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    check_outputs(&[&args.json], &[&args.measurements, &args.calibration, Path::new(&args.robot)])?;
+    let outputs: Vec<&Path> = args.json.as_deref().into_iter().collect();
+    check_outputs(&outputs, &[&args.measurements, &args.calibration, Path::new(&args.robot)])?;
     let (model, rows) = load_model_and_rows(&args.robot, &args.measurements, &warn)?;
     let cm = apply_calibration(&args.robot, &model, &args.calibration)?;
     // A table with a split column is scored on its test rows only (shared/spec/cli.md); the
@@ -169,8 +170,13 @@ pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCod
     let scored_words = run.scored_words(stats.n);
     let verdict = verdict::evaluate(&vs.thresholds, &stats, &scored_words);
     add_verdict(&mut out, &verdict);
-    write_atomic(&args.json, serde_json::to_string_pretty(&out)?.as_bytes())?;
     say!("{}", evaluate_line(&scored_words, &stats));
+    if let Some(json) = &args.json {
+        write_atomic(json, serde_json::to_string_pretty(&out)?.as_bytes())?;
+        if let Some(line) = ferrocal_report::term::wrote_line([json.as_path()]) {
+            say!("{line}");
+        }
+    }
     Ok(vs.conclude(&verdict))
 }
 

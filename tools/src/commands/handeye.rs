@@ -12,8 +12,8 @@ use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_calib::handeye::opencv::best_baseline;
 use ferrocal_calib::handeye::Mount;
 use ferrocal_datasets::handeye::{
-    check_simulated_images, coverage_study, huber_sigmas_of_loss, run_inputs, write_simulated_recording, HandEyeInput,
-    HandEyeRunOptions,
+    check_simulated_images, coverage_study, huber_sigmas_of_loss, read_poses_header, run_inputs,
+    write_simulated_recording, HandEyeInput, HandEyeRunOptions,
 };
 use ferrocal_report::handeye::{handeye_outputs, joint_line, print_summary, study_json, verdict, HandeyeFiles};
 use ferrocal_report::verdict::VerdictSettings;
@@ -41,11 +41,12 @@ pub struct HandeyeArgs {
     /// (with --robot), optional `split` (train/test).
     #[arg(long, required = true)]
     pub poses: Option<PathBuf>,
-    /// The target, e.g. `chessboard:9x6:25mm`.
-    #[arg(long, required = true)]
+    /// The target, e.g. `chessboard:9x6:25mm`; default: the `# pattern:` line that `ferrocal
+    /// import` wrote into the poses table.
+    #[arg(long)]
     pub pattern: Option<String>,
-    /// Where the camera is.
-    #[arg(long, value_enum, required = true)]
+    /// Where the camera is; default: the poses table's `# mount:` line (written by `import`).
+    #[arg(long, value_enum)]
     pub mount: Option<MountArg>,
     /// Robot model (preset, URDF or TOML) for joint readings.
     #[arg(long)]
@@ -172,9 +173,26 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         Some(HandeyeCommand::Simulate(s)) => return run_simulate(s, vs),
         None => {}
     }
-    let (Some(poses_path), Some(pattern_text), Some(mount)) = (&a.poses, &a.pattern, a.mount) else {
-        bail!("handeye: --poses, --pattern and --mount are required");
+    let Some(poses_path) = &a.poses else { bail!("handeye: --poses is required") };
+    // --pattern and --mount default to what `import` wrote into the table's header.
+    let header = read_poses_header(poses_path)?;
+    let from_header = |flag: &str, given: Option<String>, written: Option<String>| -> Result<String> {
+        match (given, written) {
+            (Some(g), Some(w)) if g != w => {
+                eprintln!("ferrocal handeye: warning: --{flag} {g} differs from the '# {flag}: {w}' that {} was written with; using --{flag}", poses_path.display());
+                Ok(g)
+            }
+            (Some(g), _) | (None, Some(g)) => Ok(g),
+            (None, None) => bail!("handeye: --{flag} is required ({} has no '# {flag}:' line)", poses_path.display()),
+        }
     };
+    let pattern_text = &from_header("pattern", a.pattern.clone(), header.pattern)?;
+    let mount_name = from_header(
+        "mount",
+        a.mount.map(|m| mount_of(m).name().to_string()),
+        header.mount.map(|m| m.name().to_string()),
+    )?;
+    let mount = if mount_name == Mount::EyeInHand.name() { Mount::EyeInHand } else { Mount::EyeToHand };
     let files = HandeyeFiles {
         json: a.json.as_deref(),
         report: a.report.as_deref(),
@@ -183,7 +201,6 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     };
     let inputs = run_inputs(poses_path, a.intrinsics.as_deref(), a.robot.as_deref(), &a.images);
     ferrocal_report::check_outputs(&files.all(), &inputs)?;
-    let mount = mount_of(mount);
     let run = HandEyeRunOptions {
         images: a.images.clone(),
         poses: poses_path.clone(),
