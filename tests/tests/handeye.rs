@@ -223,8 +223,10 @@ fn handeye_corners_out_reproduces_the_heldout_figure() {
     // A table without those lines and no flags: refused, naming the flag and the file.
     let bare = tmp.path().join("bare.csv");
     let text = std::fs::read_to_string(&csv).unwrap();
-    std::fs::write(&bare, text.lines().filter(|l| !l.starts_with("# pattern:")).collect::<Vec<_>>().join("\n")).unwrap();
-    let out = ferrocal().args(["handeye", "--images"]).arg(set.join("images")).arg("--poses").arg(&bare).output().unwrap();
+    std::fs::write(&bare, text.lines().filter(|l| !l.starts_with("# pattern:")).collect::<Vec<_>>().join("\n"))
+        .unwrap();
+    let out =
+        ferrocal().args(["handeye", "--images"]).arg(set.join("images")).arg("--poses").arg(&bare).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--pattern is required") && err.contains("bare.csv"), "{err}");
     assert_eq!(c["data_source"], "ROS-Industrial industrial_calibration example data, Apache-2.0");
