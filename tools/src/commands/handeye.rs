@@ -4,7 +4,7 @@
 //! and `handeye simulate`.
 
 use ferrocal_report::{say, tell};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Result};
@@ -166,6 +166,30 @@ pub fn mount_of(m: MountArg) -> Mount {
     }
 }
 
+/// A flag's value, else what `import` wrote into the poses table `file` as `# <flag>: ...`; a
+/// flag that differs from the table's line is used, with a warning; neither is an error.
+fn flag_or_header<T: PartialEq>(
+    flag: &str,
+    given: Option<T>,
+    written: Option<T>,
+    file: &Path,
+    show: impl Fn(&T) -> String,
+) -> Result<T> {
+    match (given, written) {
+        (Some(g), Some(w)) if g != w => {
+            eprintln!(
+                "ferrocal handeye: warning: --{flag} {} differs from the '# {flag}: {}' that {} was written with; using --{flag}",
+                show(&g),
+                show(&w),
+                file.display()
+            );
+            Ok(g)
+        }
+        (Some(g), _) | (None, Some(g)) => Ok(g),
+        (None, None) => bail!("handeye: --{flag} is required ({} has no '# {flag}:' line)", file.display()),
+    }
+}
+
 /// Runs `ferrocal handeye` (or its study).
 pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     match &a.command {
@@ -176,23 +200,8 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let Some(poses_path) = &a.poses else { bail!("handeye: --poses is required") };
     // --pattern and --mount default to what `import` wrote into the table's header.
     let header = read_poses_header(poses_path)?;
-    let from_header = |flag: &str, given: Option<String>, written: Option<String>| -> Result<String> {
-        match (given, written) {
-            (Some(g), Some(w)) if g != w => {
-                eprintln!("ferrocal handeye: warning: --{flag} {g} differs from the '# {flag}: {w}' that {} was written with; using --{flag}", poses_path.display());
-                Ok(g)
-            }
-            (Some(g), _) | (None, Some(g)) => Ok(g),
-            (None, None) => bail!("handeye: --{flag} is required ({} has no '# {flag}:' line)", poses_path.display()),
-        }
-    };
-    let pattern_text = &from_header("pattern", a.pattern.clone(), header.pattern)?;
-    let mount_name = from_header(
-        "mount",
-        a.mount.map(|m| mount_of(m).name().to_string()),
-        header.mount.map(|m| m.name().to_string()),
-    )?;
-    let mount = if mount_name == Mount::EyeInHand.name() { Mount::EyeInHand } else { Mount::EyeToHand };
+    let pattern_text = &flag_or_header("pattern", a.pattern.clone(), header.pattern, poses_path, |p| p.clone())?;
+    let mount = flag_or_header("mount", a.mount.map(mount_of), header.mount, poses_path, |m| m.name().into())?;
     let files = HandeyeFiles {
         json: a.json.as_deref(),
         report: a.report.as_deref(),
