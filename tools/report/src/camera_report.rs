@@ -220,11 +220,7 @@ fn board_scene(
     boards: &[Isometry3<f64>],
     target: &PlanarTarget,
 ) -> String {
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    for p in &target.points_m {
-        (x0, x1, y0, y1) = (x0.min(p.x), x1.max(p.x), y0.min(p.y), y1.max(p.y));
-    }
-    let outline = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)].map(|(x, y)| Point3::new(x, y, 0.0));
+    let outline = crate::plot::scene3d::target_outline(&target.points_m, 1.0);
     let depth = boards.iter().map(|t| t.translation.vector.norm()).fold(0.0, f64::max).max(1e-3);
     let mut sc = Scene3d::new(title, "m").with_up(-Vector3::y());
     for (i, t) in boards.iter().enumerate() {

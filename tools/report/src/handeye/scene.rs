@@ -31,11 +31,7 @@ pub fn cell_section(r: &HandEyeResult, data: &HandEyeData) -> Section {
 
 /// The figure of [`cell_section`]: its caption and SVG.
 pub fn cell_figure(r: &HandEyeResult, data: &HandEyeData) -> (String, String) {
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    for p in &data.target_points_m {
-        (x0, x1, y0, y1) = (x0.min(p.x), x1.max(p.x), y0.min(p.y), y1.max(p.y));
-    }
-    let outline = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)].map(|(x, y)| Point3::new(x * 1e3, y * 1e3, 0.0));
+    let outline = crate::plot::scene3d::target_outline(&data.target_points_m, 1e3);
     let (x, w) = (in_mm(&r.hand_eye.transform), in_mm(&r.world.transform));
     let flanges: Vec<(Isometry3<f64>, Split)> = data.views.iter().map(|v| (in_mm(&v.t_base_flange), v.split)).collect();
     let extent = flanges

@@ -56,6 +56,16 @@ pub fn colour(k: usize) -> String {
     format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
 }
 
+/// The outline of a planar target: the corners of its points' bounding rectangle on its plane
+/// (z = 0), in order, each coordinate times `scale` (e.g. 1e3 for metres to mm).
+pub fn target_outline(points: &[Point3<f64>], scale: f64) -> [Point3<f64>; 4] {
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for p in points {
+        (x0, x1, y0, y1) = (x0.min(p.x), x1.max(p.x), y0.min(p.y), y1.max(p.y));
+    }
+    [(x0, y0), (x1, y0), (x1, y1), (x0, y1)].map(|(x, y)| Point3::new(x * scale, y * scale, 0.0))
+}
+
 /// Screen coordinates (px) of the normalised point `p` seen from azimuth `az` and elevation
 /// `el` (radians, about the scene's up axis +z): orthographic, right-handed, `k` px per unit,
 /// the centre at `(cx, cy)`.
