@@ -47,6 +47,7 @@ pub mod import;
 pub mod kinematics;
 pub mod measure;
 pub mod motion;
+pub mod plan;
 pub mod recording;
 pub mod render;
 pub mod safety;

@@ -170,3 +170,9 @@ pub enum RobotCommand {
         to: Option<String>,
     },
 }
+
+/// A flag's value read by the library type's own (serde) name, `-` read as `_`
+/// (`carriage-compensated`); the error lists the names it accepts.
+pub fn choice<T: serde::de::DeserializeOwned>(s: &str) -> Result<T, String> {
+    serde_json::from_value(serde_json::Value::String(s.replace('-', "_"))).map_err(|e| e.to_string())
+}

@@ -15,8 +15,9 @@ use super::{payload_steps, HexapodSim, PlatformSim};
 use crate::error::{DatasetError, Result};
 use crate::formats::dynamics_tables::{static_csv, stream_csv, FORCE_COLUMNS, LEG_COLUMNS};
 
-/// Which rig is simulated.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Which rig is simulated (`platform`, `hexapod` by name).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Rig {
     /// The force-sensing end-effector: sensor forces.
     Platform,

@@ -166,17 +166,14 @@ fn camera_from_json(text: &str, path: &Path) -> Result<CameraModel> {
         .and_then(|d| d.as_array())
         .map(|d| d.iter().filter_map(serde_json::Value::as_f64).collect())
         .unwrap_or_default();
+    // Every lens model by its name or alias (`DistortionKind::from_str`); `pinhole` is the JSON's
+    // name of the ideal pinhole.
     let kind = match v.get("model").and_then(|m| m.as_str()).unwrap_or("brown5") {
-        "pinhole" | "none" => DistortionKind::None,
-        "brown5" => DistortionKind::Brown5,
-        "rational8" => DistortionKind::Rational8,
-        "kannala_brandt" => DistortionKind::KannalaBrandt,
-        other => {
-            return Err(DatasetError::Invalid {
-                location: Location::new(path, 1, "model"),
-                message: format!("unknown lens model '{other}'"),
-            })
-        }
+        "pinhole" => DistortionKind::None,
+        other => other.parse::<DistortionKind>().map_err(|_| DatasetError::Invalid {
+            location: Location::new(path, 1, "model"),
+            message: format!("unknown lens model '{other}'"),
+        })?,
     };
     let intrinsics = Intrinsics {
         fx_px: json_number(v, "fx", path)?,

@@ -52,7 +52,7 @@ pub struct LeadSettings {
 }
 
 /// Where the lead-through force sensor sits (Dressler ch. 8's placement question).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SensorPlacement {
     /// Between the operator's hand and the tool: it reads the hand's force.

@@ -25,13 +25,11 @@ pub fn skipped_json(skipped: &[SkippedImage]) -> Value {
     Value::Array(skipped.iter().map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason})).collect())
 }
 
-/// The lens model's name in the JSON.
+/// The lens model's name in the JSON (`pinhole` for the ideal pinhole, else the model's name).
 pub fn model_name(kind: DistortionKind) -> &'static str {
     match kind {
         DistortionKind::None => "pinhole",
-        DistortionKind::Brown5 => "brown5",
-        DistortionKind::Rational8 => "rational8",
-        DistortionKind::KannalaBrandt => "kannala_brandt",
+        other => other.name(),
     }
 }
 

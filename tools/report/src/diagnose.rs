@@ -30,6 +30,25 @@ pub fn diagnose_json(t: &Thresholds, rep: &impl Serialize, unit: &str, next: &st
     Ok((v, verdict))
 }
 
+/// The outputs of the camera and force variants of `ferrocal diagnose`: the JSON of `rep` with
+/// its verdict ([`diagnose_json`]) at `json` and, when `html` is given, a report of the one
+/// `section` (`page`: its title, the settings its provenance records, the section).
+pub fn variant_outputs(
+    t: &Thresholds,
+    rep: &impl Serialize,
+    (unit, next): (&str, &str),
+    json: &Path,
+    html: Option<&Path>,
+    page: impl FnOnce() -> (String, Value, Section),
+) -> Result<(Outputs, Verdict)> {
+    let (rep_json, verdict) = diagnose_json(t, rep, unit, next)?;
+    let report = html.map(|h| {
+        let (title, settings, section) = page();
+        (h, Report::of(&title, Provenance::new(settings), vec![section]))
+    });
+    Ok((Outputs::json_and_report(json, &rep_json, report, &verdict)?, verdict))
+}
+
 /// Where the robot variant of `ferrocal diagnose` writes, and what it read.
 #[derive(Clone, Copy, Debug)]
 pub struct DiagnoseFiles<'a> {

@@ -37,6 +37,25 @@ impl Outputs {
         Ok(out)
     }
 
+    /// Adds the JSON object `value` with `"verdict"` (`verdict`) at `path`.
+    pub fn json_with_verdict(&mut self, path: &Path, mut value: serde_json::Value, verdict: &Verdict) -> Result<()> {
+        crate::verdict::add_verdict(&mut value, verdict);
+        self.json(path, &value)
+    }
+
+    /// The files of [`Outputs::json_with_verdict`] alone, when `path` is given (none without).
+    pub fn verdict_json(
+        path: Option<&Path>,
+        value: impl FnOnce() -> serde_json::Value,
+        verdict: &Verdict,
+    ) -> Result<Self> {
+        let mut out = Self::default();
+        if let Some(p) = path {
+            out.json_with_verdict(p, value(), verdict)?;
+        }
+        Ok(out)
+    }
+
     /// Adds `value` as pretty-printed JSON at `path`, before every file added so far.
     pub fn json_first(&mut self, path: &Path, value: &impl Serialize) -> Result<()> {
         self.0.insert(0, (path.to_path_buf(), serde_json::to_string_pretty(value)?.into_bytes()));
@@ -52,6 +71,16 @@ impl Outputs {
     pub fn html(&mut self, path: &Path, mut report: Report, verdict: &Verdict) {
         report.verdict = Some(verdict.clone());
         self.text(path, report.to_html());
+    }
+
+    /// Adds a report folder `dir`: `report.json` (the report's JSON with `verdict`) and
+    /// `index.html` opening with the box of `verdict`, as [`Report::write`] lays them out.
+    pub fn report_folder(&mut self, dir: &Path, report: Report, verdict: &Verdict) -> Result<()> {
+        let mut json = report.to_json();
+        crate::verdict::add_verdict(&mut json, verdict);
+        self.json(&dir.join("report.json"), &json)?;
+        self.html(&dir.join("index.html"), report, verdict);
+        Ok(())
     }
 
     /// The paths, in order.

@@ -6,18 +6,14 @@
 
 use std::path::PathBuf;
 
-use crate::bail;
 use crate::error::{Context, Result};
 use ferrocal_calib::check;
-use ferrocal_calib::design::criteria::Criterion;
-use ferrocal_calib::design::flow::{plan_design, PlanDesign};
-use ferrocal_calib::design::kinematic::{monte_carlo, predict, MonteCarloReport};
-use ferrocal_datasets::formats::plan_file::{device, measure_steps, session_plan_toml, PlanFile};
-use ferrocal_datasets::sim::{random_subsets, DatasetsSimulator};
-use ferrocal_robot::program::{
-    gcode, krl, path_csv, plan_path, rapid_module, urscript, verify_path, PlannedPath, StepKind,
-};
-use ferrocal_robot::safety::SafetyChecker;
+use ferrocal_calib::design::flow::PlanDesign;
+use ferrocal_calib::design::kinematic::{predict, MonteCarloReport};
+use ferrocal_calib::verdict::Verdict;
+use ferrocal_datasets::formats::plan_file::PlanFile;
+use ferrocal_datasets::plan::PlanRun;
+use ferrocal_robot::program::{PlannedPath, StepKind};
 use ferrocal_robot::{Kinematics, RobotModel};
 use nalgebra::Vector3;
 use serde_json::json;
@@ -25,169 +21,54 @@ use serde_json::json;
 use crate::plot::{self, Series};
 use crate::report::{Provenance, Report, Section, StagedFolder};
 
-/// What `ferrocal plan` was asked for: the plan file, the output folder and the overrides of the
-/// plan file's settings.
-#[derive(Clone, Debug)]
-pub struct PlanRequest {
-    /// The plan file (TOML).
-    pub plan: PathBuf,
-    /// Folder for the poses, programs and report.
-    pub out: PathBuf,
-    /// Simulated calibrations of the Monte Carlo check (0: skip; the plan file's by default).
-    pub simulations: Option<usize>,
-    /// Override of the selection criterion.
-    pub criterion: Option<Criterion>,
-    /// Override of the wanted number of poses.
-    pub wanted: Option<usize>,
-    /// Random subsets of the chosen size compared with the selection.
-    pub random_subsets: usize,
-    /// Override of the seed of the random pool, subsets and simulations.
-    pub seed: Option<u64>,
-    /// Replace `out` when it exists and is not empty (refused otherwise).
-    pub force: bool,
+/// The terminal line of a plan: how many poses were planned, whether the checks passed, the
+/// report.
+pub fn plan_line(run: &PlanRun) -> String {
+    let checks = if run.design.passed { "checks passed" } else { "a check FAILED" };
+    let html = run.request.out.join("index.html");
+    format!("{} poses planned ({checks}); report {}", run.path.measurements(), html.display())
 }
 
-/// What `ferrocal plan` wrote.
-#[derive(Clone, Debug)]
-pub struct PlanOutcome {
-    /// True when the plan passed its checks.
-    pub passed: bool,
-    /// Measurements on the path.
-    pub measurements: usize,
-    /// The HTML report.
-    pub html: PathBuf,
-}
-
-impl PlanOutcome {
-    /// The terminal line: how many poses were planned, whether the checks passed, the report.
-    pub fn line(&self) -> String {
-        let checks = if self.passed { "checks passed" } else { "a check FAILED" };
-        format!("{} poses planned ({checks}); report {}", self.measurements, self.html.display())
-    }
-}
-
-/// Runs the flow of `ferrocal plan` and writes its files into `args.out`: `log` receives progress
-/// lines, `on_run(k, runs)` the progress of the simulated calibrations.
-pub fn run(args: &PlanRequest, log: &dyn Fn(&str), on_run: &dyn Fn(usize, usize)) -> Result<PlanOutcome> {
-    // The run folder is written aside and moved into place at the end (a killed or failed plan
-    // leaves no new file beside old ones): check it can be, before any work.
-    StagedFolder::check(&args.out, args.force)?;
-    if let (Ok(p), Ok(o)) = (args.plan.canonicalize(), args.out.canonicalize()) {
-        if p.starts_with(&o) {
-            bail!("{} holds the plan file {}; choose another folder", args.out.display(), args.plan.display());
-        }
-    }
-    let mut plan = PlanFile::from_file(&args.plan)?;
-    if let Some(c) = args.criterion {
-        plan.design.criterion = c;
-    }
-    if let Some(w) = args.wanted {
-        plan.design.wanted_poses = w;
-        plan.design.pool_size = plan.design.pool_size.max(w);
-    }
-    if let Some(s) = args.seed {
-        plan.design.seed = s;
-        plan.simulation.seed = s;
-    }
-    let runs = args.simulations.unwrap_or(plan.simulation.runs);
-    ferrocal_datasets::formats::plan_file::check_runs(runs, "--simulations")?;
-    let model = RobotModel::load(&plan.robot.model).with_context(|| format!("robot model '{}'", plan.robot.model))?;
-    let checker = SafetyChecker::new(&model, plan.safety.clone()).context("[safety]")?;
-    let dev = device(&plan)?;
-    let design = plan_design(&model, &checker, dev.as_ref(), &plan.workspace, &plan.identify, &plan.design, log)?;
-
-    // Monte Carlo check.
-    let mc: Option<MonteCarloReport> = if runs >= 2 {
-        log(&format!("{runs} simulated calibrations"));
-        let mut sim = DatasetsSimulator {
-            nominal: model.clone(),
-            errors: plan.simulation.errors.clone(),
-            t_device_base: dev.t_device_base(),
-            point_in_tool_m: dev.measured_point_in_tool_m(),
-            seed: plan.simulation.seed,
-        };
-        let r = monte_carlo(
-            &model,
-            &design.options,
-            &design.kinematic,
-            &design.chosen,
-            &design.validation,
-            &mut sim,
-            runs,
-            |k| on_run(k, runs),
-        );
-        Some(r.context("Monte Carlo check")?)
-    } else {
-        None
-    };
-
-    // Path and programs.
-    log(&format!("ordering {} poses", design.chosen.len()));
-    let poses: Vec<Vec<f64>> = design.chosen.iter().map(|&k| design.kinematic.poses[k].clone()).collect();
-    let path = plan_path(&model, &checker, &design.map.home, &poses, &design.kinematic.poses, &plan.path)
-        .context("ordering the poses")?;
-    if let Err(e) = verify_path(&checker, &path) {
-        bail!("internal error: the planned path failed its own safety check: {e}");
-    }
-    let header = vec![
-        format!("ferrocal plan {} ({})", env!("CARGO_PKG_VERSION"), chrono::Utc::now().to_rfc3339()),
-        format!("plan file {}; robot {}; device {}", args.plan.display(), model.name(), design.device),
-        format!(
-            "{} measurements; every configuration and joint-space segment checked against the safety zones",
-            path.measurements()
-        ),
-    ];
-    // Every file composed first, then written aside and moved into place together.
-    let mut files: Vec<(String, Vec<u8>)> = vec![
-        ("poses.csv".into(), path_csv(&model, &path, true)?.into_bytes()),
-        ("path.csv".into(), path_csv(&model, &path, false)?.into_bytes()),
-    ];
-    let grid_path = measure_steps(&design.kinematic.poses, &design.grid_indices);
-    files.push(("grid_poses.csv".into(), path_csv(&model, &grid_path, true)?.into_bytes()));
-    let rapid = rapid_module(&model, &path, plan.path.dwell_s, &plan.program, &header)?;
-    files.push(("program.mod".into(), rapid.into_bytes()));
-    let g = gcode(&model, &path, plan.path.dwell_s, &plan.program, &header)?;
-    files.push(("program.ngc".into(), g.text.clone().into_bytes()));
-    let krl_file = format!("{}.src", plan.program.krl_name);
-    files.push((krl_file.clone(), krl(&model, &path, plan.path.dwell_s, &plan.program, &header)?.into_bytes()));
-    // URScript only for a six-joint revolute arm; other machines get no script (said in the report).
-    let ur_script = match urscript(&model, &path, plan.path.dwell_s, &plan.program, &header) {
-        Ok(text) => {
-            files.push(("program.script".into(), text.into_bytes()));
-            None
-        }
-        Err(e) => Some(e.to_string()),
-    };
-    let session = session_plan_toml(&design.map.home, &path, plan.path.dwell_s);
-    files.push(("session_plan.toml".into(), session.into_bytes()));
-
-    // Report.
+/// The report of a plan: summary, workspace, selection, prediction, path and programs.
+pub fn plan_report(run: &PlanRun) -> Report {
+    let (req, plan, model, design) = (&run.request, &run.plan, &run.model, &run.design);
     let mut prov = Provenance::new(json!({
         "plan": plan.name,
         "design": plan.design,
         "identify": plan.identify,
-        "simulations": runs,
-        "random_subsets": args.random_subsets,
+        "simulations": run.runs,
+        "random_subsets": req.random_subsets,
     }));
-    prov.add_input(&args.plan);
+    prov.add_input(&req.plan);
     let title = if plan.name.is_empty() { format!("Measurement plan for {}", model.name()) } else { plan.name.clone() };
     let mut rep = Report::new(&title, prov);
-    let random =
-        random_subsets(&design, design.chosen.len(), args.random_subsets, design.settings.criterion, plan.design.seed);
-    rep.sections.push(summary_section(&design, &path, mc.as_ref(), random));
-    rep.sections.push(workspace_section(&model, &design));
-    rep.sections.push(selection_section(&design, random, args.random_subsets));
-    rep.sections.push(prediction_section(&design, mc.as_ref()));
-    rep.sections.push(path_section(&model, &path, &plan, g.max_chord_deviation_mm, &krl_file, ur_script.as_deref()));
-    files.push(("report.json".into(), serde_json::to_string_pretty(&rep.to_json())?.into_bytes()));
-    files.push(("index.html".into(), rep.to_html().into_bytes()));
-    let staged = StagedFolder::create(&args.out)?;
+    let mc = run.monte_carlo.as_ref();
+    rep.sections.push(summary_section(design, &run.path, mc, run.random));
+    rep.sections.push(workspace_section(model, design));
+    rep.sections.push(selection_section(design, run.random, req.random_subsets));
+    rep.sections.push(prediction_section(design, mc));
+    let no_ur = run.no_urscript.as_deref();
+    rep.sections.push(path_section(model, &run.path, plan, run.gcode_chord_mm, &run.krl_file, no_ur));
+    rep
+}
+
+/// Writes the plan's folder (`run.request.out`): its files, `report.json` with `verdict` and
+/// `index.html` opening with its box, written aside and moved into place together; returns the
+/// HTML's path.
+pub fn write_plan(run: &PlanRun, report: Report, verdict: &Verdict) -> Result<PathBuf> {
+    let mut json = report.to_json();
+    crate::verdict::add_verdict(&mut json, verdict);
+    let mut report = report;
+    report.verdict = Some(verdict.clone());
+    let mut files: Vec<(&str, Vec<u8>)> = run.files.iter().map(|(n, b)| (n.as_str(), b.clone())).collect();
+    files.push(("report.json", serde_json::to_string_pretty(&json)?.into_bytes()));
+    files.push(("index.html", report.to_html().into_bytes()));
+    let staged = StagedFolder::create(&run.request.out)?;
     for (name, bytes) in &files {
         let p = staged.path().join(name);
         std::fs::write(&p, bytes).with_context(|| format!("cannot write {}", p.display()))?;
     }
-    let out = staged.commit()?;
-    Ok(PlanOutcome { passed: design.passed, measurements: path.measurements(), html: out.join("index.html") })
+    Ok(staged.commit()?.join("index.html"))
 }
 
 /// Formats a parameter value in its unit (mm for metres, 1e-3 for dimensionless, mrad).
@@ -651,6 +532,8 @@ fn path_section(
 mod tests {
     use std::path::Path;
 
+    use ferrocal_datasets::plan::{run_plan, PlanRequest};
+
     use super::*;
 
     #[test]
@@ -666,8 +549,13 @@ mod tests {
             seed: None,
             force: false,
         };
-        let outcome = run(&args, &|_| {}, &|_, _| {}).unwrap();
-        assert!(outcome.measurements >= 40 && outcome.html.exists());
+        let run = run_plan(&args, &|_| {}, &|_, _| {}).unwrap();
+        let report = plan_report(&run);
+        let failed = crate::verdict::failed_sections(&report.to_json());
+        let t = ferrocal_calib::verdict::Thresholds::default();
+        let verdict = ferrocal_calib::verdict::commands::plan(&t, run.design.passed, &failed, "index.html");
+        let html = write_plan(&run, report, &verdict).unwrap();
+        assert!(run.path.measurements() >= 40 && html.exists());
         for f in
             ["poses.csv", "path.csv", "grid_poses.csv", "program.mod", "program.ngc", "session_plan.toml", "index.html"]
         {
@@ -679,6 +567,7 @@ mod tests {
         assert!(s["workspace_fraction_after_obstacles"].as_f64().unwrap() > 0.0);
         assert!(s["grid_spacing"].as_f64().unwrap() > 0.0);
         assert!(j["sections"]["prediction"]["data"]["monte_carlo"]["used"].as_u64().unwrap() >= 2);
+        assert_eq!(j["verdict"], verdict.to_json());
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

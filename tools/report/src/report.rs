@@ -183,8 +183,7 @@ pub struct Report {
     /// Sections in order.
     pub sections: Vec<Section>,
     /// The command's verdict, shown first (the box under the title) and written to the JSON.
-    /// When it is computed only after the report is written (the studies), the HTML keeps a slot
-    /// that [`crate::verdict::add_verdict_to_html`] fills.
+    /// Without one the HTML keeps an empty slot ([`VERDICT_SLOT`]) where the box goes.
     pub verdict: Option<Verdict>,
     /// How many sections, from the first, are shown whole; the others show their heading and
     /// first paragraph, with their tables and figures folded (`<details>`) below. A section

@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use crate::error::{Context, Result};
+use crate::error::Result;
 use ferrocal_calib::verdict::{Check, Thresholds, Verdict};
 use ferrocal_datasets::measure::{ReprojectionScreen, ReprojectionScreening};
 use serde_json::Value;
@@ -62,30 +62,6 @@ pub fn add_verdict(report: &mut Value, v: &Verdict) {
     if let Some(o) = report.as_object_mut() {
         o.insert("verdict".into(), v.to_json());
     }
-}
-
-/// Adds the verdict to the JSON file `path` written by a flow that composes its own files (a
-/// report folder), and writes it back in place.
-pub fn add_verdict_to_file(path: &Path, v: &Verdict) -> Result<()> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let mut j: Value = serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
-    add_verdict(&mut j, v);
-    crate::report::write_atomic(path, serde_json::to_string_pretty(&j)?.as_bytes())
-}
-
-/// Puts the verdict box into the HTML report `path` written before its verdict was known (its
-/// [`crate::report::VERDICT_SLOT`]; after the title when a page has no slot), in place.
-pub fn add_verdict_to_html(path: &Path, v: &Verdict) -> Result<()> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let boxed = crate::report::verdict_box(v);
-    let html = if text.contains(crate::report::VERDICT_SLOT) {
-        text.replacen(crate::report::VERDICT_SLOT, &boxed, 1)
-    } else if let Some(i) = text.find("</h1>") {
-        format!("{}{boxed}{}", &text[..i + 5], &text[i + 5..])
-    } else {
-        return Ok(());
-    };
-    crate::report::write_atomic(path, html.as_bytes())
 }
 
 /// The checks of a report's JSON (`report.json` of the studies and `plan`): sections whose check
@@ -181,16 +157,14 @@ pub fn measure_verdict(
     })
 }
 
-/// Ends a study that wrote `dir/report.json` (`demo`, `dynamics study`, `stiffness study`,
-/// `motion ...`): its verdict counts the report's failed and skipped checks
-/// (`<name>.failed_checks`, `<name>.skipped`), is added to `report.json`, and a failed verdict
-/// exits 2, these commands' documented status for a failed check (0 with `--keep`).
-pub fn conclude_report(vs: &VerdictSettings, dir: &Path, name: &str) -> Result<ExitCode> {
-    let path = dir.join("report.json");
-    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let report: Value = serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
+/// Ends a study (`demo`, `dynamics study`, `stiffness study`, `motion ...`): its verdict counts
+/// the report's failed and skipped checks (`<name>.failed_checks`, `<name>.skipped`), the report
+/// folder `dir` (`report.json` with the verdict, `index.html` opening with its box) is written
+/// as one commit, and a failed verdict exits 2, these commands' documented status for a failed
+/// check (0 with `--keep`).
+pub fn conclude_report(vs: &VerdictSettings, report: crate::Report, dir: &Path, name: &str) -> Result<ExitCode> {
     let l = &vs.thresholds.study;
-    let checks = report_checks(&report, name, l.failed_checks_fail, Some(l.skipped_warn));
+    let checks = report_checks(&report.to_json(), name, l.failed_checks_fail, Some(l.skipped_warn));
     let html = dir.join("index.html");
     let v = Verdict::with_next(checks, |c| match c.map(|c| c.name.rsplit('.').next().unwrap_or("")) {
         None => format!("read the report: {}", html.display()),
@@ -201,19 +175,16 @@ pub fn conclude_report(vs: &VerdictSettings, dir: &Path, name: &str) -> Result<E
             format!("read the failed sections of {} (their status says what missed its criterion)", html.display())
         }
     });
-    add_verdict_to_file(&path, &v)?;
-    if html.exists() {
-        add_verdict_to_html(&html, &v)?;
-    }
+    let mut files = crate::Outputs::default();
+    files.report_folder(dir, report, &v)?;
+    files.write()?;
     Ok(vs.conclude_with(&v, ExitCode::SUCCESS, 2))
 }
 
-/// The sections whose check failed in the report JSON `path` (`report.json` of a report
-/// folder), by name.
-pub fn failed_sections(path: &Path) -> Result<Vec<String>> {
-    let report: Value = serde_json::from_str(&std::fs::read_to_string(path)?)?;
-    Ok(report["sections"]
+/// The sections whose check failed in a report's JSON (`Report::to_json`), by name.
+pub fn failed_sections(report: &Value) -> Vec<String> {
+    report["sections"]
         .as_object()
         .map(|m| m.iter().filter(|(_, v)| v["check"] == "fail").map(|(k, _)| k.clone()).collect())
-        .unwrap_or_default())
+        .unwrap_or_default()
 }

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Result;
-use clap::{Args, Subcommand, ValueEnum};
+use clap::{Args, Subcommand};
 use ferrocal_calib::verdict::commands as verdict;
 use ferrocal_datasets::camera::{check_pairs, CameraViews, StereoViews};
 use ferrocal_datasets::import::images::expand_image_specs;
@@ -35,15 +35,6 @@ pub enum CameraCommand {
     Stereo(StereoArgs),
 }
 
-/// A lens model a camera can be calibrated with, by name ([`DistortionKind::CALIBRATED`]).
-fn lens_model(s: &str) -> Result<DistortionKind> {
-    let names: Vec<&str> = DistortionKind::CALIBRATED.iter().map(|k| k.name()).collect();
-    match s.parse::<DistortionKind>() {
-        Ok(k) if DistortionKind::CALIBRATED.contains(&k) => Ok(k),
-        _ => anyhow::bail!("'{s}' is not a lens model; use one of {}", names.join(", ")),
-    }
-}
-
 /// Settings shared by both calibrations.
 #[derive(Debug, Args)]
 pub struct SolveArgs {
@@ -58,7 +49,7 @@ pub struct SolveArgs {
     pub fix_aspect: bool,
     /// Lens model: brown5 (OpenCV's 5 coefficients k1 k2 p1 p2 k3), rational8 (OpenCV's
     /// rational model, 8 coefficients) or kannala_brandt (OpenCV's fisheye, 4 coefficients).
-    #[arg(long, default_value = "brown5", value_parser = lens_model)]
+    #[arg(long, default_value = "brown5", value_parser = DistortionKind::calibrated)]
     pub model: DistortionKind,
     /// Robust loss of the bundle adjustment: none, huber:<px> or cauchy:<px>.
     #[arg(long, default_value = "none")]
@@ -70,12 +61,12 @@ pub struct SolveArgs {
     /// or `opencv` (findChessboardCorners + cornerSubPix, OpenCV's sample recipe: reproduces its
     /// published numbers). ChArUco boards and circle grids are always found by the project's
     /// detectors (`--compare-opencv` runs OpenCV's beside them).
-    #[arg(long, value_enum, default_value = "own")]
-    pub corners: CornersArg,
+    #[arg(long, default_value = "own", value_parser = CornerMethod::named)]
+    pub corners: CornerMethod,
     /// cornerSubPix window with `--corners opencv`: `opencv` (11 x 11 half-size, OpenCV's sample
     /// recipe) or `adaptive` (shrunk where the squares are smaller than the window).
-    #[arg(long, value_enum, default_value = "opencv")]
-    pub subpix_window: WindowArg,
+    #[arg(long, default_value = "opencv", value_parser = crate::cli::choice::<SubpixWindow>)]
+    pub subpix_window: SubpixWindow,
     /// Covariance of the camera parameters (one camera): `auto` (the jackknife with 8 or more
     /// views, else independent), `independent` (every corner an independent measurement,
     /// s0^2 (J^T J)^-1, as OpenCV), `jackknife` (leave one view out; the corners of a view may
@@ -84,44 +75,8 @@ pub struct SolveArgs {
     pub covariance: CovarianceMethod,
 }
 
-/// Where the chessboard corners come from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum CornersArg {
-    /// The project's detector and edge-model refinement.
-    Own,
-    /// OpenCV's findChessboardCorners + cornerSubPix.
-    #[value(name = "opencv")]
-    OpenCv,
-}
-
-/// The cornerSubPix window.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum WindowArg {
-    /// OpenCV's sample recipe.
-    #[value(name = "opencv")]
-    OpenCv,
-    /// Shrunk to the squares.
-    Adaptive,
-}
-
-impl WindowArg {
-    fn window(self) -> SubpixWindow {
-        match self {
-            WindowArg::OpenCv => SubpixWindow::OpenCv,
-            WindowArg::Adaptive => SubpixWindow::Adaptive,
-        }
-    }
-}
-
 impl SolveArgs {
-    fn corner_method(&self) -> CornerMethod {
-        match self.corners {
-            CornersArg::Own => CornerMethod::Own,
-            CornersArg::OpenCv => CornerMethod::OpenCv(self.subpix_window.window()),
-        }
-    }
-
-    fn options(&self) -> Result<(CalibrationPattern, CalibrationOptions)> {
+    fn options(&self) -> Result<(CalibrationPattern, CalibrationOptions, CornerMethod)> {
         let pattern: CalibrationPattern = self.pattern.parse()?;
         let options = CalibrationOptions {
             model: self.model,
@@ -132,7 +87,7 @@ impl SolveArgs {
             ..CalibrationOptions::default()
         };
         options.validate()?;
-        Ok((pattern, options))
+        Ok((pattern, options, self.corners.with_window(self.subpix_window)))
     }
 }
 
@@ -225,7 +180,7 @@ fn report_skipped(skipped: &[SkippedImage]) {
 }
 
 fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    let (pattern, options) = a.solve.options()?;
+    let (pattern, options, corners) = a.solve.options()?;
     let mut skipped = Vec::new();
     let paths = expand_image_specs(&a.images, &mut skipped);
     let files = CameraFiles {
@@ -236,7 +191,7 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         camera_name: &a.camera_name,
     };
     check_outputs(&files.all(), &paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
-    let found = CameraViews::detect(paths, skipped, &pattern, a.solve.corner_method());
+    let found = CameraViews::detect(paths, skipped, &pattern, corners);
     report_skipped(&found.skipped);
     let run = found.calibrate(&pattern, &options, a.test_every)?;
     ferrocal_report::camera::print_camera("camera", &run.fit.calibration);
@@ -259,7 +214,7 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
 }
 
 fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    let (pattern, options) = a.solve.options()?;
+    let (pattern, options, corners) = a.solve.options()?;
     let mut skipped = Vec::new();
     let left_paths = expand_image_specs(&a.left, &mut skipped);
     let right_paths = expand_image_specs(&a.right, &mut skipped);
@@ -278,7 +233,7 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     };
     let inputs: Vec<&Path> = left_paths.iter().chain(&right_paths).map(PathBuf::as_path).collect();
     check_outputs(&files.all(), &inputs)?;
-    let found = StereoViews::detect(left_paths, right_paths, skipped, &pattern, a.solve.corner_method());
+    let found = StereoViews::detect(left_paths, right_paths, skipped, &pattern, corners);
     report_skipped(&found.skipped);
     let run = found.calibrate(&pattern, &options)?;
     let st = &run.calibration;

@@ -36,9 +36,8 @@ pub fn run(args: &DemoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     // The commands of their own run in-process; their error reaches the demo's as it reads.
     let run = |argv: &[String]| run_command(argv).map_err(|e| ReportError::msg(format!("{e:#}")));
     let report = demo_report(&d, prov, &tick, &run)?;
-    let html = report.write(&args.out)?;
-    say!("{}", written_line(&report, &html));
-    Ok(ferrocal_report::verdict::conclude_report(vs, &args.out, "demo")?)
+    say!("{}", written_line(&report, &args.out.join("index.html")));
+    Ok(ferrocal_report::verdict::conclude_report(vs, report, &args.out, "demo")?)
 }
 
 /// Runs a `ferrocal` command in-process, as a user would call it.

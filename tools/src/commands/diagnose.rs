@@ -11,13 +11,12 @@ use ferrocal_datasets::camera::target_point_views;
 use ferrocal_datasets::diagnose::{diagnose_options, diagnose_rows};
 use ferrocal_datasets::dynsim::identify::diagnose_static_table;
 use ferrocal_report::diagnose::{
-    camera_section, camera_summary_lines, compensated_line, diagnose_json, force_section, force_summary_lines,
-    robot_outputs, summary_lines, DiagnoseFiles,
+    camera_section, camera_summary_lines, compensated_line, force_section, force_summary_lines, robot_outputs,
+    summary_lines, variant_outputs, DiagnoseFiles,
 };
 use serde_json::json;
 
 use ferrocal_report::verdict::VerdictSettings;
-use ferrocal_report::{Outputs, Provenance, Report};
 
 /// `ferrocal diagnose`.
 #[derive(Debug, Args)]
@@ -128,14 +127,14 @@ fn run_camera(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let rep = diagnose_camera(&views, &target, &opts).context("camera diagnosis")?;
     let next =
         "calibrate with the lens model or target shape the findings name (ferrocal camera calibrate --model ...)";
-    let (rep_json, verdict) = diagnose_json(&vs.thresholds, &rep, "px", next)?;
-    // Both files together: no report without its JSON.
-    let report = args.report.as_deref().map(|h| {
-        let prov = Provenance::new(json!({"images": args.images, "pattern": pattern_text, "options": opts}));
+    let page = || {
         let title = format!("Missing physics of a camera ({} views of {pattern_text})", views.len());
-        (h, Report::of(&title, prov, vec![camera_section(&rep, opts.folds, args.attribution.as_deref())]))
-    });
-    Outputs::json_and_report(&args.json, &rep_json, report, &verdict)?.write()?;
+        let settings = json!({"images": args.images, "pattern": pattern_text, "options": opts});
+        (title, settings, camera_section(&rep, opts.folds, args.attribution.as_deref()))
+    };
+    // Both files together: no report without its JSON.
+    let (out, verdict) = variant_outputs(&vs.thresholds, &rep, ("px", next), &args.json, args.report.as_deref(), page)?;
+    out.write()?;
     camera_summary_lines(&rep).iter().for_each(|l| say!("{l}"));
     Ok(vs.conclude(&verdict))
 }
@@ -147,14 +146,14 @@ fn run_forces(args: &DiagnoseArgs, path: &Path, vs: &VerdictSettings) -> Result<
     let opts = ForceDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..ForceDiagnoseOptions::default() };
     let (n_poses, rep) = diagnose_static_table(path, &opts)?;
     let next = "identify the sensor with the terms the findings name (docs/dynamics.md)";
-    let (rep_json, verdict) = diagnose_json(&vs.thresholds, &rep, "n", next)?;
-    // Both files together: no report without its JSON.
-    let report = args.report.as_deref().map(|h| {
-        let prov = Provenance::new(json!({"forces": path.display().to_string(), "options": opts}));
+    let page = || {
         let title = format!("Missing physics of a force-sensing end-effector ({n_poses} poses)");
-        (h, Report::of(&title, prov, vec![force_section(&rep, opts.folds, args.attribution.as_deref())]))
-    });
-    Outputs::json_and_report(&args.json, &rep_json, report, &verdict)?.write()?;
+        let settings = json!({"forces": path.display().to_string(), "options": opts});
+        (title, settings, force_section(&rep, opts.folds, args.attribution.as_deref()))
+    };
+    // Both files together: no report without its JSON.
+    let (out, verdict) = variant_outputs(&vs.thresholds, &rep, ("n", next), &args.json, args.report.as_deref(), page)?;
+    out.write()?;
     force_summary_lines(&rep, n_poses).iter().for_each(|l| say!("{l}"));
     Ok(vs.conclude(&verdict))
 }

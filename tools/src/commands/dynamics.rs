@@ -12,13 +12,13 @@ use ferrocal_report::{say, tell};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use ferrocal_calib::verdict::commands::{self as verdict, LinearFitFigures};
 use ferrocal_datasets::dynsim::identify::{identify_static, identify_streams, StreamIdentifyOptions};
 use ferrocal_datasets::dynsim::tables::{simulated_tables, Rig, TableSettings};
 use ferrocal_report::dynamics::{fit_json, print_fit, study_report};
-use ferrocal_report::verdict::{add_verdict, VerdictSettings};
-use ferrocal_report::write_atomic;
+use ferrocal_report::verdict::VerdictSettings;
+use ferrocal_report::Outputs;
 use serde_json::json;
 
 /// `ferrocal dynamics`.
@@ -70,24 +70,16 @@ pub struct StudyArgs {
     pub quick: bool,
 }
 
-/// Which rig `simulate` writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum RigArg {
-    /// The force-sensing end-effector: sensor forces.
-    Platform,
-    /// The hexapod: actuator forces.
-    Hexapod,
-}
-
 /// `ferrocal dynamics simulate`.
 #[derive(Debug, clap::Args)]
 pub struct SimulateArgs {
     /// Folder for the tables.
     #[arg(long)]
     pub out: PathBuf,
-    /// Which rig.
-    #[arg(long, value_enum, default_value_t = RigArg::Platform)]
-    pub rig: RigArg,
+    /// Which rig: `platform` (the force-sensing end-effector: sensor forces) or `hexapod`
+    /// (actuator forces).
+    #[arg(long, default_value = "platform", value_parser = crate::cli::choice::<Rig>)]
+    pub rig: Rig,
     /// Extra payload on the end-effector (platform rig), kg, as the payload steps mount it.
     #[arg(long, default_value_t = 0.0)]
     pub payload_kg: f64,
@@ -177,11 +169,8 @@ fn run_identify(a: &IdentifyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     // s0 is held against 1.
     let figures = LinearFitFigures::of(&f.fit, a.period_samples.is_some());
     let verdict = verdict::dynamics_identify(&vs.thresholds, &figures);
-    if let Some(p) = &a.json {
-        let mut v = fit_json(&f.fit, json!({"model": a.model, "processing": d.label(), "samples": f.samples}));
-        add_verdict(&mut v, &verdict);
-        write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())?;
-    }
+    let settings = json!({"model": a.model, "processing": d.label(), "samples": f.samples});
+    Outputs::verdict_json(a.json.as_deref(), || fit_json(&f.fit, settings), &verdict)?.write()?;
     Ok(vs.conclude(&verdict))
 }
 
@@ -190,21 +179,14 @@ fn run_identify_static(a: &IdentifyStaticArgs, vs: &VerdictSettings) -> Result<E
     say!("{m}: {} from {n_poses} poses", m.description());
     print_fit(&f);
     let verdict = verdict::dynamics_identify(&vs.thresholds, &LinearFitFigures::of(&f, false));
-    if let Some(p) = &a.json {
-        let mut v = fit_json(&f, json!({"model": a.model, "poses": n_poses}));
-        add_verdict(&mut v, &verdict);
-        write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())?;
-    }
+    Outputs::verdict_json(a.json.as_deref(), || fit_json(&f, json!({"model": a.model, "poses": n_poses})), &verdict)?
+        .write()?;
     Ok(vs.conclude(&verdict))
 }
 
 fn run_simulate(a: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    let rig = match a.rig {
-        RigArg::Platform => Rig::Platform,
-        RigArg::Hexapod => Rig::Hexapod,
-    };
     let settings = TableSettings {
-        rig,
+        rig: a.rig,
         payload_kg: a.payload_kg,
         periods: a.periods,
         rate_hz: a.rate_hz,
@@ -214,11 +196,10 @@ fn run_simulate(a: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     };
     // Composed first (bounds checked before any allocation), then written together.
     let tables = simulated_tables(&settings)?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-    let mut files = ferrocal_report::Outputs::default();
+    let mut files = Outputs::default();
     tables.iter().for_each(|(name, text)| files.text(&a.out.join(name), text.as_str()));
     files.write()?;
-    let hexapod = a.rig == RigArg::Hexapod;
+    let hexapod = a.rig == Rig::Hexapod;
     Ok(vs.conclude(&ferrocal_report::dynamics::simulate_verdict(&tables, &a.out, hexapod, a.periods, a.rate_hz)))
 }
 
@@ -228,5 +209,5 @@ fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let report =
         study_report(a.seed, a.quick, repeats, evaluations, &|s| tell!("[{:6.1} s] {s}", t0.elapsed().as_secs_f64()))?;
-    super::finish_study(&report, &a.out, t0, vs)
+    super::finish_study(report, &a.out, t0, vs)
 }

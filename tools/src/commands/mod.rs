@@ -54,10 +54,9 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
     }
 }
 
-/// Ends a study started at `t0`: its report folder written to `out`, where and how long on
-/// stdout, then its verdict from the report's checks (a failed check exits 2).
-pub fn finish_study(report: &Report, out: &Path, t0: Instant, vs: &VerdictSettings) -> Result<ExitCode> {
-    let html = report.write(out)?;
-    ferrocal_report::say!("wrote {} ({:.1} s)", html.display(), t0.elapsed().as_secs_f64());
-    Ok(ferrocal_report::verdict::conclude_report(vs, out, "study")?)
+/// Ends a study started at `t0`: how long on stdout, then its report folder `out` written
+/// with the verdict from the report's checks (a failed check exits 2).
+pub fn finish_study(report: Report, out: &Path, t0: Instant, vs: &VerdictSettings) -> Result<ExitCode> {
+    ferrocal_report::say!("ran in {:.1} s", t0.elapsed().as_secs_f64());
+    Ok(ferrocal_report::verdict::conclude_report(vs, report, out, "study")?)
 }

@@ -135,20 +135,11 @@ pub struct LeadthroughArgs {
     #[arg(long, default_value_t = LeadSettings::default().sensor_sigma_n)]
     pub sensor_sigma_n: f64,
     /// Where the force sensor of the guided move and the stability map sits (the report
-    /// compares all three either way).
-    #[arg(long, value_enum, default_value_t = Sensor::Tool)]
-    pub sensor: Sensor,
-}
-
-/// The force sensor's place (`--sensor`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Sensor {
-    /// Between the hand and the tool.
-    Tool,
-    /// Between the carriage and the links (it also reads the structure's inertial forces).
-    Carriage,
-    /// At the carriage, the rigid-body inertia added back from the encoder.
-    CarriageCompensated,
+    /// compares all three either way): `tool` (between the hand and the tool), `carriage` (between the carriage and the links;
+    /// it also reads the structure's inertial forces) or `carriage-compensated` (at the
+    /// carriage, the rigid-body inertia added back from the encoder).
+    #[arg(long, default_value = "tool", value_parser = crate::cli::choice::<SensorPlacement>)]
+    pub sensor: SensorPlacement,
 }
 
 /// Runs `ferrocal motion`.
@@ -169,17 +160,12 @@ pub fn run(a: &MotionArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         }
         MotionCommand::Track(s) => (track_report(s.common.seed, s.quick, &progress)?, &s.common),
         MotionCommand::Leadthrough(s) => {
-            let sensor = match s.sensor {
-                Sensor::Tool => SensorPlacement::Tool,
-                Sensor::Carriage => SensorPlacement::Carriage,
-                Sensor::CarriageCompensated => SensorPlacement::CarriageCompensated,
-            };
             // Each flag checked by name.
             let (damping, cutoff, noise) = (s.admittance_n_s_m, s.force_cutoff_hz, s.sensor_sigma_n);
-            let l = LeadSettings::from_flags(damping, cutoff, noise, s.common.seed, sensor)?;
+            let l = LeadSettings::from_flags(damping, cutoff, noise, s.common.seed, s.sensor)?;
             (leadthrough_report(&l, &progress)?, &s.common)
         }
         MotionCommand::Cell(s) => (cell_report(s.common.seed, s.quick, &progress)?, &s.common),
     };
-    super::finish_study(&report, &common.out, t0, vs)
+    super::finish_study(report, &common.out, t0, vs)
 }

@@ -8,8 +8,9 @@ use std::process::ExitCode;
 use anyhow::Result;
 use ferrocal_calib::design::criteria::Criterion;
 use ferrocal_calib::verdict::commands as verdict;
-use ferrocal_report::plan::PlanRequest;
-use ferrocal_report::verdict::{add_verdict_to_file, add_verdict_to_html, failed_sections};
+use ferrocal_datasets::plan::{run_plan, PlanRequest};
+use ferrocal_report::plan::{plan_line, plan_report, write_plan};
+use ferrocal_report::verdict::failed_sections;
 
 /// `ferrocal plan`.
 #[derive(Debug, clap::Args)]
@@ -60,17 +61,18 @@ pub fn run(args: &PlanArgs, vs: &ferrocal_report::verdict::VerdictSettings) -> R
         seed: args.seed,
         force: args.force,
     };
+    // The run folder is written aside and moved into place at the end (a killed or failed plan
+    // leaves no new file beside old ones): check it can be, before any work.
+    ferrocal_report::StagedFolder::check(&args.out, args.force)?;
     let bars = crate::progress::Bars::default();
-    let outcome =
-        ferrocal_report::plan::run(&request, &log, &|k, n| bars.tick("simulated calibrations", k as u64, n as u64))?;
-    say!("{}", outcome.line());
+    let run = run_plan(&request, &log, &|k, n| bars.tick("simulated calibrations", k as u64, n as u64))?;
+    say!("{}", plan_line(&run));
     // The plan's own checks (selection, sigma ratio, predicted accuracy, path) decide, as its
     // exit status always did; another failed section of the report (the Monte Carlo check of the
     // prediction on few runs) is a warning.
-    let report_path = args.out.join("report.json");
-    let failed = failed_sections(&report_path)?;
-    let verdict = verdict::plan(&vs.thresholds, outcome.passed, &failed, &outcome.html.display().to_string());
-    add_verdict_to_file(&report_path, &verdict)?;
-    add_verdict_to_html(&outcome.html, &verdict)?;
+    let report = plan_report(&run);
+    let html = args.out.join("index.html").display().to_string();
+    let verdict = verdict::plan(&vs.thresholds, run.design.passed, &failed_sections(&report.to_json()), &html);
+    write_plan(&run, report, &verdict)?;
     Ok(vs.conclude_with(&verdict, ExitCode::SUCCESS, 2))
 }

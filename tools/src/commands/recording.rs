@@ -74,9 +74,7 @@ pub fn run(
     let total = m.poses.len() + m.skipped.len() + input.skipped_images.len();
     let verdict = recording_verdict(&vs.thresholds, &m, total, out.map(PathBuf::as_path));
     if let Some(j) = json_out {
-        let mut v = recording_json(&m, poses, pattern_text, mount, &input.skipped_images);
-        ferrocal_report::verdict::add_verdict(&mut v, &verdict);
-        files.json(j, &v)?;
+        files.json_with_verdict(j, recording_json(&m, poses, pattern_text, mount, &input.skipped_images), &verdict)?;
     }
     files.write()?;
     Ok(vs.conclude(&verdict))

@@ -11,7 +11,7 @@ use ferrocal_datasets::kinematics::{
     unlimited_joints,
 };
 use ferrocal_report::robot::{info_json, info_lines, pose_lines};
-use ferrocal_report::verdict::{add_verdict, VerdictSettings};
+use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
 
 use crate::cli::RobotCommand;
@@ -23,11 +23,7 @@ pub fn run(cmd: RobotCommand, vs: &VerdictSettings) -> Result<ExitCode> {
             let model = load(&robot)?;
             info_lines(&model).iter().for_each(|l| say!("{l}"));
             let v = verdict::robot_info(model.dof(), model.parameters().len(), &unlimited_joints(&model));
-            if let Some(path) = json {
-                let mut j = info_json(&model);
-                add_verdict(&mut j, &v);
-                crate::report::write_atomic(&path, serde_json::to_string_pretty(&j)?.as_bytes())?;
-            }
+            ferrocal_report::Outputs::verdict_json(json.as_deref(), || info_json(&model), &v)?.write()?;
             Ok(vs.conclude(&v))
         }
         RobotCommand::Fk { robot, joints } => {

@@ -15,7 +15,7 @@ use ferrocal_report::say;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use ferrocal_calib::verdict::commands as verdict;
 use ferrocal_datasets::stiffsim::identify::identify_deflections;
 use ferrocal_datasets::stiffsim::tables::simulated_deflections;
@@ -23,7 +23,7 @@ use ferrocal_report::stiffness::{
     complete_parameters, identify_lines, identify_report, study_report, trusted_parameters,
 };
 use ferrocal_report::verdict::VerdictSettings;
-use ferrocal_report::write_atomic;
+use ferrocal_report::Outputs;
 
 /// `ferrocal stiffness`.
 #[derive(Debug, clap::Args)]
@@ -114,19 +114,16 @@ pub fn run(args: &StiffnessArgs, vs: &VerdictSettings) -> Result<ExitCode> {
 fn run_study(a: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let report = study_report(a.seed, a.trials, a.quick)?;
-    super::finish_study(&report, &a.out, t0, vs)
+    super::finish_study(report, &a.out, t0, vs)
 }
 
 fn run_simulate(a: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let sim = simulated_deflections(a.seed, a.configurations)?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-    write_atomic(&a.out.join("deflections.csv"), sim.csv.as_bytes())?;
-    write_atomic(&a.out.join("truth.json"), serde_json::to_string_pretty(&sim.truth)?.as_bytes())?;
-    say!("wrote {} ({} measurements)", a.out.join("deflections.csv").display(), sim.measurements);
-    let next = format!(
-        "identify from it: ferrocal stiffness identify --measurements {}",
-        a.out.join("deflections.csv").display()
-    );
+    let (table, mut files) = (a.out.join("deflections.csv"), Outputs::default());
+    files.text(&table, sim.csv.as_str());
+    files.json(&a.out.join("truth.json"), &sim.truth)?;
+    files.write()?;
+    let next = format!("identify from it: ferrocal stiffness identify --measurements {}", table.display());
     Ok(vs.conclude(&verdict::simulated("stiffness", &[("measurements", sim.measurements)], &next)))
 }
 
@@ -142,24 +139,20 @@ fn run_identify(a: &IdentifyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     };
     let (red, prior_red) = (&id.reduction, &id.prior);
     identify_lines(red, prior_red).iter().for_each(|l| say!("{l}"));
-    let ok = red.physical_problems.is_empty();
-    if !ok {
+    if !red.physical_problems.is_empty() {
         eprintln!("error: the estimate is not physical: {}", red.physical_problems.join("; "));
         eprintln!("parameters that can be trusted: {}", trusted_parameters(red).join(", "));
-    }
-    if let Some(out) = &a.out {
-        let html = identify_report(&a.model, a.nu_threshold, &a.measurements, red, prior_red).write(out)?;
-        let params = complete_parameters(&id.problem, red);
-        write_atomic(&out.join("parameters.json"), serde_json::to_string_pretty(&params)?.as_bytes())?;
-        say!("wrote {}", html.display());
     }
     let s0 = red.steps.last().map_or(red.fit.s0, |s| s.s0);
     let verdict = verdict::stiffness_identify(&vs.thresholds, &red.physical_problems, s0, red.param.len());
     if let Some(out) = &a.out {
-        ferrocal_report::verdict::add_verdict_to_file(&out.join("report.json"), &verdict)?;
-        ferrocal_report::verdict::add_verdict_to_html(&out.join("index.html"), &verdict)?;
+        // The report, its JSON and the parameters are composed first and written together.
+        let mut files = Outputs::default();
+        let report = identify_report(&a.model, a.nu_threshold, &a.measurements, red, prior_red);
+        files.report_folder(out, report, &verdict)?;
+        files.json(&out.join("parameters.json"), &complete_parameters(&id.problem, red))?;
+        files.write()?;
     }
     // A physical estimate exits 0; one that is not exits 2 (0 with --keep), as before.
-    debug_assert_eq!(ok, !verdict.failed());
     Ok(vs.conclude_with(&verdict, ExitCode::SUCCESS, 2))
 }

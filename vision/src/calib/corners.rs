@@ -38,6 +38,7 @@ pub enum SubpixWindow {
     /// OpenCV's sample recipe: half-size 11 (23 x 23 px) whatever the square size; reproduces
     /// OpenCV's published calibrations.
     #[default]
+    #[serde(rename = "opencv")]
     OpenCv,
     /// Half-size 11 shrunk to 40 % of the smallest corner spacing where the squares are smaller
     /// ([`subpix_half_window`]), so the window never reaches the neighbouring corners.
@@ -165,7 +166,28 @@ pub enum CornerMethod {
     Own,
     /// Chessboards: OpenCV's `findChessboardCorners` + `cornerSubPix` with this window (other
     /// patterns are still found by the project's detectors).
+    #[serde(rename = "opencv")]
     OpenCv(SubpixWindow),
+}
+
+impl CornerMethod {
+    /// The method named `own` or `opencv` (the command line's `--corners`; OpenCV's with its
+    /// sample's window); any other name is refused with the two choices.
+    pub fn named(name: &str) -> std::result::Result<Self, String> {
+        match name {
+            "own" => Ok(CornerMethod::Own),
+            "opencv" => Ok(CornerMethod::OpenCv(SubpixWindow::OpenCv)),
+            _ => Err(format!("'{name}' is not a corner source; use own or opencv")),
+        }
+    }
+
+    /// The same method with OpenCV's `cornerSubPix` window `window` (the own method has none).
+    pub fn with_window(self, window: SubpixWindow) -> Self {
+        match self {
+            CornerMethod::Own => CornerMethod::Own,
+            CornerMethod::OpenCv(_) => CornerMethod::OpenCv(window),
+        }
+    }
 }
 
 /// An image left out of a calibration, and why.

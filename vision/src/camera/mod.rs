@@ -19,8 +19,8 @@
 //! `u = fx_px x_d + cx_px`, `v = fy_px y_d + cy_px` where `(x_d, y_d)` are the distorted
 //! normalised coordinates of the model (equations in the documentation of [`Distortion`]).
 
-mod distortion;
 pub mod io;
+pub mod lens;
 pub mod rectify;
 mod unproject;
 mod yaml;
@@ -29,6 +29,7 @@ use nalgebra::{Matrix2x3, Matrix2xX, Point2, Point3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, VisionError};
+pub use lens::{Distortion, DistortionKind, LensModel};
 
 /// Focal lengths and principal point, in pixels.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -50,228 +51,6 @@ pub struct ImageSize {
     pub width_px: u32,
     /// Number of rows.
     pub height_px: u32,
-}
-
-/// Which lens model, without its coefficients.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DistortionKind {
-    /// Ideal pinhole.
-    None,
-    /// Brown-Conrady, OpenCV's 5 coefficients `k1 k2 p1 p2 k3` (ROS `plumb_bob`).
-    Brown5,
-    /// OpenCV's rational model, 8 coefficients `k1 k2 p1 p2 k3 k4 k5 k6` (ROS
-    /// `rational_polynomial`).
-    Rational8,
-    /// Kannala-Brandt, OpenCV's `fisheye` model `k1 k2 k3 k4` (ROS `equidistant`).
-    KannalaBrandt,
-}
-
-impl DistortionKind {
-    /// The lens models a camera can be calibrated with (every kind but the ideal pinhole).
-    pub const CALIBRATED: [DistortionKind; 3] =
-        [DistortionKind::Brown5, DistortionKind::Rational8, DistortionKind::KannalaBrandt];
-
-    /// The model's name on the command line and in the project's files (`none`, `brown5`,
-    /// `rational8`, `kannala_brandt`; serde's name).
-    pub fn name(self) -> &'static str {
-        match self {
-            DistortionKind::None => "none",
-            DistortionKind::Brown5 => "brown5",
-            DistortionKind::Rational8 => "rational8",
-            DistortionKind::KannalaBrandt => "kannala_brandt",
-        }
-    }
-
-    /// The model's other names (ROS `distortion_model`, OpenCV's): read, never written except
-    /// the ROS one, the first ([`DistortionKind::ros_name`]).
-    pub fn aliases(self) -> &'static [&'static str] {
-        match self {
-            DistortionKind::None => &[],
-            DistortionKind::Brown5 => &["plumb_bob"],
-            DistortionKind::Rational8 => &["rational_polynomial"],
-            DistortionKind::KannalaBrandt => &["equidistant", "fisheye", "kannala-brandt"],
-        }
-    }
-
-    /// The ROS `camera_info` `distortion_model` of the model (`plumb_bob` for the pinhole).
-    pub fn ros_name(self) -> &'static str {
-        self.aliases().first().copied().unwrap_or("plumb_bob")
-    }
-
-    /// Names of the coefficients, in OpenCV order.
-    pub fn coefficient_names(self) -> &'static [&'static str] {
-        match self {
-            DistortionKind::None => &[],
-            DistortionKind::Brown5 => &["k1", "k2", "p1", "p2", "k3"],
-            DistortionKind::Rational8 => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
-            DistortionKind::KannalaBrandt => &["k1", "k2", "k3", "k4"],
-        }
-    }
-}
-
-impl std::str::FromStr for DistortionKind {
-    type Err = VisionError;
-
-    /// A model by its name or one of its aliases (see [`DistortionKind::name`]).
-    fn from_str(s: &str) -> Result<Self> {
-        let all =
-            [DistortionKind::None, DistortionKind::Brown5, DistortionKind::Rational8, DistortionKind::KannalaBrandt];
-        all.into_iter()
-            .find(|k| k.name() == s || k.aliases().contains(&s))
-            .ok_or_else(|| VisionError::UnsupportedDistortion { model: s.to_string(), count: 0 })
-    }
-}
-
-/// A lens-distortion model with its coefficients (all dimensionless).
-///
-/// Brown-Conrady / rational (OpenCV `projectPoints`): with `x = X/Z`, `y = Y/Z`,
-/// `r^2 = x^2 + y^2`,
-///
-/// ```text
-/// R   = (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6)
-/// x_d = x R + 2 p1 x y + p2 (r^2 + 2 x^2)
-/// y_d = y R + p1 (r^2 + 2 y^2) + 2 p2 x y
-/// ```
-///
-/// (`k4 = k5 = k6 = 0` for [`Distortion::Brown5`]). Points need `Z > 0`.
-///
-/// Kannala-Brandt (OpenCV `fisheye::projectPoints`): with `theta = atan2(sqrt(X^2+Y^2), Z)`,
-///
-/// ```text
-/// theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8)
-/// (x_d, y_d) = theta_d (X, Y) / sqrt(X^2 + Y^2)
-/// ```
-///
-/// valid for `theta < pi`.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "model", rename_all = "snake_case")]
-pub enum Distortion {
-    /// Ideal pinhole: `x_d = x`, `y_d = y`.
-    None,
-    /// Brown-Conrady with 5 coefficients.
-    Brown5 {
-        /// Radial, `r^2`.
-        k1: f64,
-        /// Radial, `r^4`.
-        k2: f64,
-        /// Tangential.
-        p1: f64,
-        /// Tangential.
-        p2: f64,
-        /// Radial, `r^6`.
-        k3: f64,
-    },
-    /// Brown-Conrady with OpenCV's rational radial term, 8 coefficients.
-    Rational8 {
-        /// Radial numerator, `r^2`.
-        k1: f64,
-        /// Radial numerator, `r^4`.
-        k2: f64,
-        /// Tangential.
-        p1: f64,
-        /// Tangential.
-        p2: f64,
-        /// Radial numerator, `r^6`.
-        k3: f64,
-        /// Radial denominator, `r^2`.
-        k4: f64,
-        /// Radial denominator, `r^4`.
-        k5: f64,
-        /// Radial denominator, `r^6`.
-        k6: f64,
-    },
-    /// Kannala-Brandt (equidistant fisheye) with 4 coefficients.
-    KannalaBrandt {
-        /// `theta^3` term.
-        k1: f64,
-        /// `theta^5` term.
-        k2: f64,
-        /// `theta^7` term.
-        k3: f64,
-        /// `theta^9` term.
-        k4: f64,
-    },
-}
-
-impl Distortion {
-    /// The model without its coefficients.
-    pub fn kind(&self) -> DistortionKind {
-        match self {
-            Distortion::None => DistortionKind::None,
-            Distortion::Brown5 { .. } => DistortionKind::Brown5,
-            Distortion::Rational8 { .. } => DistortionKind::Rational8,
-            Distortion::KannalaBrandt { .. } => DistortionKind::KannalaBrandt,
-        }
-    }
-
-    /// Coefficients in OpenCV order (empty for [`Distortion::None`]).
-    pub fn coefficients(&self) -> Vec<f64> {
-        match *self {
-            Distortion::None => Vec::new(),
-            Distortion::Brown5 { k1, k2, p1, p2, k3 } => vec![k1, k2, p1, p2, k3],
-            Distortion::Rational8 { k1, k2, p1, p2, k3, k4, k5, k6 } => vec![k1, k2, p1, p2, k3, k4, k5, k6],
-            Distortion::KannalaBrandt { k1, k2, k3, k4 } => vec![k1, k2, k3, k4],
-        }
-    }
-
-    /// Builds a model from coefficients in OpenCV order; the count must match the kind.
-    pub fn from_coefficients(kind: DistortionKind, c: &[f64]) -> Result<Self> {
-        let n = kind.coefficient_names().len();
-        if c.len() != n {
-            return Err(VisionError::ParameterCount { expected: n, got: c.len() });
-        }
-        for (name, v) in kind.coefficient_names().iter().zip(c) {
-            if !v.is_finite() {
-                return Err(VisionError::BadCameraParameter {
-                    name: (*name).to_string(),
-                    value: *v,
-                    reason: "not finite".into(),
-                });
-            }
-        }
-        Ok(match kind {
-            DistortionKind::None => Distortion::None,
-            DistortionKind::Brown5 => Distortion::Brown5 { k1: c[0], k2: c[1], p1: c[2], p2: c[3], k3: c[4] },
-            DistortionKind::Rational8 => {
-                Distortion::Rational8 { k1: c[0], k2: c[1], p1: c[2], p2: c[3], k3: c[4], k4: c[5], k5: c[6], k6: c[7] }
-            }
-            DistortionKind::KannalaBrandt => Distortion::KannalaBrandt { k1: c[0], k2: c[1], k3: c[2], k4: c[3] },
-        })
-    }
-
-    /// The starting point of lens model `kind` from this one, for a refit with another model:
-    /// the coefficients the two models share carry over (Brown5 and Rational8 share
-    /// `k1 k2 p1 p2 k3`; a Rational8 model taken to Brown5 loses `k4 k5 k6`, an approximation),
-    /// every other coefficient starts at zero (Kannala-Brandt shares none with the others).
-    pub fn converted(&self, kind: DistortionKind) -> Self {
-        if self.kind() == kind {
-            return *self;
-        }
-        let b = self.brown_array();
-        let shares = matches!(self.kind(), DistortionKind::Brown5 | DistortionKind::Rational8);
-        match (kind, shares) {
-            (DistortionKind::Brown5, true) => Distortion::Brown5 { k1: b[0], k2: b[1], p1: b[2], p2: b[3], k3: b[4] },
-            (DistortionKind::Rational8, true) => {
-                Distortion::Rational8 { k1: b[0], k2: b[1], p1: b[2], p2: b[3], k3: b[4], k4: 0.0, k5: 0.0, k6: 0.0 }
-            }
-            (DistortionKind::None, _) => Distortion::None,
-            (DistortionKind::Brown5, false) => Distortion::Brown5 { k1: 0.0, k2: 0.0, p1: 0.0, p2: 0.0, k3: 0.0 },
-            (DistortionKind::Rational8, false) => {
-                Distortion::Rational8 { k1: 0.0, k2: 0.0, p1: 0.0, p2: 0.0, k3: 0.0, k4: 0.0, k5: 0.0, k6: 0.0 }
-            }
-            (DistortionKind::KannalaBrandt, _) => Distortion::KannalaBrandt { k1: 0.0, k2: 0.0, k3: 0.0, k4: 0.0 },
-        }
-    }
-
-    /// Brown / rational coefficients padded to `k1 k2 p1 p2 k3 k4 k5 k6`.
-    fn brown_array(&self) -> [f64; 8] {
-        match *self {
-            Distortion::Brown5 { k1, k2, p1, p2, k3 } => [k1, k2, p1, p2, k3, 0.0, 0.0, 0.0],
-            Distortion::Rational8 { k1, k2, p1, p2, k3, k4, k5, k6 } => [k1, k2, p1, p2, k3, k4, k5, k6],
-            _ => [0.0; 8],
-        }
-    }
 }
 
 /// Unit of a camera parameter.
@@ -413,21 +192,11 @@ impl CameraModel {
     }
 
     /// Distorted normalised coordinates and their derivatives for a camera-frame point.
-    fn distort_point(&self, p: &Point3<f64>) -> Result<distortion::Distorted> {
+    fn distort_point(&self, p: &Point3<f64>) -> Result<lens::Distorted> {
         if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
             return Err(Self::not_projectable(p, "non-finite coordinates"));
         }
-        match self.distortion {
-            Distortion::KannalaBrandt { k1, k2, k3, k4 } => distortion::kb_point(&[k1, k2, k3, k4], [p.x, p.y, p.z])
-                .ok_or_else(|| Self::not_projectable(p, "at the centre of projection or on the negative optical axis")),
-            _ => {
-                if p.z <= 0.0 {
-                    return Err(Self::not_projectable(p, "behind the camera (z <= 0); this model needs z > 0"));
-                }
-                distortion::brown_point(&self.distortion.brown_array(), [p.x, p.y, p.z])
-                    .ok_or_else(|| Self::not_projectable(p, "rational distortion denominator is not positive"))
-            }
-        }
+        self.distortion.distort([p.x, p.y, p.z]).map_err(|why| Self::not_projectable(p, why))
     }
 
     /// Projects a point given in the camera frame (metres) to a pixel.
@@ -477,26 +246,12 @@ impl CameraModel {
     /// The largest angle from the optical axis (radians) up to which the radial part of the
     /// model is strictly increasing (and, for the rational model, its denominator positive),
     /// i.e. the field of view over which projection is one-to-one. [`Distortion::None`],
-    /// Brown and rational models are capped at `pi/2`; Kannala-Brandt at `pi`. Found by a scan
-    /// in 0.01 degree steps refined by bisection.
+    /// Brown and rational models are capped at `pi/2`; Kannala-Brandt at `pi`
+    /// ([`LensModel::FIELD_LIMIT_RAD`]). Found by a scan in 0.01 degree steps refined by
+    /// bisection.
     pub fn max_field_angle_rad(&self) -> f64 {
-        use std::f64::consts::{FRAC_PI_2, PI};
-        let (limit, ok): (f64, Box<dyn Fn(f64) -> bool>) = match self.distortion {
-            Distortion::None => return FRAC_PI_2,
-            Distortion::KannalaBrandt { k1, k2, k3, k4 } => {
-                (PI, Box::new(move |theta: f64| distortion::kb_theta_d(&[k1, k2, k3, k4], theta).1 > 0.0))
-            }
-            _ => {
-                let c = self.distortion.brown_array();
-                (
-                    FRAC_PI_2,
-                    Box::new(move |theta: f64| {
-                        let r = theta.tan();
-                        brown_radial_increasing(&c, r * r)
-                    }),
-                )
-            }
-        };
+        let limit = self.distortion.kind().field_limit_rad();
+        let ok = |theta: f64| self.distortion.one_to_one_at(theta);
         let step = 0.01f64.to_radians();
         let n = (limit / step).floor() as usize;
         let mut lo = 0.0;
@@ -528,21 +283,6 @@ impl CameraModel {
         let h = self.image_size.height_px as f64;
         pixel.x >= -0.5 && pixel.x <= w - 0.5 && pixel.y >= -0.5 && pixel.y <= h - 0.5
     }
-}
-
-/// Whether the radial part `r R(r^2)` of a Brown / rational model is increasing at `a = r^2`
-/// (with a positive rational denominator): `d(r R)/dr = R + 2 a dR/da > 0`.
-fn brown_radial_increasing(c: &[f64; 8], a: f64) -> bool {
-    let num = 1.0 + c[0] * a + c[1] * a * a + c[4] * a * a * a;
-    let den = 1.0 + c[5] * a + c[6] * a * a + c[7] * a * a * a;
-    if den <= 0.0 || !den.is_finite() {
-        return false;
-    }
-    let dnum = c[0] + 2.0 * c[1] * a + 3.0 * c[4] * a * a;
-    let dden = c[5] + 2.0 * c[6] * a + 3.0 * c[7] * a * a;
-    let radial = num / den;
-    let dr_da = (dnum * den - num * dden) / (den * den);
-    radial > 0.0 && radial + 2.0 * a * dr_da > 0.0
 }
 
 #[cfg(test)]
