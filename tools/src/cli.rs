@@ -172,7 +172,21 @@ pub enum RobotCommand {
 }
 
 /// A flag's value read by the library type's own (serde) name, `-` read as `_`
-/// (`carriage-compensated`); the error lists the names it accepts.
+/// (`carriage-compensated`); the error lists the names it accepts, spelt with `-`.
 pub fn choice<T: serde::de::DeserializeOwned>(s: &str) -> Result<T, String> {
-    serde_json::from_value(serde_json::Value::String(s.replace('-', "_"))).map_err(|e| e.to_string())
+    serde_json::from_value(serde_json::Value::String(s.replace('-', "_"))).map_err(|e| e.to_string().replace('_', "-"))
+}
+
+#[cfg(test)]
+mod tests {
+    use ferrocal_datasets::motion::leadthrough::SensorPlacement;
+
+    #[test]
+    fn flag_values_are_the_library_names_spelt_with_dashes() {
+        let placement = super::choice::<SensorPlacement>("carriage-compensated");
+        assert_eq!(placement, Ok(SensorPlacement::CarriageCompensated));
+        assert_eq!(super::choice::<SensorPlacement>("carriage_compensated"), placement);
+        let e = super::choice::<SensorPlacement>("hand").unwrap_err();
+        assert!(e.contains("`hand`") && e.contains("`carriage-compensated`"), "{e}");
+    }
 }

@@ -5,10 +5,9 @@
 
 mod cli;
 mod commands;
-mod progress;
 
-// The report module under its old path (`crate::report`).
-use ferrocal_report::report;
+// The report and progress modules under their old paths (`crate::report`, `crate::progress`).
+use ferrocal_report::{progress, report};
 
 use std::process::ExitCode;
 

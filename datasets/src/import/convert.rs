@@ -12,8 +12,9 @@ use ferrocal_robot::JointKind;
 use super::{measurements_to_string, JointUnit, LengthUnit, WriteOptions};
 use crate::error::Result;
 
-/// Which recording is read.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Which recording is read (`ur5`, `ur10`, `table`, `ic_handeye`, `ic_kinematic` by name).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ImportSource {
     /// `ur5_tracker/ur5_grid_train.csv`.
     Ur5,
@@ -21,6 +22,9 @@ pub enum ImportSource {
     Ur10,
     /// A measurement table (re-written in canonical units, checked on the way).
     Table,
+    /// An industrial_calibration hand-eye set (`cal_data.yaml`, `poses/`): a hand-eye poses
+    /// table, not a measurement table ([`crate::handeye::import_ic_handeye`]).
+    IcHandeye,
     /// An industrial_calibration kinematic-calibration set (`measurements.yaml`).
     IcKinematic,
 }
@@ -71,6 +75,11 @@ pub fn import_table(
                 urdf = Some(crate::handeye::ic_kinematic::ic_positioner_urdf(input)?);
             }
             revolute(s)
+        }
+        ImportSource::IcHandeye => {
+            let why =
+                "an industrial_calibration hand-eye set is a poses table for `handeye` (handeye::import_ic_handeye)";
+            return Err(crate::error::DatasetError::Input(why.into()));
         }
         ImportSource::Ur5 => revolute(super::import_ur5_grid(input)?),
         ImportSource::Ur10 => revolute(super::import_ur10_measurements(input)?),

@@ -369,3 +369,28 @@ pub fn held_out_line(h: &HeldOut, n_views: usize) -> String {
         None => format!("held out: no view usable ({n_views} held out)"),
     }
 }
+
+/// Prints the held-out line of a calibration's test views on stdout and, on stderr, every
+/// held-out view whose pose could not be fitted, with why.
+pub fn print_held_out(h: &HeldOut, n_views: usize) {
+    crate::say!("{}", held_out_line(h, n_views));
+    for v in h.views.iter().filter(|v| v.error.is_some()) {
+        eprintln!("ferrocal: held-out view {}: {}", v.name, v.error.as_deref().unwrap_or(""));
+    }
+}
+
+/// The stereo pair's rectification when it exists, its line printed; a pair that cannot be
+/// rectified (a wide fisheye whose image corners lie beyond 90 degrees) is a warning when no
+/// output needs the rectification (`needed`), an error when one does.
+pub fn rectification(run: &ferrocal_datasets::camera::StereoRun, needed: bool) -> Result<Option<Rectified>> {
+    match run.rectify(needed)? {
+        Ok(r) => {
+            crate::say!("{}", rectified_line(&r));
+            Ok(Some(r))
+        }
+        Err(why) => {
+            eprintln!("ferrocal: warning: the pair cannot be rectified: {why}");
+            Ok(None)
+        }
+    }
+}

@@ -33,6 +33,7 @@ pub mod motion_cell;
 pub mod outputs;
 pub mod plan;
 pub mod plot;
+pub mod progress;
 pub mod recording;
 pub mod report;
 pub mod robot;

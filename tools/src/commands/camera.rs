@@ -15,7 +15,7 @@ use ferrocal_calib::verdict::commands as verdict;
 use ferrocal_datasets::camera::{check_pairs, CameraViews, StereoViews};
 use ferrocal_datasets::import::images::expand_image_specs;
 use ferrocal_report::camera::{
-    camera_outputs, camera_verdict, held_out_line, rectified_line, stereo_line, stereo_outputs, CameraFiles,
+    camera_outputs, camera_verdict, print_held_out, rectification, stereo_line, stereo_outputs, CameraFiles,
     StereoFiles,
 };
 use ferrocal_report::report::check_outputs;
@@ -199,12 +199,7 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         say!("{b}");
     }
     let held_out = a.test_every.map(|_| run.held_out()).transpose()?;
-    if let Some(h) = &held_out {
-        say!("{}", held_out_line(h, run.test_views.len()));
-        for v in h.views.iter().filter(|v| v.error.is_some()) {
-            eprintln!("ferrocal: held-out view {}: {}", v.name, v.error.as_deref().unwrap_or(""));
-        }
-    }
+    held_out.iter().for_each(|h| print_held_out(h, run.test_views.len()));
     if a.compare_opencv {
         say!("{}", compare_with_opencv(&run.paths, &pattern, &options)?);
     }
@@ -240,18 +235,7 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     ferrocal_report::camera::print_camera("left", st.left());
     ferrocal_report::camera::print_camera("right", st.right());
     say!("{}", stereo_line(st, run.n_pairs));
-    // The rectification; a pair that cannot be rectified (a wide fisheye whose image corners
-    // lie beyond 90 degrees) is an error only for the outputs that need it.
-    let rectified = match run.rectify(files.need_rectification())? {
-        Ok(r) => {
-            say!("{}", rectified_line(&r));
-            Some(r)
-        }
-        Err(why) => {
-            eprintln!("ferrocal: warning: the pair cannot be rectified: {why}");
-            None
-        }
-    };
+    let rectified = rectification(&run, files.need_rectification())?;
     let row_rms = rectified.as_ref().map(|r| r.row_rms_px);
     let verdict = verdict::stereo(&vs.thresholds, st.calibration.rms_px, run.n_pairs, row_rms);
     stereo_outputs(&run, rectified.as_ref(), &verdict, &files)?.write()?;

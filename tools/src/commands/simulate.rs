@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use ferrocal_calib::verdict::commands as verdict;
 use ferrocal_datasets::import::convert::{import_table, ImportSource};
 use ferrocal_datasets::sim::session::{cell_for_session, session_summary};
@@ -50,29 +50,19 @@ pub fn run_simulate(args: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCod
     Ok(vs.conclude(&verdict::simulated("simulate", &counts, &next)))
 }
 
-/// Which recording to import.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum ImportKind {
-    /// `ur5_tracker/ur5_grid_train.csv` (measured = target + dif, joints in degrees).
-    Ur5,
-    /// `ur10_tracker/Series_*/measurements_*.csv` (semicolons, decimal commas; T-Mac positions
-    /// and orientations in the tracker frame, temperature, time).
-    Ur10,
-    /// A measurement table (re-written in canonical units, checked on the way).
-    Table,
-    /// An industrial_calibration hand-eye set folder (cal_data.yaml, poses/) to a handeye poses CSV.
-    IcHandeye,
-    /// An industrial_calibration kinematic-calibration set (`measurements.yaml`: the target in a
-    /// fixed camera's frame, the target chain's joints) to a measurement table.
-    IcKinematic,
-}
-
 /// `ferrocal import`.
 #[derive(Debug, Args)]
 pub struct ImportArgs {
-    /// What the input is.
-    #[arg(value_enum)]
-    pub kind: ImportKind,
+    /// What the input is: `ur5` (`ur5_tracker/ur5_grid_train.csv`: measured = target + dif,
+    /// joints in degrees), `ur10` (`ur10_tracker/Series_*/measurements_*.csv`: semicolons,
+    /// decimal commas; T-Mac positions and orientations in the tracker frame, temperature,
+    /// time), `table` (a measurement table, re-written in canonical units, checked on the way),
+    /// `ic-handeye` (an industrial_calibration hand-eye set folder, cal_data.yaml and poses/, to
+    /// a handeye poses CSV) or `ic-kinematic` (an industrial_calibration kinematic-calibration
+    /// set, `measurements.yaml`: the target in a fixed camera's frame, the target chain's
+    /// joints, to a measurement table).
+    #[arg(value_parser = crate::cli::choice::<ImportSource>)]
+    pub kind: ImportSource,
     /// The recording's file.
     #[arg(long)]
     pub input: PathBuf,
@@ -98,19 +88,13 @@ pub fn run_import(args: &ImportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     outputs.extend(args.robot_out.as_deref());
     outputs.extend(args.intrinsics_out.as_deref());
     ferrocal_report::check_outputs(&outputs, &[&args.input])?;
-    let source = match args.kind {
-        ImportKind::IcHandeye => {
-            let cam = args.intrinsics_out.as_deref();
-            let set = ferrocal_datasets::handeye::import_ic_handeye(&args.input, &args.out, args.test_every, cam)?;
-            return Ok(ferrocal_report::handeye::import_ic_summary(&set, &args.input, &args.out, vs));
-        }
-        ImportKind::IcKinematic => ImportSource::IcKinematic,
-        ImportKind::Ur5 => ImportSource::Ur5,
-        ImportKind::Ur10 => ImportSource::Ur10,
-        ImportKind::Table => ImportSource::Table,
-    };
+    if args.kind == ImportSource::IcHandeye {
+        let cam = args.intrinsics_out.as_deref();
+        let set = ferrocal_datasets::handeye::import_ic_handeye(&args.input, &args.out, args.test_every, cam)?;
+        return Ok(ferrocal_report::handeye::import_ic_summary(&set, &args.input, &args.out, vs));
+    }
     let (robot_out, units) = (args.robot_out.is_some(), args.user_units);
-    let t = import_table(source, &args.input, &args.out, args.test_every, robot_out, units)?;
+    let t = import_table(args.kind, &args.input, &args.out, args.test_every, robot_out, units)?;
     for w in &t.warnings {
         eprintln!("warning: {w}");
     }

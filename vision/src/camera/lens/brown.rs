@@ -37,49 +37,36 @@ pub(super) fn padded(c: &[f64]) -> [f64; 8] {
     a
 }
 
-impl LensModel for Brown5 {
-    const NAME: &'static str = "brown5";
-    const ALIASES: &'static [&'static str] = &["plumb_bob"];
-    const COEFFICIENTS: &'static [&'static str] = &["k1", "k2", "p1", "p2", "k3"];
-    const FAMILY: &'static str = "brown";
-    const CALIBRATED: bool = true;
-    const FIELD_LIMIT_RAD: f64 = FRAC_PI_2;
+/// The [`LensModel`] of a model of the Brown family: its names; the maps are the rational one
+/// with the coefficients it lacks at zero.
+macro_rules! brown_model {
+    ($model:ident, $name:literal, $ros:literal, [$($coefficient:literal),*]) => {
+        impl LensModel for $model {
+            const NAME: &'static str = $name;
+            const ALIASES: &'static [&'static str] = &[$ros];
+            const COEFFICIENTS: &'static [&'static str] = &[$($coefficient),*];
+            const FAMILY: &'static str = "brown";
+            const CALIBRATED: bool = true;
+            const FIELD_LIMIT_RAD: f64 = FRAC_PI_2;
 
-    fn distort(c: &[f64], p: [f64; 3]) -> Result<Distorted, &'static str> {
-        distort(&padded(c), p)
-    }
+            fn distort(c: &[f64], p: [f64; 3]) -> Result<Distorted, &'static str> {
+                distort(&padded(c), p)
+            }
 
-    fn one_to_one_at(c: &[f64], theta_rad: f64) -> bool {
-        let r = theta_rad.tan();
-        radial_increasing(&padded(c), r * r)
-    }
+            fn one_to_one_at(c: &[f64], theta_rad: f64) -> bool {
+                let r = theta_rad.tan();
+                radial_increasing(&padded(c), r * r)
+            }
 
-    fn unproject_normalized(c: &[f64], xd: [f64; 2], f_px: [f64; 2]) -> Result<[f64; 2], Unprojection> {
-        invert(&padded(c), xd, f_px)
-    }
+            fn unproject_normalized(c: &[f64], xd: [f64; 2], f_px: [f64; 2]) -> Result<[f64; 2], Unprojection> {
+                invert(&padded(c), xd, f_px)
+            }
+        }
+    };
 }
 
-impl LensModel for Rational8 {
-    const NAME: &'static str = "rational8";
-    const ALIASES: &'static [&'static str] = &["rational_polynomial"];
-    const COEFFICIENTS: &'static [&'static str] = &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"];
-    const FAMILY: &'static str = "brown";
-    const CALIBRATED: bool = true;
-    const FIELD_LIMIT_RAD: f64 = FRAC_PI_2;
-
-    fn distort(c: &[f64], p: [f64; 3]) -> Result<Distorted, &'static str> {
-        distort(&padded(c), p)
-    }
-
-    fn one_to_one_at(c: &[f64], theta_rad: f64) -> bool {
-        let r = theta_rad.tan();
-        radial_increasing(&padded(c), r * r)
-    }
-
-    fn unproject_normalized(c: &[f64], xd: [f64; 2], f_px: [f64; 2]) -> Result<[f64; 2], Unprojection> {
-        invert(&padded(c), xd, f_px)
-    }
-}
+brown_model!(Brown5, "brown5", "plumb_bob", ["k1", "k2", "p1", "p2", "k3"]);
+brown_model!(Rational8, "rational8", "rational_polynomial", ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"]);
 
 /// The map of a camera-frame point through `X/Z` (needs `Z > 0`).
 pub(super) fn distort(c: &[f64; 8], p: [f64; 3]) -> Result<Distorted, &'static str> {

@@ -1,4 +1,5 @@
-//! Progress bars for long steps (hidden when stderr is not a terminal, and with `--quiet`).
+//! Progress bars for long steps of the commands (hidden when stderr is not a terminal, and with
+//! `--quiet`, [`crate::term`]).
 
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -35,7 +36,7 @@ pub fn spinner(msg: &str) -> ProgressBar {
 
 /// `--quiet`: no bars.
 fn quiet() -> bool {
-    !ferrocal_report::term::shows(ferrocal_report::term::Verbosity::Normal)
+    !crate::term::shows(crate::term::Verbosity::Normal)
 }
 
 /// Progress bars by label: a new label finishes the previous bar; a bar finishes at its length.
