@@ -345,6 +345,29 @@ fn corners_for(
     }
 }
 
+/// `measure --session`'s workflow: the session measured (each image left out reported through
+/// `skipped`), refused when no pose could be measured or when its data contradict themselves
+/// (swapped or shifted image lists, a square size in the wrong unit; `limits`), and compared
+/// with a tracker's table of the same poses (`tracker`: the table and the robot model) when
+/// given.
+pub fn measure_session_checked(
+    dir: &Path,
+    opts: &MeasureOptions,
+    limits: &ferrocal_calib::verdict::MeasureLimits,
+    tracker: Option<(&Path, &str)>,
+    skipped: &dyn Fn(&str),
+) -> Result<(SessionMeasurement, Option<TrackerComparison>), DatasetError> {
+    let m = measure_session(dir, opts)?;
+    m.skipped.iter().for_each(|s| skipped(s));
+    if m.rows.rows.is_empty() {
+        let n = m.skipped.len();
+        return Err(DatasetError::Input(format!("no pose of the session could be measured ({n} skipped)")));
+    }
+    m.check_consistent(limits)?;
+    let comparison = tracker.map(|(t, robot)| m.compare_with_tracker_table(t, robot)).transpose()?;
+    Ok((m, comparison))
+}
+
 /// Measures every pose of a session with its cameras.
 pub fn measure_session(dir: &Path, opts: &MeasureOptions) -> Result<SessionMeasurement, DatasetError> {
     let manifest: SessionManifest = serde_json::from_str(

@@ -140,7 +140,7 @@ pub struct MeasureArgs {
 /// Runs `ferrocal measure`: every image that cannot be used is named on stderr and in the JSON,
 /// and the batch goes on; the table is written only when at least one pose was measured.
 pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode> {
-    use ferrocal_datasets::measure::{check_out_of_session, measure_session, MeasureOptions};
+    use ferrocal_datasets::measure::{check_out_of_session, measure_session_checked, MeasureOptions};
     let opts = MeasureOptions::detector(args.corner_sigma_px)?;
     let (Some(session), Some(out)) = (&args.session, &args.out) else {
         return super::recording::run(&args.recording, args.out.as_ref(), args.json.as_ref(), args.corner_sigma_px, vs);
@@ -151,22 +151,15 @@ pub fn run_measure(args: &MeasureArgs, vs: &VerdictSettings) -> Result<ExitCode>
         [args.tracker.as_deref(), args.robot.as_deref().map(Path::new)].into_iter().flatten().collect();
     ferrocal_report::check_outputs(&outputs, &inputs)?;
     tell!("measuring {} ...", session.display());
-    let m = measure_session(session, &opts).with_context(|| format!("measure: {}", session.display()))?;
-    for s in &m.skipped {
-        eprintln!("ferrocal measure: skipped {s}");
-    }
-    if m.rows.rows.is_empty() {
-        anyhow::bail!("measure: no pose of {} could be measured ({} skipped)", session.display(), m.skipped.len());
-    }
-    // Data that contradict themselves (swapped or shifted image lists, a square size in the
-    // wrong unit) are refused before anything is written.
-    m.check_consistent(&vs.thresholds.measure).with_context(|| format!("measure: {}", session.display()))?;
+    // Data that contradict themselves are refused before anything is written.
+    let tracker = args.tracker.as_deref().zip(args.robot.as_deref());
+    let skipped = |s: &str| eprintln!("ferrocal measure: skipped {s}");
+    let (m, comparison) = measure_session_checked(session, &opts, &vs.thresholds.measure, tracker, &skipped)
+        .with_context(|| format!("measure: {}", session.display()))?;
     // The table and the summary are composed first and written together at the end.
     let mut files = Outputs::default();
     files.text(out, m.table_text(session).with_context(|| format!("writing {}", out.display()))?);
     say!("{}", session_line(&m, out));
-    let comparison = args.tracker.as_ref().zip(args.robot.as_ref());
-    let comparison = comparison.map(|(t, r)| m.compare_with_tracker_table(t, r)).transpose()?;
     comparison.iter().for_each(|c| say!("{}", tracker_line(c)));
     let verdict = session_verdict(&vs.thresholds, &m, out);
     if let Some(j) = &args.json {
