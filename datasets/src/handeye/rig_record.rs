@@ -110,6 +110,7 @@ pub struct RigRecording {
 /// Draws the rig cell of `seed` (poses at least one camera sees, then the true robot), renders
 /// every pose each camera sees, and writes into `dir` (an existing `poses.csv` is an error):
 /// `poses.csv` (image, the joint readings `q1_rad..q6_rad`, split; one row per pose),
+/// `flange_poses.csv` (the same rows with the true robot's flange poses, `x_mm..qz`),
 /// `cam<k>/images/jNNN.png` (the row's name; a camera that does not see a pose has no image of
 /// it), `cam<k>/camera.yaml` (the true camera, OpenCV), `heldout.csv` (the tracker's readings of
 /// the held-out poses) and `truth.json` ([`RigRecording`]).
@@ -170,12 +171,24 @@ pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Re
         let yaml = ferrocal_vision::camera::io::to_opencv_yaml(&c.camera)?;
         super::poses::write_atomic(&dir.join(format!("cam{k}")).join("camera.yaml"), yaml.as_bytes(), &[])?;
     }
+    // The same rows with the true robot's flange poses: what a controller of an exactly
+    // calibrated robot would report (for the rig without a robot model).
+    let mut flange_csv = format!(
+        "# the true flange poses of the rig recording's rows (an exactly calibrated robot), seed {seed}\nimage,x_mm,y_mm,z_mm,qw,qx,qy,qz,split\n"
+    );
     for (i, (q, _, split)) in all.iter().enumerate() {
         let joints: Vec<String> = q.iter().map(|v| format!("{v:.17}")).collect();
         let split = if *split == Split::Test { "test" } else { "train" };
         csv.push_str(&format!("j{i:03}.png,{},{split}\n", joints.join(",")));
+        let t = cell.truth.tool_pose(q, &cond)?;
+        let (p, r) = (t.translation.vector * 1e3, t.rotation);
+        flange_csv.push_str(&format!(
+            "j{i:03}.png,{:.17},{:.17},{:.17},{:.17},{:.17},{:.17},{:.17},{split}\n",
+            p.x, p.y, p.z, r.w, r.i, r.j, r.k
+        ));
     }
     super::poses::write_atomic(&dir.join("poses.csv"), csv.as_bytes(), &[])?;
+    super::poses::write_atomic(&dir.join("flange_poses.csv"), flange_csv.as_bytes(), &[])?;
     let held = write_heldout(base, &mut cell, dir, seed)?;
     let t_cam0 = cells[0].t_base_camera;
     let cameras = cells
