@@ -68,7 +68,8 @@ fn a_two_camera_rig_and_its_robot_are_calibrated_in_one_command() {
     assert!(stdout.contains("T_cam1_cam0 (joint adjustment)"), "{stdout}");
     let r = json(&res);
     // Camera 0 at the top level as a one-camera run reports it; the rig below.
-    for key in ["mount", "camera", "hand_eye", "world", "train_rms_px", "heldout_rms_px", "per_image", "std", "verdict"] {
+    for key in ["mount", "camera", "hand_eye", "world", "train_rms_px", "heldout_rms_px", "per_image", "std", "verdict"]
+    {
         assert!(r.get(key).is_some(), "missing '{key}'");
     }
     let joint = &r["rig"]["joint"];

@@ -196,9 +196,9 @@ pub fn rig_transform(mount: Mount, cam0: &HandEyeResult, cam_k: &HandEyeResult) 
 mod tests {
     use super::*;
 
-    /// The propagated covariance of `A^-1 B` agrees with the analytic first-order form for a
-    /// rotation-only uncertainty of `B` in the product chart (`R_B -> Exp(dr) R_B`, `t_B`
-    /// unchanged: the rotation error maps by `R_A^T`, the translation does not move).
+    /// The chart Jacobian of `A^-1 B` with respect to `B` is the analytic one in the product
+    /// chart (`t_B + dt`, `Exp(dr) R_B`: both map by `R_A^T`), and a rotation-only uncertainty
+    /// of `B` moves only the rotation of `A^-1 B`.
     #[test]
     fn the_rig_transform_covariance_follows_the_chart() {
         let a = Isometry3::new(Vector3::new(0.3, -0.2, 1.0), Vector3::new(0.2, -0.4, 0.9));
@@ -218,6 +218,7 @@ mod tests {
         }
         let ra = a.rotation.to_rotation_matrix().into_inner().transpose();
         let mut expected = Matrix6::zeros();
+        expected.fixed_view_mut::<3, 3>(0, 0).copy_from(&ra);
         expected.fixed_view_mut::<3, 3>(3, 3).copy_from(&ra);
         assert!((j - expected).abs().max() < 1e-6, "{j} vs {expected}");
         let cov = j * cov_b * j.transpose();

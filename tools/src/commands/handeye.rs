@@ -360,14 +360,15 @@ fn run_simulate(s: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         write_simulated_recording(mount_of(s.mount), s.robot.as_deref(), s.cameras, counts, staged.path(), &s.out)?;
     tell!("{written}");
     staged.commit()?;
-    let counts = [("images", s.train + s.test)];
     if s.cameras > 1 {
+        let counts = [("poses", s.train + s.test)];
         let next = format!(
             "calibrate the rig with its robot: ferrocal handeye --images {dir}/cam0/images --images {dir}/cam1/images --poses {dir}/poses.csv --robot ur5 --pattern <truth.json's pattern> --mount eye-to-hand --out <calibration.json> --rig-out <folder>",
             dir = s.out.display()
         );
         return Ok(vs.conclude(&ferrocal_calib::verdict::commands::simulated("handeye", &counts, &next)));
     }
+    let counts = [("images", s.train + s.test)];
     let next = format!(
         "calibrate from it: ferrocal handeye --images {dir}/images --poses {dir}/poses.csv --pattern <truth.json's pattern> --mount {mount} --intrinsics {dir}/camera.yaml",
         dir = s.out.display(),

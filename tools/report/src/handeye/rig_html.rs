@@ -59,7 +59,7 @@ pub fn rig_section(rig: &RigInput, fit: &RigFit, joint: Option<&RigJointCalibrat
         .zip(&fit.fits)
         .map(|(c, f)| {
             let n = |split| f.result.figures.views.iter().filter(|v| v.split == split).count();
-            format!("{} ({}: {} training, {} held-out images)", c.name, c.label(), n(Split::Train), n(Split::Test))
+            format!("{}: {} training, {} held-out images", c.label(), n(Split::Train), n(Split::Test))
         })
         .collect();
     s.text(format!(
