@@ -171,8 +171,8 @@ fn chart_diff(a: &Isometry3<f64>, b: &Isometry3<f64>) -> Vector6<f64> {
 pub fn rig_transform(mount: Mount, cam0: &HandEyeResult, cam_k: &HandEyeResult) -> TransformEstimate {
     let t = rig_transform_from_starts(mount, cam0, cam_k);
     let pick = |r: &HandEyeResult| match mount {
-        Mount::EyeToHand => r.world.clone(),
-        Mount::EyeInHand => r.hand_eye.clone(),
+        Mount::EyeToHand => r.world,
+        Mount::EyeInHand => r.hand_eye,
     };
     let (a, b) = (pick(cam_k), pick(cam0));
     let f = |da: &Vector6<f64>, db: &Vector6<f64>| moved(&a.transform, da).inverse() * moved(&b.transform, db);

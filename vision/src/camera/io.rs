@@ -560,9 +560,12 @@ pub fn to_opencv_rig_yaml(camera: &CameraModel, extrinsics: Option<(&Matrix3<f64
     Ok(s)
 }
 
+/// `R` and `T` of a rig camera's file: `p_k = R p_0 + T`, `T` in metres.
+pub type RigExtrinsics = (Matrix3<f64>, Vector3<f64>);
+
 /// Reads one camera of a rig ([`to_opencv_rig_yaml`]): the camera and, when the file has them,
 /// `R` and `T` (metres; `translation_unit` `m`, `cm` or `mm`, metres when absent).
-pub fn from_opencv_rig_yaml(text: &str) -> Result<(CameraModel, Option<(Matrix3<f64>, Vector3<f64>)>)> {
+pub fn from_opencv_rig_yaml(text: &str) -> Result<(CameraModel, Option<RigExtrinsics>)> {
     let doc = Doc::parse(text, "<string>")?;
     let camera = opencv_from_doc(&doc)?;
     if doc.get("R").is_none() && doc.get("T").is_none() {
