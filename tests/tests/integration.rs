@@ -6,6 +6,7 @@ mod compensate;
 mod coupled;
 mod handeye;
 mod handeye_checks;
+mod handeye_rig;
 mod hostile;
 mod kill;
 mod measure;

@@ -30,6 +30,27 @@ pub struct Cli {
     pub command: Command,
 }
 
+impl Cli {
+    /// Parses `args` as [`clap::Parser::try_parse_from`] does, and keeps `handeye --images`
+    /// grouped by occurrence (`--images cam0/ --images cam1/`: one group per camera of a rig),
+    /// which the derived parser flattens.
+    pub fn try_parse_grouped<I, T>(args: I) -> Result<Self, clap::Error>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<std::ffi::OsString> + Clone,
+    {
+        use clap::{CommandFactory, FromArgMatches};
+        let matches = Self::command().try_get_matches_from(args)?;
+        let mut cli = Self::from_arg_matches(&matches).map_err(|e| e.format(&mut Self::command()))?;
+        if let (Command::Handeye(h), Some(("handeye", m))) = (&mut cli.command, matches.subcommand()) {
+            if let Ok(Some(groups)) = m.try_get_occurrences::<PathBuf>("images") {
+                h.image_groups = groups.map(|g| g.cloned().collect()).collect();
+            }
+        }
+        Ok(cli)
+    }
+}
+
 /// The verdict and the exit status, in `--help`.
 const VERDICT_HELP: &str = "Every command that computes a result ends its output on stdout with one line \
 `verdict: pass|warning|fail: <what was checked>; next: <the next step>` and writes the same as `verdict` \

@@ -11,12 +11,11 @@ use ferrocal_report::{progress, report};
 
 use std::process::ExitCode;
 
-use clap::Parser;
 use ferrocal_report::term::{set_verbosity, Verbosity};
 
 fn main() -> ExitCode {
     restore_sigpipe();
-    let args = cli::Cli::parse();
+    let args = cli::Cli::try_parse_grouped(std::env::args_os()).unwrap_or_else(|e| e.exit());
     // Set once for the process: the demo's commands, run in-process, keep the demo's level.
     set_verbosity(match (args.quiet, args.verbose) {
         (true, _) => Verbosity::Quiet,

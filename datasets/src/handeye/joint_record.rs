@@ -16,7 +16,7 @@ use ferrocal_calib::{MeasurementSet, PoseMeasurement, Split};
 use ferrocal_robot::{Kinematics, Parameterized};
 use ferrocal_vision::camera::{CameraModel, ImageSize, Intrinsics};
 
-use super::joint_study::{draw_cell, score, JointStudyConfig, Score};
+use super::joint_study::{draw_cell, score, Cell, JointStudyConfig, Score};
 use crate::error::{DatasetError, Result};
 use crate::import::measurements::{write_measurements, WriteOptions};
 use crate::sim::Conditions;
@@ -110,6 +110,38 @@ pub fn write_joint_recording(config: &JointStudyConfig, dir: &Path, seed: u64) -
     super::poses::write_atomic(&dir.join("poses.csv"), csv.as_bytes(), &[])?;
     let yaml = ferrocal_vision::camera::io::to_opencv_yaml(&config.camera)?;
     super::poses::write_atomic(&dir.join("camera.yaml"), yaml.as_bytes(), &[])?;
+    let held = write_heldout(config, &mut cell, dir, seed)?;
+    let out = JointRecording {
+        pattern: format!("chessboard:{cols}x{rows}:{}mm", config.spacing_m * 1e3),
+        robot: config.robot.clone(),
+        camera: config.camera,
+        t_base_camera: config.t_base_camera,
+        robot_errors: held.robot_errors,
+        nominal_heldout: held.nominal_heldout,
+        truth_heldout: held.truth_heldout,
+        n_train: cell.train_q.len(),
+        n_test: cell.test_q.len(),
+    };
+    super::poses::write_atomic(&dir.join("truth.json"), serde_json::to_string_pretty(&out)?.as_bytes(), &[])?;
+    Ok(out)
+}
+
+/// What [`write_heldout`] measured: the true robot's errors and the held-out scores.
+pub(crate) struct Heldout {
+    /// The true robot's parameters that differ from the nominal (name, true value, nominal).
+    pub(crate) robot_errors: Vec<(String, f64, f64)>,
+    /// The nominal model scored on `heldout.csv`, mm.
+    pub(crate) nominal_heldout: Score,
+    /// The true robot scored the same way (the tracker's noise floor), mm.
+    pub(crate) truth_heldout: Score,
+}
+
+/// Writes `heldout.csv` into `dir`: the tracker's readings (of `cell`'s random state) of a
+/// reflector on the flange at `cell`'s held-out poses; returns the true robot's errors and the
+/// nominal and true robots scored on it.
+pub(crate) fn write_heldout(config: &JointStudyConfig, cell: &mut Cell, dir: &Path, seed: u64) -> Result<Heldout> {
+    let cond = Conditions { temp_c: 20.0, dir: vec![0; cell.nominal.dof()], ..Default::default() };
+    let n = cell.nominal.dof();
     let mut heldout = Vec::with_capacity(cell.test_q.len());
     for (k, q) in cell.test_q.iter().enumerate() {
         let t = cell.truth.tool_pose(q, &cond)?;
@@ -133,17 +165,9 @@ pub fn write_joint_recording(config: &JointStudyConfig, dir: &Path, seed: u64) -
         .filter(|((_, t), (_, v))| t != v)
         .map(|((name, t), (_, v))| (name.clone(), *t, *v))
         .collect();
-    let out = JointRecording {
-        pattern: format!("chessboard:{cols}x{rows}:{}mm", config.spacing_m * 1e3),
-        robot: config.robot.clone(),
-        camera: config.camera,
-        t_base_camera: config.t_base_camera,
+    Ok(Heldout {
         robot_errors,
         nominal_heldout: score(&CalibratedModel::nominal(cell.nominal.clone()), &refs)?,
         truth_heldout: score(&CalibratedModel::nominal(cell.truth.truth.clone()), &refs)?,
-        n_train: cell.train_q.len(),
-        n_test: cell.test_q.len(),
-    };
-    super::poses::write_atomic(&dir.join("truth.json"), serde_json::to_string_pretty(&out)?.as_bytes(), &[])?;
-    Ok(out)
+    })
 }

@@ -3,7 +3,8 @@
 //! camera files `--intrinsics` reads ([`recording`]), simulated recordings with the Monte
 //! Carlo study of the hand-eye covariance ([`sim`]), and the study of the camera-based robot
 //! calibration (two-step and joint adjustment) against a tracker's ([`joint_study`]) and with a
-//! rig of cameras ([`rig_study`]), and the real positioner's weighting and baselines
+//! rig of cameras ([`rig_study`]), `handeye` with a rig of cameras ([`rig_run`]) and its
+//! simulated recordings ([`rig_record`]), and the real positioner's weighting and baselines
 //! ([`positioner`]).
 
 pub mod ic;
@@ -14,6 +15,8 @@ pub mod motion_check;
 pub mod poses;
 pub mod positioner;
 pub mod recording;
+pub mod rig_record;
+pub mod rig_run;
 pub mod rig_study;
 pub mod sim;
 pub mod workflow;
@@ -23,6 +26,8 @@ pub use ic_kinematic::{ic_positioner_nominal, read_ic_kinematic};
 pub use motion_check::{check_motion, FlaggedView, MotionCheck};
 pub use poses::{read_handeye_poses, read_poses_header, PoseRow, PosesHeader, PosesTable, RobotReading};
 pub use recording::{load_recording, read_camera_file, Skipped};
+pub use rig_record::{rendered_ur5_rig, write_rig_recording, RigRecording};
+pub use rig_run::{rig_transform, RigCameraInput, RigFit, RigInput};
 pub use sim::{
     coverage_study, simulate_hand_eye, write_rendered_recording, CoverageSummary, HandEyeSimConfig, HandEyeTruth,
     RenderedRecording, StudyMode,

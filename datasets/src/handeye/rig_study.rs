@@ -124,7 +124,7 @@ impl RigStudyConfig {
 }
 
 /// Random joint readings whose plate at least one camera sees, with which cameras see it.
-fn draw_rig_poses(
+pub(crate) fn draw_rig_poses(
     cells: &[JointStudyConfig],
     model: &RobotModel,
     n: usize,

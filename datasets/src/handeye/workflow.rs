@@ -189,10 +189,9 @@ impl HandEyeInput {
         Ok(HandEyeFit { options, result, baselines })
     }
 
-    /// The joint adjustment of the robot's kinematic parameters with the camera and the
-    /// hand-eye transforms, started from `fit`, with the target held at the print scale the
-    /// hand-eye fit found; every image needs joint readings and the input a robot model.
-    pub fn joint_adjustment(&self, fit: &HandEyeFit) -> Result<JointCalibration> {
+    /// The robot model and the joint readings of every view (the joint adjustment's input);
+    /// an error names the image without joint readings.
+    pub fn joint_readings(&self) -> Result<(&RobotModel, Vec<Vec<f64>>)> {
         let Some(model) = &self.robot else {
             return Err(DatasetError::Input("handeye --out: the joint adjustment needs --robot".into()));
         };
@@ -209,6 +208,14 @@ impl HandEyeInput {
                 ))),
             })
             .collect::<Result<Vec<_>>>()?;
+        Ok((model, joints))
+    }
+
+    /// The joint adjustment of the robot's kinematic parameters with the camera and the
+    /// hand-eye transforms, started from `fit`, with the target held at the print scale the
+    /// hand-eye fit found; every image needs joint readings and the input a robot model.
+    pub fn joint_adjustment(&self, fit: &HandEyeFit) -> Result<JointCalibration> {
+        let (model, joints) = self.joint_readings()?;
         let joint_options = JointOptions { hand_eye: fit.options.clone(), ..JointOptions::default() };
         let mut scaled = self.data.clone();
         if let Some((scale, _)) = fit.result.target_scale {
@@ -247,15 +254,38 @@ pub fn check_simulated_images(train: usize, test: usize) -> Result<()> {
 
 /// Writes a simulated recording with rendered chessboard images into `dir`: `train` + `test`
 /// images of the default cell of `mount`, or with `robot` (`ur5`, eye-to-hand only) the joint
-/// study's UR5 with true kinematic errors. Returns what was written, in words, naming the folder
-/// as `shown` (where `dir` will be moved).
+/// study's UR5 with true kinematic errors; with `cameras` 2 (and `robot` `ur5`) the rig study's
+/// two fixed cameras ([`super::rig_record`]). Returns what was written, in words, naming the
+/// folder as `shown` (where `dir` will be moved).
 pub fn write_simulated_recording(
     mount: Mount,
     robot: Option<&str>,
+    cameras: usize,
     (train, test, seed): (usize, usize, u64),
     dir: &Path,
     shown: &Path,
 ) -> Result<String> {
+    if cameras != 1 {
+        if cameras != 2 || robot != Some("ur5") || mount != Mount::EyeToHand {
+            return Err(DatasetError::Input(format!(
+                "handeye simulate --cameras {cameras}: rig recordings are simulated for two cameras in the ur5 cell, eye-to-hand (--cameras 2 --robot ur5 --mount eye-to-hand)"
+            )));
+        }
+        let config = super::rig_record::rendered_ur5_rig(train, test);
+        let r = super::rig_record::write_rig_recording(&config, dir, seed)?;
+        let per_camera: Vec<String> =
+            r.cameras.iter().map(|c| format!("{} {} + {} images", c.name, c.n_train_images, c.n_test_images)).collect();
+        return Ok(format!(
+            "{} + {} poses written to {} ({}; pattern {}); nominal {} held out: mean {:.4} mm after the frame refit",
+            r.n_train,
+            r.n_test,
+            shown.display(),
+            per_camera.join(", "),
+            r.pattern,
+            r.robot,
+            r.nominal_heldout.mean_mm
+        ));
+    }
     if let Some(robot) = robot {
         if robot != "ur5" || mount != Mount::EyeToHand {
             return Err(DatasetError::Input(format!(

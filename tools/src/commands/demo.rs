@@ -42,9 +42,8 @@ pub fn run(args: &DemoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
 
 /// Runs a `ferrocal` command in-process, as a user would call it.
 fn run_command(argv: &[String]) -> Result<ExitCode> {
-    use clap::Parser;
     let mut full = vec!["ferrocal".to_string()];
     full.extend(argv.iter().cloned());
-    let cli = crate::cli::Cli::try_parse_from(&full).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let cli = crate::cli::Cli::try_parse_grouped(&full).map_err(|e| anyhow::anyhow!("{e}"))?;
     super::run(cli)
 }

@@ -11,9 +11,13 @@ use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use ferrocal_calib::handeye::opencv::best_baseline;
 use ferrocal_calib::handeye::Mount;
+use ferrocal_datasets::handeye::RigInput;
 use ferrocal_datasets::handeye::{
     check_simulated_images, coverage_study, huber_sigmas_of_loss, read_poses_header, run_inputs,
     write_simulated_recording, HandEyeInput, HandEyeRunOptions,
+};
+use ferrocal_report::handeye::rig::{
+    rig_checks, rig_file_paths, rig_joint_checks, rig_joint_lines, rig_lines, rig_outputs, rig_warning_lines, RigFiles,
 };
 use ferrocal_report::handeye::{handeye_outputs, joint_line, print_summary, study_json, verdict, HandeyeFiles};
 use ferrocal_report::verdict::VerdictSettings;
@@ -34,9 +38,15 @@ pub struct HandeyeArgs {
     /// The Monte Carlo study instead of a calibration.
     #[command(subcommand)]
     pub command: Option<HandeyeCommand>,
-    /// Images: files, directories or quoted globs.
+    /// Images: files, directories or quoted globs. Given once per camera for a rig (two or more
+    /// cameras, camera 0 the reference): `--images cam0/ --images cam1/`; each camera's images
+    /// are matched to the poses table's rows by file name.
     #[arg(long, required = true, num_args = 1..)]
     pub images: Vec<PathBuf>,
+    /// `--images` grouped by occurrence, one group per camera (filled by
+    /// [`crate::cli::Cli::try_parse_grouped`]; empty: one camera, `images`).
+    #[arg(skip)]
+    pub image_groups: Vec<Vec<PathBuf>>,
     /// Poses CSV: `image`, then `x_mm,y_mm,z_mm,qw,qx,qy,qz` (T_base_flange) or joints `q1_<unit>...`
     /// (with --robot), optional `split` (train/test).
     #[arg(long, required = true)]
@@ -52,9 +62,10 @@ pub struct HandeyeArgs {
     #[arg(long)]
     pub robot: Option<String>,
     /// Camera file to hold fixed (camera calibrate JSON, OpenCV or ROS YAML); without it the
-    /// camera is calibrated from the training images and refined with the chain.
+    /// camera is calibrated from the training images and refined with the chain. With a rig:
+    /// once per camera, in the order of --images (the files of --rig-out read back), or not at all.
     #[arg(long)]
-    pub intrinsics: Option<PathBuf>,
+    pub intrinsics: Vec<PathBuf>,
     /// Write the JSON result here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -100,6 +111,11 @@ pub struct HandeyeArgs {
     /// format `evaluate` reads (device frame: W^-1, the camera's frame for eye-to-hand; tool: X).
     #[arg(long, requires = "robot")]
     pub out: Option<PathBuf>,
+    /// Write every camera's file into this folder: `cam<k>.yaml` (OpenCV FileStorage:
+    /// camera_matrix, distortion_coefficients and, for camera k > 0, R and T of T_camk_cam0 as
+    /// OpenCV's stereoCalibrate names them, T in metres) and `cam<k>_camera_info.yaml` (ROS).
+    #[arg(long, value_name = "DIR")]
+    pub rig_out: Option<PathBuf>,
 }
 
 /// `ferrocal handeye <command>`.
@@ -131,6 +147,11 @@ pub struct SimulateArgs {
     /// Held-out images.
     #[arg(long, default_value_t = 6)]
     pub test: usize,
+    /// Cameras: 2 writes a rig recording (with --robot ur5, eye-to-hand): the rig study's two
+    /// fixed cameras, each camera's images in cam<k>/images named after the poses table's rows,
+    /// its true camera in cam<k>/camera.yaml, the true T_camk_cam0 in truth.json.
+    #[arg(long, default_value_t = 1)]
+    pub cameras: usize,
     /// A robot cell instead (eye-to-hand only; `ur5`): the joint study's UR5 with true
     /// kinematic errors, the joint readings in poses.csv, and heldout.csv, a simulated tracker's
     /// readings of the held-out poses for `evaluate --refit-frame` (the joint adjustment's check).
@@ -156,6 +177,18 @@ pub struct StudyArgs {
     /// Write the summary as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+}
+
+impl HandeyeArgs {
+    /// The image specifications per camera: `--images` grouped by occurrence, or all of them as
+    /// one camera when the groups were not filled.
+    pub fn cameras(&self) -> Vec<Vec<PathBuf>> {
+        if self.image_groups.is_empty() {
+            vec![self.images.clone()]
+        } else {
+            self.image_groups.clone()
+        }
+    }
 }
 
 /// The mount of a command-line value.
@@ -208,15 +241,24 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         out: a.out.as_deref(),
         corners: a.corners_out.as_deref(),
     };
-    let inputs = run_inputs(poses_path, a.intrinsics.as_deref(), a.robot.as_deref(), &a.images);
-    ferrocal_report::check_outputs(&files.all(), &inputs)?;
+    let groups = a.cameras();
+    let flat: Vec<PathBuf> = groups.iter().flatten().cloned().collect();
+    let mut inputs = run_inputs(poses_path, None, a.robot.as_deref(), &flat);
+    inputs.extend(a.intrinsics.iter().map(PathBuf::as_path));
+    let rig_paths = a.rig_out.as_deref().map(|d| rig_file_paths(d, groups.len())).unwrap_or_default();
+    let mut outputs = files.all();
+    outputs.extend(rig_paths.iter().map(PathBuf::as_path));
+    ferrocal_report::check_outputs(&outputs, &inputs)?;
+    if groups.len() == 1 && a.intrinsics.len() > 1 {
+        bail!("handeye: --intrinsics given {} times for one camera (one --images)", a.intrinsics.len());
+    }
     let run = HandEyeRunOptions {
-        images: a.images.clone(),
+        images: groups[0].clone(),
         poses: poses_path.clone(),
         pattern: pattern_text.clone(),
         mount,
         robot: a.robot.clone(),
-        intrinsics: a.intrinsics.clone(),
+        intrinsics: a.intrinsics.first().cloned(),
         // The print scale is fitted unless asked not to: printed targets are rarely at their
         // nominal spacing and the robot's metric poses determine it (docs/handeye.md). Not with
         // the joint adjustment (--out) unless asked: there the flange poses come from the nominal
@@ -228,6 +270,9 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         robot_sigma_mm_deg: a.robot_sigma_mm.zip(a.robot_sigma_deg),
         exact_robot_poses: a.exact_robot_poses,
     };
+    if groups.len() > 1 || a.rig_out.is_some() {
+        return run_rig(a, vs, &run, &groups, &RigFiles { handeye: files, rig_out: a.rig_out.as_deref() });
+    }
     let mut input = HandEyeInput::load(&run)?;
     let options = run.hand_eye_options()?;
     // The robot's motions against the camera's before the fit: a recording that disagrees is
@@ -260,6 +305,50 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     Ok(vs.conclude(&verdict))
 }
 
+/// `ferrocal handeye` with a rig of cameras (`--images` given once per camera), or one camera
+/// with `--rig-out`: each camera's hand-eye fit, the rig transforms, with `--robot` and `--out`
+/// the joint adjustment of the robot and every camera ([`RigInput`]).
+fn run_rig(
+    a: &HandeyeArgs,
+    vs: &VerdictSettings,
+    run: &HandEyeRunOptions,
+    cameras: &[Vec<PathBuf>],
+    files: &RigFiles,
+) -> Result<ExitCode> {
+    let mut rig = RigInput::load(run, cameras, &a.intrinsics)?;
+    let fit = rig.fit()?;
+    for line in rig_warning_lines(&rig) {
+        eprintln!("{line}");
+    }
+    for (cam, f) in rig.cameras.iter().zip(&fit.fits) {
+        say!("{}:", cam.label());
+        print_summary(&f.result, best_baseline(&f.baselines), None);
+    }
+    if let Some(src) = rig.cameras[0].input.table.source.as_deref() {
+        say!("data: {src}");
+    }
+    for line in rig_lines(&rig, &fit) {
+        say!("{line}");
+    }
+    let mut checks = rig_checks(&vs.thresholds, &rig, &fit);
+    let joint = match (&a.out, &a.robot) {
+        (Some(out), Some(_)) => {
+            let joint = rig.joint_adjustment(&fit)?;
+            checks.extend(rig_joint_checks(&vs.thresholds, &rig, &joint));
+            say!("{}", joint_line(&joint.reference, out));
+            for line in rig_joint_lines(&rig, &joint) {
+                say!("{line}");
+            }
+            Some(joint)
+        }
+        _ => None,
+    };
+    let verdict = verdict::run_verdict(checks, &fit.fits[0].result, a.out.as_deref());
+    // Composed first, written together: a failing joint adjustment leaves no half of a run.
+    rig_outputs(&rig, &fit, joint.as_ref(), &verdict, files)?.write()?;
+    Ok(vs.conclude(&verdict))
+}
+
 fn run_simulate(s: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     check_simulated_images(s.train, s.test)?;
     // Written aside and moved into place: a run that is stopped leaves no folder of images
@@ -267,9 +356,18 @@ fn run_simulate(s: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     ferrocal_report::StagedFolder::check(&s.out, false)?;
     let staged = ferrocal_report::StagedFolder::create(&s.out)?;
     let counts = (s.train, s.test, s.seed);
-    let written = write_simulated_recording(mount_of(s.mount), s.robot.as_deref(), counts, staged.path(), &s.out)?;
+    let written =
+        write_simulated_recording(mount_of(s.mount), s.robot.as_deref(), s.cameras, counts, staged.path(), &s.out)?;
     tell!("{written}");
     staged.commit()?;
+    if s.cameras > 1 {
+        let counts = [("poses", s.train + s.test)];
+        let next = format!(
+            "calibrate the rig with its robot: ferrocal handeye --images {dir}/cam0/images --images {dir}/cam1/images --poses {dir}/poses.csv --robot ur5 --pattern <truth.json's pattern> --mount eye-to-hand --out <calibration.json> --rig-out <folder>",
+            dir = s.out.display()
+        );
+        return Ok(vs.conclude(&ferrocal_calib::verdict::commands::simulated("handeye", &counts, &next)));
+    }
     let counts = [("images", s.train + s.test)];
     let next = format!(
         "calibrate from it: ferrocal handeye --images {dir}/images --poses {dir}/poses.csv --pattern <truth.json's pattern> --mount {mount} --intrinsics {dir}/camera.yaml",

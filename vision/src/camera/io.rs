@@ -547,6 +547,43 @@ pub fn read_opencv_stereo_yaml(path: &Path) -> Result<StereoPair> {
     opencv_stereo_from_doc(&Doc::parse(&text, &name)?)
 }
 
+/// The OpenCV FileStorage YAML text of one camera of a rig: [`to_opencv_yaml`]'s keys and, for
+/// a camera other than the reference, `R` and `T` of `T_camk_cam0` with OpenCV's
+/// `stereoCalibrate` meaning (`p_k = R p_0 + T`; `T` in metres, `translation_unit: m`).
+pub fn to_opencv_rig_yaml(camera: &CameraModel, extrinsics: Option<(&Matrix3<f64>, &Vector3<f64>)>) -> Result<String> {
+    let mut s = to_opencv_yaml(camera)?;
+    if let Some((r, t_m)) = extrinsics {
+        cv_matrix(&mut s, "R", 3, 3, &row_major(r));
+        cv_matrix(&mut s, "T", 3, 1, t_m.as_slice());
+        s.push_str("translation_unit: m\n");
+    }
+    Ok(s)
+}
+
+/// `R` and `T` of a rig camera's file: `p_k = R p_0 + T`, `T` in metres.
+pub type RigExtrinsics = (Matrix3<f64>, Vector3<f64>);
+
+/// Reads one camera of a rig ([`to_opencv_rig_yaml`]): the camera and, when the file has them,
+/// `R` and `T` (metres; `translation_unit` `m`, `cm` or `mm`, metres when absent).
+pub fn from_opencv_rig_yaml(text: &str) -> Result<(CameraModel, Option<RigExtrinsics>)> {
+    let doc = Doc::parse(text, "<string>")?;
+    let camera = opencv_from_doc(&doc)?;
+    if doc.get("R").is_none() && doc.get("T").is_none() {
+        return Ok((camera, None));
+    }
+    let scale = match doc.get("translation_unit").map(|e| doc.scalar(e).map(|v| (v, e.line))).transpose()? {
+        None | Some(("m", _)) => 1.0,
+        Some(("cm", _)) => 1e-2,
+        Some(("mm", _)) => 1e-3,
+        Some((other, line)) => {
+            return Err(perr("<string>", line, format!("translation_unit '{other}': use m, cm or mm")))
+        }
+    };
+    let r = mat3(&doc.fixed("R", 3, 3)?);
+    let t_m = Vector3::from_column_slice(&doc.fixed("T", 3, 1)?) * scale;
+    Ok((camera, Some((r, t_m))))
+}
+
 /// A ROS `camera_info` file with its rectification and projection matrices.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RosCameraInfo {

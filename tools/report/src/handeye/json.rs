@@ -18,7 +18,8 @@ pub fn transform_json(t: &Isometry3<f64>) -> Value {
     json!({"translation_mm": [p.x, p.y, p.z], "rotation_wxyz": [q.w, q.i, q.j, q.k]})
 }
 
-fn std_json(t: &TransformEstimate) -> Value {
+/// A transform's standard deviations: `translation_mm` and `rotation_deg` (about each axis).
+pub fn std_json(t: &TransformEstimate) -> Value {
     json!({
         "translation_mm": t.translation_std_mm().as_slice(),
         "rotation_deg": t.rotation_std_deg().as_slice(),
@@ -77,7 +78,7 @@ pub fn figures_json(f: &ChainFigures) -> Value {
 }
 
 /// The camera part: the fields of `camera calibrate` for the camera the chain used.
-fn camera_part(r: &HandEyeResult) -> Value {
+pub fn camera_part(r: &HandEyeResult) -> Value {
     let c = &r.camera;
     let k = c.intrinsics;
     let zeros = vec![0.0; c.n_parameters()];
@@ -102,7 +103,8 @@ fn camera_part(r: &HandEyeResult) -> Value {
     })
 }
 
-fn matrix_rows(m: &nalgebra::Matrix6<f64>) -> Vec<Vec<f64>> {
+/// A 6 x 6 matrix as rows.
+pub fn matrix_rows(m: &nalgebra::Matrix6<f64>) -> Vec<Vec<f64>> {
     (0..6).map(|i| (0..6).map(|j| m[(i, j)]).collect()).collect()
 }
 

@@ -8,6 +8,9 @@ pub mod demo;
 pub mod html;
 pub mod joint_demo;
 pub mod json;
+pub mod rig;
+pub mod rig_demo;
+pub mod rig_html;
 pub mod scene;
 pub mod verdict;
 
@@ -198,21 +201,29 @@ pub fn handeye_outputs(
         out.html(h, Report::of(&format!("Hand-eye calibration ({mount}, {pattern})"), prov, sections), verdict);
     }
     if let Some(p) = files.json {
-        let mut skipped: Vec<Value> = input
-            .skipped_images
-            .iter()
-            .map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason}))
-            .collect();
-        skipped.extend(input.skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
-        skipped.extend(result.skipped.iter().map(|s| json!({"image": s.name, "reason": s.reason})));
-        let mut v = json::handeye_json(result, baselines, Value::Array(skipped), source);
-        if let Some(m) = &input.motion {
-            v["motion_check"] = m.to_json();
-        }
+        let mut v = result_json(input, fit);
         crate::verdict::add_verdict(&mut v, verdict);
         out.json_first(p, &v)?;
     }
     Ok(out)
+}
+
+/// The JSON of one camera's hand-eye fit on `input` (without the verdict): the result, every
+/// image left out and the motion check.
+pub fn result_json(input: &HandEyeInput, fit: &HandEyeFit) -> Value {
+    let (result, baselines, source) = (&fit.result, &fit.baselines, input.table.source.as_deref());
+    let mut skipped: Vec<Value> = input
+        .skipped_images
+        .iter()
+        .map(|s| json!({"image": s.image.display().to_string(), "reason": s.reason}))
+        .collect();
+    skipped.extend(input.skipped.iter().map(|s| json!({"image": s.what, "reason": s.reason})));
+    skipped.extend(result.skipped.iter().map(|s| json!({"image": s.name, "reason": s.reason})));
+    let mut v = json::handeye_json(result, baselines, Value::Array(skipped), source);
+    if let Some(m) = &input.motion {
+        v["motion_check"] = m.to_json();
+    }
+    v
 }
 
 /// The verdict of `handeye study`: per mount, the runs, the failures and the 3-sigma coverage of

@@ -168,3 +168,24 @@ fn malformed_files_are_reported_with_line_numbers() {
     let model = good.replace("plumb_bob", "unknown_model");
     assert!(matches!(from_opencv_yaml(&model).unwrap_err(), VisionError::UnsupportedDistortion { .. }));
 }
+
+/// One camera of a rig: the camera file with `R` and `T` (OpenCV's stereoCalibrate names)
+/// reads back to the same numbers; the reference camera's file has neither and is a plain
+/// camera file ([`from_opencv_yaml`] reads both).
+#[test]
+fn rig_camera_files_round_trip_with_r_and_t() {
+    let cam = cameras()[1];
+    let r = nalgebra::Rotation3::from_euler_angles(0.1, -0.4, 0.05).into_inner();
+    let t = nalgebra::Vector3::new(-0.41, 0.02, 0.135);
+    let text = to_opencv_rig_yaml(&cam, Some((&r, &t))).unwrap();
+    let (back, ext) = from_opencv_rig_yaml(&text).unwrap();
+    assert_eq!(back, cam);
+    let (r2, t2) = ext.unwrap();
+    assert_eq!((r2, t2), (r, t));
+    assert_eq!(from_opencv_yaml(&text).unwrap(), cam);
+    let mm = text.replace("translation_unit: m", "translation_unit: mm");
+    assert!((from_opencv_rig_yaml(&mm).unwrap().1.unwrap().1 - t * 1e-3).norm() < 1e-15);
+    let reference = to_opencv_rig_yaml(&cam, None).unwrap();
+    assert_eq!(reference, to_opencv_yaml(&cam).unwrap());
+    assert!(from_opencv_rig_yaml(&reference).unwrap().1.is_none());
+}

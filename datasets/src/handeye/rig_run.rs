@@ -1,0 +1,227 @@
+//! `ferrocal handeye` with a rig of cameras: `--images` given once per camera, every camera's
+//! images matched to the one poses table's rows by file name ([`RigInput::load`]); each camera's
+//! own hand-eye calibration with the rig transforms `T_camk_cam0` combined from them
+//! ([`RigInput::fit`], [`rig_transform`]); with a robot model and joint readings the joint
+//! adjustment of the robot and every camera in one problem in pixels
+//! ([`RigInput::joint_adjustment`], [`ferrocal_calib::handeye::calibrate_joint_rig_from`]).
+//!
+//! Without the joint adjustment the rig transforms are **not** refined together: each camera's
+//! hand-eye fit is its own problem, and `T_camk_cam0 = W_k^-1 W_0` (eye-to-hand) or `X_k^-1
+//! X_0` (eye-in-hand) with the covariance propagated to first order from the two fits, taken as
+//! independent. They are when the robot poses are taken as exact (the default: the cameras'
+//! images are different data); with the poses as measurements the correlation through the poses
+//! two cameras share is neglected.
+
+use std::collections::HashSet;
+use std::path::PathBuf;
+
+use nalgebra::{Isometry3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
+
+use ferrocal_calib::handeye::{
+    calibrate_joint_rig_from, rig_transform_from_starts, HandEyeResult, JointOptions, Mount, RigJointCalibration,
+    TransformEstimate,
+};
+
+use super::workflow::{HandEyeFit, HandEyeInput, HandEyeRunOptions};
+use crate::error::{DatasetError, Result};
+
+/// One camera of a rig run.
+#[derive(Clone, Debug)]
+pub struct RigCameraInput {
+    /// Its name (`cam0`, `cam1`, ... in the order of `--images`).
+    pub name: String,
+    /// Its run options: the shared ones with its own images and camera file.
+    pub run: HandEyeRunOptions,
+    /// Its recording.
+    pub input: HandEyeInput,
+}
+
+impl RigCameraInput {
+    /// The camera's name with its image specifications, for messages.
+    pub fn label(&self) -> String {
+        let specs: Vec<String> = self.run.images.iter().map(|p| p.display().to_string()).collect();
+        format!("camera {} ({})", self.name, specs.join(", "))
+    }
+}
+
+/// A rig's recordings: camera 0 (the reference) first.
+#[derive(Clone, Debug)]
+pub struct RigInput {
+    /// The cameras.
+    pub cameras: Vec<RigCameraInput>,
+}
+
+/// Every camera's hand-eye fit and the rig transforms combined from them.
+#[derive(Clone, Debug)]
+pub struct RigFit {
+    /// Each camera's hand-eye calibration, camera 0 first.
+    pub fits: Vec<HandEyeFit>,
+    /// `T_camk_cam0` of cameras 1, 2, ... from the fits ([`rig_transform`]).
+    pub t_cam_cam0: Vec<TransformEstimate>,
+}
+
+impl RigInput {
+    /// Loads every camera: `cameras[k]` are camera `k`'s image specifications, `intrinsics`
+    /// none or one camera file per camera. A camera whose images match no row of the table is
+    /// an error naming the camera, its folders and an example of each side's names.
+    pub fn load(run: &HandEyeRunOptions, cameras: &[Vec<PathBuf>], intrinsics: &[PathBuf]) -> Result<Self> {
+        if !intrinsics.is_empty() && intrinsics.len() != cameras.len() {
+            return Err(DatasetError::Input(format!(
+                "handeye: {} cameras (--images given {} times) but --intrinsics given {} times: give one camera file per camera, in the order of --images, or none",
+                cameras.len(),
+                cameras.len(),
+                intrinsics.len()
+            )));
+        }
+        let mut out = Vec::with_capacity(cameras.len());
+        for (k, images) in cameras.iter().enumerate() {
+            let cam_run =
+                HandEyeRunOptions { images: images.clone(), intrinsics: intrinsics.get(k).cloned(), ..run.clone() };
+            let name = format!("cam{k}");
+            let specs: Vec<String> = images.iter().map(|p| p.display().to_string()).collect();
+            let label = format!("camera {name} ({})", specs.join(", "));
+            let input = HandEyeInput::load(&cam_run).map_err(|e| e.context(label.clone()))?;
+            check_matched(&input, &label)?;
+            out.push(RigCameraInput { name, run: cam_run, input });
+        }
+        Ok(Self { cameras: out })
+    }
+
+    /// Each camera's hand-eye calibration (after its motion check, as the single-camera command
+    /// runs it) and the rig transforms combined from them.
+    pub fn fit(&mut self) -> Result<RigFit> {
+        let mut fits = Vec::with_capacity(self.cameras.len());
+        for cam in &mut self.cameras {
+            let label = cam.label();
+            let options = cam.run.hand_eye_options()?;
+            let (_, start) = cam.input.check_motion(&options).map_err(|e| e.context(label.clone()))?;
+            fits.push(cam.input.fit_from(options, start).map_err(|e| e.context(label))?);
+        }
+        let mount = fits[0].result.mount;
+        let t_cam_cam0 = fits[1..].iter().map(|f| rig_transform(mount, &fits[0].result, &f.result)).collect();
+        Ok(RigFit { fits, t_cam_cam0 })
+    }
+
+    /// The joint adjustment of the robot's kinematic parameters with every camera, its
+    /// `T_camk_cam0` and the hand-eye transforms, started from each camera's fit in `fit`, the
+    /// target held at camera 0's print scale; every image needs joint readings and the input a
+    /// robot model.
+    pub fn joint_adjustment(&self, fit: &RigFit) -> Result<RigJointCalibration> {
+        let mut data = Vec::with_capacity(self.cameras.len());
+        let mut joints = Vec::with_capacity(self.cameras.len());
+        let mut model = None;
+        let scale = fit.fits[0].result.target_scale.map(|(s, _)| s);
+        for cam in &self.cameras {
+            let (m, q) = cam.input.joint_readings().map_err(|e| e.context(cam.label()))?;
+            model = Some(m);
+            let mut d = cam.input.data.clone();
+            if let Some(s) = scale {
+                d.target_points_m = ferrocal_calib::handeye::evaluate::scaled_target(&d.target_points_m, s);
+            }
+            data.push(d);
+            joints.push(q);
+        }
+        let model = model.ok_or_else(|| DatasetError::Input("handeye: a rig needs at least one camera".into()))?;
+        let options = JointOptions { hand_eye: fit.fits[0].options.clone(), ..JointOptions::default() };
+        let starts = fit.fits.iter().map(|f| f.result.clone()).collect();
+        calibrate_joint_rig_from(model, &data, &joints, starts, &options)
+            .map_err(|e| DatasetError::from(e).context("handeye: the joint adjustment of the robot and the rig"))
+    }
+}
+
+/// Refuses a camera none of whose images a row of the poses table names.
+fn check_matched(input: &HandEyeInput, label: &str) -> Result<()> {
+    let file = input.table.file.display();
+    if input.paths.is_empty() {
+        return Err(DatasetError::Input(format!("handeye: {label}: no image found")));
+    }
+    let rows: HashSet<&str> = input.table.rows.iter().map(|r| r.image.as_str()).collect();
+    let name = |p: &PathBuf| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    if input.paths.iter().any(|p| rows.contains(name(p).as_str())) {
+        return Ok(());
+    }
+    Err(DatasetError::Input(format!(
+        "handeye: {label}: none of its {} image(s) is named by a row of {file} (images e.g. '{}', rows e.g. '{}'); each camera's images are matched to the table's rows by file name",
+        input.paths.len(),
+        name(&input.paths[0]),
+        input.table.rows.first().map_or("", |r| r.image.as_str())
+    )))
+}
+
+/// `t` moved by the chart increment `d = [dt (m), dr (rad)]`: `t + dt`, `Exp(dr) R` (the
+/// convention of [`TransformEstimate`]'s covariance).
+fn moved(t: &Isometry3<f64>, d: &Vector6<f64>) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::from(t.translation.vector + Vector3::new(d[0], d[1], d[2])),
+        UnitQuaternion::from_scaled_axis(Vector3::new(d[3], d[4], d[5])) * t.rotation,
+    )
+}
+
+/// The chart increment from `a` to `b` (the inverse of [`moved`]).
+fn chart_diff(a: &Isometry3<f64>, b: &Isometry3<f64>) -> Vector6<f64> {
+    let dt = b.translation.vector - a.translation.vector;
+    let dr = (b.rotation * a.rotation.inverse()).scaled_axis();
+    Vector6::new(dt.x, dt.y, dt.z, dr.x, dr.y, dr.z)
+}
+
+/// `T_camk_cam0` from camera 0's and camera `k`'s own hand-eye fits
+/// ([`rig_transform_from_starts`]: `W_k^-1 W_0` eye-to-hand, `X_k^-1 X_0` eye-in-hand), with its
+/// covariance propagated to first order (central differences in the chart) from the two fits'
+/// covariances, taken as independent (see the module documentation).
+pub fn rig_transform(mount: Mount, cam0: &HandEyeResult, cam_k: &HandEyeResult) -> TransformEstimate {
+    let t = rig_transform_from_starts(mount, cam0, cam_k);
+    let pick = |r: &HandEyeResult| match mount {
+        Mount::EyeToHand => r.world,
+        Mount::EyeInHand => r.hand_eye,
+    };
+    let (a, b) = (pick(cam_k), pick(cam0));
+    let f = |da: &Vector6<f64>, db: &Vector6<f64>| moved(&a.transform, da).inverse() * moved(&b.transform, db);
+    let h = 1e-7;
+    let mut ja = Matrix6::zeros();
+    let mut jb = Matrix6::zeros();
+    for i in 0..6 {
+        let mut d = Vector6::zeros();
+        d[i] = h;
+        let z = Vector6::zeros();
+        let col_a = (chart_diff(&t, &f(&d, &z)) - chart_diff(&t, &f(&-d, &z))) / (2.0 * h);
+        let col_b = (chart_diff(&t, &f(&z, &d)) - chart_diff(&t, &f(&z, &-d))) / (2.0 * h);
+        ja.set_column(i, &col_a);
+        jb.set_column(i, &col_b);
+    }
+    let covariance = ja * a.covariance * ja.transpose() + jb * b.covariance * jb.transpose();
+    TransformEstimate { transform: t, covariance }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The chart Jacobian of `A^-1 B` with respect to `B` is the analytic one in the product
+    /// chart (`t_B + dt`, `Exp(dr) R_B`: both map by `R_A^T`), and a rotation-only uncertainty
+    /// of `B` moves only the rotation of `A^-1 B`.
+    #[test]
+    fn the_rig_transform_covariance_follows_the_chart() {
+        let a = Isometry3::new(Vector3::new(0.3, -0.2, 1.0), Vector3::new(0.2, -0.4, 0.9));
+        let b = Isometry3::new(Vector3::new(-0.5, 0.4, 1.2), Vector3::new(-0.3, 0.1, 0.2));
+        let mut cov_b = Matrix6::zeros();
+        for i in 3..6 {
+            cov_b[(i, i)] = 1e-6;
+        }
+        let f = |db: &Vector6<f64>| a.inverse() * moved(&b, db);
+        let t = f(&Vector6::zeros());
+        let h = 1e-7;
+        let mut j = Matrix6::zeros();
+        for i in 0..6 {
+            let mut d = Vector6::zeros();
+            d[i] = h;
+            j.set_column(i, &((chart_diff(&t, &f(&d)) - chart_diff(&t, &f(&-d))) / (2.0 * h)));
+        }
+        let ra = a.rotation.to_rotation_matrix().into_inner().transpose();
+        let mut expected = Matrix6::zeros();
+        expected.fixed_view_mut::<3, 3>(0, 0).copy_from(&ra);
+        expected.fixed_view_mut::<3, 3>(3, 3).copy_from(&ra);
+        assert!((j - expected).abs().max() < 1e-6, "{j} vs {expected}");
+        let cov = j * cov_b * j.transpose();
+        assert!((cov - expected * cov_b * expected.transpose()).abs().max() < 1e-12);
+    }
+}
