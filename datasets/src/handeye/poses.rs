@@ -82,6 +82,48 @@ pub struct PosesHeader {
     pub pattern: Option<String>,
 }
 
+impl PosesHeader {
+    /// `--pattern` and `--mount` of `handeye`: each flag's value, else what the header of the
+    /// poses table `file` holds (`# pattern:`, `# mount:`). A flag that differs from the header
+    /// is used, and `warn` says so; neither given is an error naming the flag and the file.
+    pub fn resolve(
+        &self,
+        pattern: Option<String>,
+        mount: Option<ferrocal_calib::handeye::Mount>,
+        file: &Path,
+        warn: &dyn Fn(&str),
+    ) -> Result<(String, ferrocal_calib::handeye::Mount)> {
+        let pattern = flag_or_header("pattern", pattern, self.pattern.clone(), file, warn, |p| p.clone())?;
+        let mount = flag_or_header("mount", mount, self.mount, file, warn, |m| m.name().to_string())?;
+        Ok((pattern, mount))
+    }
+}
+
+/// A flag's value, else the header's ([`PosesHeader::resolve`]).
+fn flag_or_header<T: PartialEq>(
+    flag: &str,
+    given: Option<T>,
+    written: Option<T>,
+    file: &Path,
+    warn: &dyn Fn(&str),
+    show: impl Fn(&T) -> String,
+) -> Result<T> {
+    match (given, written) {
+        (Some(g), Some(w)) if g != w => {
+            let (g_text, w_text, f) = (show(&g), show(&w), file.display());
+            warn(&format!(
+                "--{flag} {g_text} differs from the '# {flag}: {w_text}' that {f} was written with; using --{flag}"
+            ));
+            Ok(g)
+        }
+        (Some(g), _) | (None, Some(g)) => Ok(g),
+        (None, None) => Err(DatasetError::Input(format!(
+            "handeye: --{flag} is required ({} has no '# {flag}:' line)",
+            file.display()
+        ))),
+    }
+}
+
 /// Reads the leading comment lines of the poses table at `path` ([`PosesHeader`]); a mount
 /// other than `eye-in-hand` or `eye-to-hand` is refused naming the file and line.
 pub fn read_poses_header(path: impl AsRef<Path>) -> Result<PosesHeader> {

@@ -4,32 +4,20 @@
 //! and `handeye simulate`.
 
 use ferrocal_report::{say, tell};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Result};
-use clap::{Args, Subcommand, ValueEnum};
-use ferrocal_calib::handeye::opencv::best_baseline;
+use clap::{Args, Subcommand};
 use ferrocal_calib::handeye::Mount;
 use ferrocal_datasets::handeye::RigInput;
 use ferrocal_datasets::handeye::{
     check_simulated_images, coverage_study, huber_sigmas_of_loss, read_poses_header, run_inputs,
     write_simulated_recording, HandEyeInput, HandEyeRunOptions,
 };
-use ferrocal_report::handeye::rig::{
-    rig_checks, rig_file_paths, rig_joint_checks, rig_joint_lines, rig_lines, rig_outputs, rig_warning_lines, RigFiles,
-};
-use ferrocal_report::handeye::{handeye_outputs, joint_line, print_summary, study_json, verdict, HandeyeFiles};
+use ferrocal_report::handeye::rig::{present_rig, rig_file_paths, rig_outputs, RigFiles};
+use ferrocal_report::handeye::{handeye_outputs, present_run, study_json, verdict, HandeyeFiles};
 use ferrocal_report::verdict::VerdictSettings;
-
-/// The mount on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum MountArg {
-    /// Camera on the flange, target fixed.
-    EyeInHand,
-    /// Camera fixed, target on the flange.
-    EyeToHand,
-}
 
 /// `ferrocal handeye`.
 #[derive(Debug, Args)]
@@ -55,9 +43,10 @@ pub struct HandeyeArgs {
     /// import` wrote into the poses table.
     #[arg(long)]
     pub pattern: Option<String>,
-    /// Where the camera is; default: the poses table's `# mount:` line (written by `import`).
-    #[arg(long, value_enum)]
-    pub mount: Option<MountArg>,
+    /// Where the camera is: `eye-in-hand` or `eye-to-hand`; default: the poses table's
+    /// `# mount:` line (written by `import`).
+    #[arg(long)]
+    pub mount: Option<Mount>,
     /// Robot model (preset, URDF or TOML) for joint readings.
     #[arg(long)]
     pub robot: Option<String>,
@@ -132,9 +121,9 @@ pub enum HandeyeCommand {
 /// `ferrocal handeye simulate`.
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
-    /// Where the camera is.
-    #[arg(long, value_enum)]
-    pub mount: MountArg,
+    /// Where the camera is: `eye-in-hand` or `eye-to-hand`.
+    #[arg(long)]
+    pub mount: Mount,
     /// Folder to write (images/, poses.csv, camera.yaml, truth.json).
     #[arg(long)]
     pub out: PathBuf,
@@ -179,50 +168,6 @@ pub struct StudyArgs {
     pub json: Option<PathBuf>,
 }
 
-impl HandeyeArgs {
-    /// The image specifications per camera: `--images` grouped by occurrence, or all of them as
-    /// one camera when the groups were not filled.
-    pub fn cameras(&self) -> Vec<Vec<PathBuf>> {
-        if self.image_groups.is_empty() {
-            vec![self.images.clone()]
-        } else {
-            self.image_groups.clone()
-        }
-    }
-}
-
-/// The mount of a command-line value.
-pub fn mount_of(m: MountArg) -> Mount {
-    match m {
-        MountArg::EyeInHand => Mount::EyeInHand,
-        MountArg::EyeToHand => Mount::EyeToHand,
-    }
-}
-
-/// A flag's value, else what `import` wrote into the poses table `file` as `# <flag>: ...`; a
-/// flag that differs from the table's line is used, with a warning; neither is an error.
-fn flag_or_header<T: PartialEq>(
-    flag: &str,
-    given: Option<T>,
-    written: Option<T>,
-    file: &Path,
-    show: impl Fn(&T) -> String,
-) -> Result<T> {
-    match (given, written) {
-        (Some(g), Some(w)) if g != w => {
-            eprintln!(
-                "ferrocal handeye: warning: --{flag} {} differs from the '# {flag}: {}' that {} was written with; using --{flag}",
-                show(&g),
-                show(&w),
-                file.display()
-            );
-            Ok(g)
-        }
-        (Some(g), _) | (None, Some(g)) => Ok(g),
-        (None, None) => bail!("handeye: --{flag} is required ({} has no '# {flag}:' line)", file.display()),
-    }
-}
-
 /// Runs `ferrocal handeye` (or its study).
 pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     match &a.command {
@@ -232,16 +177,16 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     }
     let Some(poses_path) = &a.poses else { bail!("handeye: --poses is required") };
     // --pattern and --mount default to what `import` wrote into the table's header.
-    let header = read_poses_header(poses_path)?;
-    let pattern_text = &flag_or_header("pattern", a.pattern.clone(), header.pattern, poses_path, |p| p.clone())?;
-    let mount = flag_or_header("mount", a.mount.map(mount_of), header.mount, poses_path, |m| m.name().into())?;
+    let warn = |w: &str| eprintln!("ferrocal handeye: warning: {w}");
+    let (pattern_text, mount) =
+        read_poses_header(poses_path)?.resolve(a.pattern.clone(), a.mount, poses_path, &warn)?;
     let files = HandeyeFiles {
         json: a.json.as_deref(),
         report: a.report.as_deref(),
         out: a.out.as_deref(),
         corners: a.corners_out.as_deref(),
     };
-    let groups = a.cameras();
+    let groups = if a.image_groups.is_empty() { vec![a.images.clone()] } else { a.image_groups.clone() };
     let flat: Vec<PathBuf> = groups.iter().flatten().cloned().collect();
     let mut inputs = run_inputs(poses_path, None, a.robot.as_deref(), &flat);
     inputs.extend(a.intrinsics.iter().map(PathBuf::as_path));
@@ -255,7 +200,7 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let run = HandEyeRunOptions {
         images: groups[0].clone(),
         poses: poses_path.clone(),
-        pattern: pattern_text.clone(),
+        pattern: pattern_text,
         mount,
         robot: a.robot.clone(),
         intrinsics: a.intrinsics.first().cloned(),
@@ -286,19 +231,8 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         eprintln!("ferrocal: skipped {s}");
     }
     let fit = input.fit_from(options, start)?;
-    print_summary(&fit.result, best_baseline(&fit.baselines), input.table.source.as_deref());
-    let mut checks = verdict::fit_checks(&vs.thresholds, &input.data, &fit.result);
-    checks.push(motion_check);
-    let joint = match (&a.out, &a.robot) {
-        (Some(out), Some(_)) => {
-            let joint = input.joint_adjustment(&fit)?;
-            checks.extend(verdict::joint_checks(&vs.thresholds, &joint));
-            say!("{}", joint_line(&joint, out));
-            Some(joint)
-        }
-        _ => None,
-    };
-    let verdict = verdict::run_verdict(checks, &fit.result, a.out.as_deref());
+    let joint = (a.out.is_some() && a.robot.is_some()).then(|| input.joint_adjustment(&fit)).transpose()?;
+    let verdict = present_run(&vs.thresholds, &input, &fit, joint.as_ref(), motion_check, a.out.as_deref());
     // Every output is composed first and all are written together at the end: a failing joint
     // adjustment leaves no summary or report of half a run.
     handeye_outputs(&run, &input, &fit, joint.as_ref(), &verdict, &files)?.write()?;
@@ -317,33 +251,8 @@ fn run_rig(
 ) -> Result<ExitCode> {
     let mut rig = RigInput::load(run, cameras, &a.intrinsics)?;
     let fit = rig.fit()?;
-    for line in rig_warning_lines(&rig) {
-        eprintln!("{line}");
-    }
-    for (cam, f) in rig.cameras.iter().zip(&fit.fits) {
-        say!("{}:", cam.label());
-        print_summary(&f.result, best_baseline(&f.baselines), None);
-    }
-    if let Some(src) = rig.cameras[0].input.table.source.as_deref() {
-        say!("data: {src}");
-    }
-    for line in rig_lines(&rig, &fit) {
-        say!("{line}");
-    }
-    let mut checks = rig_checks(&vs.thresholds, &rig, &fit);
-    let joint = match (&a.out, &a.robot) {
-        (Some(out), Some(_)) => {
-            let joint = rig.joint_adjustment(&fit)?;
-            checks.extend(rig_joint_checks(&vs.thresholds, &rig, &joint));
-            say!("{}", joint_line(&joint.reference, out));
-            for line in rig_joint_lines(&rig, &joint) {
-                say!("{line}");
-            }
-            Some(joint)
-        }
-        _ => None,
-    };
-    let verdict = verdict::run_verdict(checks, &fit.fits[0].result, a.out.as_deref());
+    let joint = (a.out.is_some() && a.robot.is_some()).then(|| rig.joint_adjustment(&fit)).transpose()?;
+    let verdict = present_rig(&vs.thresholds, &rig, &fit, joint.as_ref(), a.out.as_deref());
     // Composed first, written together: a failing joint adjustment leaves no half of a run.
     rig_outputs(&rig, &fit, joint.as_ref(), &verdict, files)?.write()?;
     Ok(vs.conclude(&verdict))
@@ -356,8 +265,7 @@ fn run_simulate(s: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     ferrocal_report::StagedFolder::check(&s.out, false)?;
     let staged = ferrocal_report::StagedFolder::create(&s.out)?;
     let counts = (s.train, s.test, s.seed);
-    let written =
-        write_simulated_recording(mount_of(s.mount), s.robot.as_deref(), s.cameras, counts, staged.path(), &s.out)?;
+    let written = write_simulated_recording(s.mount, s.robot.as_deref(), s.cameras, counts, staged.path(), &s.out)?;
     tell!("{written}");
     staged.commit()?;
     if s.cameras > 1 {
@@ -372,7 +280,7 @@ fn run_simulate(s: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let next = format!(
         "calibrate from it: ferrocal handeye --images {dir}/images --poses {dir}/poses.csv --pattern <truth.json's pattern> --mount {mount} --intrinsics {dir}/camera.yaml",
         dir = s.out.display(),
-        mount = if s.mount == MountArg::EyeInHand { "eye-in-hand" } else { "eye-to-hand" }
+        mount = s.mount.name()
     );
     Ok(vs.conclude(&ferrocal_calib::verdict::commands::simulated("handeye", &counts, &next)))
 }
@@ -392,12 +300,8 @@ fn run_study(s: &StudyArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         say!("{}", ferrocal_report::handeye::coverage_line(r));
     }
     let v = ferrocal_report::handeye::study_verdict(&vs.thresholds, &rows);
-    if let Some(p) = &s.json {
-        let mut j = study_json(s.simulations, s.seed, mode, &rows);
-        ferrocal_report::verdict::add_verdict(&mut j, &v);
-        ferrocal_report::write_atomic(p, serde_json::to_string_pretty(&j)?.as_bytes())
-            .map_err(|e| anyhow::Error::new(e).context(format!("writing {}", p.display())))?;
-    }
+    let json = || study_json(s.simulations, s.seed, mode, &rows);
+    ferrocal_report::Outputs::verdict_json(s.json.as_deref(), json, &v)?.write()?;
     // A failed check exits 2, the studies' documented status (0 with --keep).
     Ok(vs.conclude_with(&v, ExitCode::SUCCESS, 2))
 }

@@ -13,7 +13,7 @@ use ferrocal_report::recording::{print_summary, recording_json, recording_verdic
 use ferrocal_report::verdict::VerdictSettings;
 use ferrocal_report::Outputs;
 
-use super::handeye::{mount_of, MountArg};
+use ferrocal_calib::handeye::Mount;
 
 /// The recording half of `ferrocal measure` (without `--session`).
 #[derive(Debug, Args)]
@@ -31,8 +31,8 @@ pub struct RecordingArgs {
     /// Where the camera is: fixed, measuring the target on the flange (eye-to-hand, the
     /// default), or on the flange, looking at a fixed target (eye-in-hand: rows are the camera's
     /// pose in the target's frame).
-    #[arg(long, value_enum, default_value = "eye-to-hand")]
-    pub mount: MountArg,
+    #[arg(long, default_value = "eye-to-hand")]
+    pub mount: Mount,
     /// The camera (camera calibrate JSON, OpenCV or ROS YAML); without it the camera is
     /// calibrated from the recording's own views, which then need varied orientations.
     #[arg(long)]
@@ -56,7 +56,7 @@ pub fn run(
     let outputs: Vec<&Path> = out.iter().chain(json_out.iter()).map(|p| p.as_path()).collect();
     input.refuse_overwrite(&outputs)?;
     ferrocal_report::check_outputs(&outputs, &input.inputs())?;
-    let mount = mount_of(a.mount);
+    let mount = a.mount;
     let opts = RecordingOptions::new(mount, a.intrinsics.as_deref(), corner_sigma_px)?;
     tell!("measuring {} image(s) of {} ...", input.paths.len(), poses.display());
     let m = input.measure(&opts).with_context(|| format!("measure: {}", poses.display()))?;

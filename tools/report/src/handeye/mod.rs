@@ -26,6 +26,28 @@ use crate::error::Result;
 use crate::outputs::Outputs;
 use crate::report::{Provenance, Report};
 
+/// Presents a one-camera run on the terminal (the summary with OpenCV's best beside it, the
+/// joint adjustment's line when it ran) and returns its verdict: the chain's checks, the motion
+/// check `motion`, the joint adjustment's (`joint`, whose calibration went to `joint_out`).
+pub fn present_run(
+    t: &ferrocal_calib::verdict::Thresholds,
+    input: &HandEyeInput,
+    fit: &HandEyeFit,
+    joint: Option<&JointCalibration>,
+    motion: ferrocal_calib::verdict::Check,
+    joint_out: Option<&Path>,
+) -> Verdict {
+    use ferrocal_calib::handeye::opencv::best_baseline;
+    print_summary(&fit.result, best_baseline(&fit.baselines), input.table.source.as_deref());
+    let mut checks = verdict::fit_checks(t, &input.data, &fit.result);
+    checks.push(motion);
+    if let (Some(joint), Some(out)) = (joint, joint_out) {
+        checks.extend(verdict::joint_checks(t, joint));
+        crate::say!("{}", joint_line(joint, out));
+    }
+    verdict::run_verdict(checks, &fit.result, joint_out)
+}
+
 /// Prints the hand-eye calibration's summary on stdout (its warnings on stderr).
 pub fn print_summary(
     r: &ferrocal_calib::handeye::HandEyeResult,

@@ -314,3 +314,32 @@ pub fn rig_warning_lines(rig: &RigInput) -> Vec<String> {
     }
     out
 }
+
+/// Presents a rig run on the terminal (every camera's summary, the rig transforms, the joint
+/// adjustment's lines when it ran) and returns its verdict: every camera's checks and the joint
+/// adjustment's (`joint`, whose calibration went to `joint_out`).
+pub fn present_rig(
+    t: &Thresholds,
+    rig: &RigInput,
+    fit: &RigFit,
+    joint: Option<&RigJointCalibration>,
+    joint_out: Option<&Path>,
+) -> Verdict {
+    use ferrocal_calib::handeye::opencv::best_baseline;
+    rig_warning_lines(rig).iter().for_each(|l| eprintln!("{l}"));
+    for (cam, f) in rig.cameras.iter().zip(&fit.fits) {
+        crate::say!("{}:", cam.label());
+        super::print_summary(&f.result, best_baseline(&f.baselines), None);
+    }
+    if let Some(src) = rig.cameras[0].input.table.source.as_deref() {
+        crate::say!("data: {src}");
+    }
+    rig_lines(rig, fit).iter().for_each(|l| crate::say!("{l}"));
+    let mut checks = rig_checks(t, rig, fit);
+    if let (Some(joint), Some(out)) = (joint, joint_out) {
+        checks.extend(rig_joint_checks(t, rig, joint));
+        crate::say!("{}", super::joint_line(&joint.reference, out));
+        rig_joint_lines(rig, joint).iter().for_each(|l| crate::say!("{l}"));
+    }
+    super::verdict::run_verdict(checks, &fit.fits[0].result, joint_out)
+}
