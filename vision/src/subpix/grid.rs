@@ -4,7 +4,7 @@
 use nalgebra::{Matrix2, Point2, Vector2};
 use rayon::prelude::*;
 
-use super::line::{LineFit, LineState, Sample, Segment, LOOSE, TIGHT};
+use super::line::{LineFit, LineState, Sample, Segment, LOOSE};
 use super::{CheckerGrid, LineSupport, NoiseModel, NoiseSpec, RefineOptions, RefineSummary, RefinedCorner};
 use crate::camera::CameraModel;
 use crate::detect::{GrayF32, StageTimings};
@@ -565,13 +565,15 @@ fn weighted_pass(
         }
     };
     // Pass 2: weighted (or, without a noise model, the unweighted fits to the tight
-    // tolerance: the fits above only place bands and start this one).
+    // tolerance: the fits above only place bands and start this one): one Gauss-Newton step
+    // from the unweighted fit (`LineState::solve_from_near`, Levenberg-Marquardt when the
+    // step is large or does not lower the cost).
     fitted.par_iter_mut().for_each(|f| {
         let Some(line) = f.as_mut() else { return };
         if let Some(nm) = &noise {
             line.state.set_weights(Some(nm));
         }
-        match line.state.solve_to(options.max_iterations, TIGHT) {
+        match line.state.solve_from_near(options.max_iterations) {
             Some(fit) => line.fit = fit,
             None => *f = None,
         }
