@@ -19,8 +19,10 @@ and OpenCV's per-image time measured inside its process.
 
     python3 scripts/detect_folder_vs_opencv.py [--runs 3] [--threads 1] [--folder DIR]
 
-`--threads N` limits both sides (RAYON_NUM_THREADS for ferrocal, cv2.setNumThreads for
-OpenCV); without it both use every core. Needs the release binaries
+`--threads N` limits both sides (`ferrocal detect --threads N`, which detects N images at a
+time and limits OpenCV inside ferrocal to N threads; cv2.setNumThreads for the OpenCV process,
+which detects one image after the other and parallelises inside each); without it both use
+every core. Needs the release binaries
 (`cargo build --release --offline -p ferrocal` and
 `cargo build --release --offline -p ferrocal-vision --example realistic`) and
 opencv-python-headless.
@@ -89,6 +91,8 @@ def run_ferrocal(ferrocal, groups, threads, tmp):
     for k, (pattern, paths) in enumerate(sorted(groups.items())):
         out = os.path.join(tmp, f"ferrocal_{k}.json")
         cmd = [ferrocal, "detect", "--images", *paths, "--pattern", pattern, "--json", out, "--timings"]
+        if threads:
+            cmd += ["--threads", str(threads)]
         t0 = time.perf_counter()
         p = subprocess.run(cmd, env=env, capture_output=True, text=True)
         total_ms += (time.perf_counter() - t0) * 1e3

@@ -118,6 +118,14 @@ fn probe_ceres() -> BackendStatus {
     }
 }
 
+/// Limits OpenCV's own worker threads (its `parallel_for_`, e.g. inside the marker decoding)
+/// to `threads` for the rest of the process; 1 runs it on the calling thread.
+pub fn set_opencv_threads(threads: usize) -> crate::Result<()> {
+    let n = i32::try_from(threads.max(1)).unwrap_or(i32::MAX);
+    opencv::core::set_num_threads(n)
+        .map_err(|e| crate::VisionError::Backend { library: "opencv", message: e.to_string() })
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

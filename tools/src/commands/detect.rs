@@ -11,7 +11,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use ferrocal_datasets::detect::{detect_images, median_background_of, summary_line, timing_lines};
+use ferrocal_datasets::detect::{detect_images, median_background_of, summary_line, timing_lines, with_threads};
 use ferrocal_vision::detect::{AprilTagOptions, DetectOptions, Pattern, TagBackend, TagRefine};
 
 use ferrocal_calib::verdict::commands as verdict;
@@ -71,6 +71,11 @@ pub struct DetectArgs {
     /// AprilTags: the decoder, `c` (the AprilTag C library) or `kornia` (kornia-apriltag).
     #[arg(long, default_value = "c", value_parser = ["c", "kornia"])]
     pub tag_backend: String,
+    /// Worker threads: the images are detected in parallel, this many at a time (and OpenCV
+    /// uses as many); default every core (or `RAYON_NUM_THREADS`). The JSON is the same on any
+    /// number of threads.
+    #[arg(long)]
+    pub threads: Option<usize>,
 }
 
 /// Runs `ferrocal detect`.
@@ -83,8 +88,9 @@ pub fn run(args: &DetectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         ..AprilTagOptions::default()
     };
     let background = median_background_of(&args.background)?;
-    let results =
-        detect_images(&args.images, pattern, options, background, args.timings, &|e| eprintln!("ferrocal: {e}"))?;
+    let results = with_threads(args.threads, || {
+        detect_images(&args.images, pattern, options, background, args.timings, &|e| eprintln!("ferrocal: {e}"))
+    })??;
     for line in timing_lines(&results) {
         say!("{line}");
     }

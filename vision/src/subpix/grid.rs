@@ -4,7 +4,7 @@
 use nalgebra::{Matrix2, Point2, Vector2};
 use rayon::prelude::*;
 
-use super::line::{LineFit, LineState, Sample, Segment, LOOSE, TIGHT};
+use super::line::{LineFit, LineState, Sample, Segment, LOOSE};
 use super::{CheckerGrid, LineSupport, NoiseModel, NoiseSpec, RefineOptions, RefineSummary, RefinedCorner};
 use crate::camera::CameraModel;
 use crate::detect::{GrayF32, StageTimings};
@@ -17,6 +17,9 @@ use light::IlluminationField;
 
 mod points;
 use points::{intersect, segment_job, Points};
+
+mod snap;
+use snap::snap_line;
 
 /// Maps between image pixels and the coordinates in which lines are straight.
 enum Coords<'a> {
@@ -213,108 +216,6 @@ fn gather(
         .collect()
 }
 
-/// Moves the initial line onto the strongest gradient along profiles across each segment
-/// (a few pixels either way), so that the band of the first fit contains the edge even when
-/// the initial corners are off by several pixels (e.g. predicted through a homography).
-fn snap_line(img: &GrayF32, coords: &Coords, job: &LineJob, state: &mut LineState, options: &RefineOptions) {
-    let n = state.normal();
-    let t = state.tangent();
-    let mut pts: Vec<(f64, f64, f64)> = Vec::new();
-    for seg in &job.segments {
-        let ta = t.dot(&(seg.a - job.origin));
-        let tb = t.dot(&(seg.b - job.origin));
-        let (mut lo, mut hi) = (ta.min(tb), ta.max(tb));
-        let len = hi - lo;
-        lo += 0.25 * len;
-        hi -= 0.25 * len;
-        if let Some(l) = job.t_limit {
-            lo = lo.max(-l);
-            hi = hi.min(l);
-        }
-        if hi - lo < 2.0 {
-            continue;
-        }
-        let reach = (0.3 * seg.room_px).clamp(1.5, 6.0);
-        let reach = options.max_band_px.map_or(reach, |m| reach.min(m));
-        for k in 0..5 {
-            let tt = lo + (hi - lo) * (k as f64 + 0.5) / 5.0;
-            let steps = (reach / 0.5).round() as i32;
-            let mut prof = Vec::with_capacity(2 * steps as usize + 1);
-            for m in -steps..=steps {
-                let u = state.d + m as f64 * 0.5;
-                let mut v = 0.0;
-                let mut ok = true;
-                for dt in [-1.0, 0.0, 1.0] {
-                    let q = job.origin + t * (tt + dt) + n * u;
-                    match coords.to_pixel(q) {
-                        Some(p)
-                            if p.x >= 0.0
-                                && p.y >= 0.0
-                                && p.x <= (img.width - 1) as f64
-                                && p.y <= (img.height - 1) as f64 =>
-                        {
-                            v += img.bilinear(p.x, p.y)
-                        }
-                        _ => ok = false,
-                    }
-                }
-                if !ok {
-                    prof.clear();
-                    break;
-                }
-                prof.push(v / 3.0);
-            }
-            if prof.len() < 5 {
-                continue;
-            }
-            let mut best = (0usize, 0.0f64);
-            for i in 1..prof.len() - 1 {
-                let g = (prof[i + 1] - prof[i - 1]).abs();
-                if g > best.1 {
-                    best = (i, g);
-                }
-            }
-            let i = best.0;
-            if i == 0 {
-                continue;
-            }
-            // Parabolic peak of |gradient|.
-            let g = |j: usize| (prof[(j + 1).min(prof.len() - 1)] - prof[j.saturating_sub(1)]).abs();
-            let (gm, g0, gp) = (g(i - 1), g(i), g(i + 1));
-            let den = gm - 2.0 * g0 + gp;
-            let off = if den < 0.0 { (0.5 * (gm - gp) / den).clamp(-0.5, 0.5) } else { 0.0 };
-            let u = state.d + (i as f64 - steps as f64 + off) * 0.5;
-            pts.push((tt, u, best.1));
-        }
-    }
-    if pts.len() < 3 {
-        return;
-    }
-    let gmax = pts.iter().map(|p| p.2).fold(0.0, f64::max);
-    pts.retain(|p| p.2 >= 0.3 * gmax);
-    if pts.len() < 3 {
-        return;
-    }
-    let fit = |pts: &[(f64, f64, f64)]| -> Option<(f64, f64)> {
-        let n = pts.len() as f64;
-        let (st, su) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
-        let (mt, mu) = (st / n, su / n);
-        let stt: f64 = pts.iter().map(|p| (p.0 - mt).powi(2)).sum();
-        let stu: f64 = pts.iter().map(|p| (p.0 - mt) * (p.1 - mu)).sum();
-        let m = if stt > 1e-9 { stu / stt } else { 0.0 };
-        Some((mu - m * mt, m))
-    };
-    let Some((d0, m)) = fit(&pts) else { return };
-    let kept: Vec<(f64, f64, f64)> = pts.iter().copied().filter(|p| (p.1 - d0 - m * p.0).abs() < 1.0).collect();
-    let (d0, m) = if kept.len() >= 3 { fit(&kept).unwrap_or((d0, m)) } else { (d0, m) };
-    if m.abs() > 0.2 {
-        return;
-    }
-    let nn = (n - t * m) / (1.0 + m * m).sqrt();
-    state.phi = nn.y.atan2(nn.x);
-    state.d = d0 / (1.0 + m * m).sqrt();
-}
-
 /// A job's line is bent only while it keeps a segment on either side of its corner.
 fn set_curved(state: &mut LineState, job: &LineJob) {
     state.curved = job.curved && state.segments.len() == 2;
@@ -444,43 +345,69 @@ pub(crate) fn refine_grid_timed(
 ) -> Result<(Vec<Option<RefinedCorner>>, RefineSummary)> {
     grid.check()?;
     options.validate()?;
+    let coords = match &options.camera {
+        Some(c) => Coords::Undistorted(c),
+        None => Coords::Pixel,
+    };
     // The bands and the excluded corner neighbourhoods are placed from the grid points: when a
-    // corner moves by more than 0.5 px, refine again from the refined points (at most twice).
+    // corner of the unweighted fit lies more than 0.5 px from its start, every wanted point
+    // starts again from its unweighted corner (at most twice; a line whose grid points did
+    // not move comes from the cache, bit for bit). The noise estimate and the weighted fit
+    // run once, on the last unweighted pass.
     let mut current = grid.clone();
     let mut cache = FitCache::new();
-    let mut result = refine_grid_once(image, &current, wanted, options, &mut cache, timings.as_deref_mut())?;
+    let mut pass = unweighted_pass(image, &coords, &current, wanted, options, &mut cache, timings.as_deref_mut())?;
     for _ in 0..2 {
         let mut moved = false;
-        for (&(i, j), c) in wanted.iter().zip(&result.0) {
-            if let Some(c) = c {
-                let k = i * (grid.field_cols + 1) + j;
+        for (&(i, j), q) in wanted.iter().zip(pass.corners_px(&coords)) {
+            let k = i * (grid.field_cols + 1) + j;
+            if let Some(q) = q {
                 if let Some(p) = current.points_px[k] {
-                    moved |= (p - c.position_px).norm() > 0.5;
+                    moved |= (p - q).norm() > 0.5;
                 }
-                current.points_px[k] = Some(c.position_px);
+                current.points_px[k] = Some(q);
             }
         }
         if !moved {
             break;
         }
-        result = refine_grid_once(image, &current, wanted, options, &mut cache, timings.as_deref_mut())?;
+        pass = unweighted_pass(image, &coords, &current, wanted, options, &mut cache, timings.as_deref_mut())?;
     }
-    Ok(result)
+    Ok(weighted_pass(pass, &coords, options, timings))
 }
 
-fn refine_grid_once(
+/// The unweighted fits of one pass: the line jobs' fits and, per wanted point, its two lines.
+struct UnweightedPass {
+    fitted: Vec<Option<FittedLine>>,
+    corner_jobs: Vec<Option<(usize, usize)>>,
+}
+
+impl UnweightedPass {
+    /// The wanted points where their two unweighted lines cross (pixels), in order.
+    fn corners_px(&self, coords: &Coords) -> Vec<Option<Point2<f64>>> {
+        self.corner_jobs
+            .iter()
+            .map(|cj| {
+                let (a, b) = (*cj)?;
+                let (q, _) = intersect(self.fitted[a].as_ref()?, self.fitted[b].as_ref()?)?;
+                coords.to_pixel(q).map(|p| Point2::new(p.x, p.y))
+            })
+            .collect()
+    }
+}
+
+/// One pass of unweighted line fits from the grid points of `grid` (see [`refine_grid`]); a
+/// line whose job is in `cache` (the previous pass's) is taken from there.
+fn unweighted_pass(
     image: &GrayF32,
+    coords: &Coords,
     grid: &CheckerGrid,
     wanted: &[(usize, usize)],
     options: &RefineOptions,
     cache: &mut FitCache,
-    mut timings: Option<&mut StageTimings>,
-) -> Result<(Vec<Option<RefinedCorner>>, RefineSummary)> {
+    timings: Option<&mut StageTimings>,
+) -> Result<UnweightedPass> {
     let t0 = Instant::now();
-    let coords = match &options.camera {
-        Some(c) => Coords::Undistorted(c),
-        None => Coords::Pixel,
-    };
     let pts = Points {
         grid,
         fit: grid.points_px.iter().map(|p| p.and_then(|p| coords.to_fit(Vector2::new(p.x, p.y)))).collect(),
@@ -576,16 +503,35 @@ fn refine_grid_once(
     // A line whose job is the same as in the previous pass (its grid points did not move) has
     // the same unweighted fit: taken from the cache, bit for bit.
     let keys: Vec<JobKey> = jobs.iter().map(LineJob::key).collect();
-    let mut fitted: Vec<Option<FittedLine>> = jobs
+    let fitted: Vec<Option<FittedLine>> = jobs
         .par_iter()
         .zip(&keys)
         .map(|(j, k)| match cache.get(k) {
             Some(f) => f.clone(),
-            None => fit_job(image, &coords, j, options),
+            None => fit_job(image, coords, j, options),
         })
         .collect();
     cache.clear();
     cache.extend(keys.into_iter().zip(fitted.iter().cloned()));
+    if let Some(t) = timings {
+        StageTimings::add_since(&mut t.refine_ms, t0);
+        t.refine_passes += 1;
+        t.lines += jobs.len();
+        t.band_pixels += fitted.iter().flatten().map(|f| f.pixels).sum::<usize>();
+    }
+    Ok(UnweightedPass { fitted, corner_jobs })
+}
+
+/// The noise estimate and the weighted fits on the lines of the last unweighted pass, the
+/// corners and their covariances.
+fn weighted_pass(
+    pass: UnweightedPass,
+    coords: &Coords,
+    options: &RefineOptions,
+    timings: Option<&mut StageTimings>,
+) -> (Vec<Option<RefinedCorner>>, RefineSummary) {
+    let t1 = Instant::now();
+    let UnweightedPass { mut fitted, corner_jobs } = pass;
     // Illumination (vignetting, uneven light): a smooth field fitted to the segments' light
     // levels gives each segment its fixed gradient across the edge, used from here on (the
     // noise statistics at the unweighted fit, then the final fit below: the gradient moves
@@ -600,13 +546,6 @@ fn refine_grid_once(
                 seg.g = field.gradient(origin + seg.centre()).dot(&n);
             }
         });
-    }
-    let t1 = Instant::now();
-    if let Some(t) = timings.as_deref_mut() {
-        StageTimings::add_since(&mut t.refine_ms, t0);
-        t.refine_passes += 1;
-        t.lines += jobs.len();
-        t.band_pixels += fitted.iter().flatten().map(|f| f.pixels).sum::<usize>();
     }
     // Noise model.
     let noise = match options.noise {
@@ -626,13 +565,15 @@ fn refine_grid_once(
         }
     };
     // Pass 2: weighted (or, without a noise model, the unweighted fits to the tight
-    // tolerance: the fits above only place bands and start this one).
+    // tolerance: the fits above only place bands and start this one): one Gauss-Newton step
+    // from the unweighted fit (`LineState::solve_from_near`, Levenberg-Marquardt when the
+    // step is large or does not lower the cost).
     fitted.par_iter_mut().for_each(|f| {
         let Some(line) = f.as_mut() else { return };
         if let Some(nm) = &noise {
             line.state.set_weights(Some(nm));
         }
-        match line.state.solve_to(options.max_iterations, TIGHT) {
+        match line.state.solve_from_near(options.max_iterations) {
             Some(fit) => line.fit = fit,
             None => *f = None,
         }
@@ -646,7 +587,7 @@ fn refine_grid_once(
     let summary = RefineSummary {
         noise,
         lines_fitted,
-        lines_failed: jobs.len() - lines_fitted,
+        lines_failed: fitted.len() - lines_fitted,
         reduced_chi2: if chi_n > 0.0 { chi_sum / chi_n } else { f64::NAN },
     };
     let corners = corner_jobs
@@ -681,5 +622,5 @@ fn refine_grid_once(
     if let Some(t) = timings {
         StageTimings::add_since(&mut t.covariance_ms, t1);
     }
-    Ok((corners, summary))
+    (corners, summary)
 }

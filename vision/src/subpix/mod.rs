@@ -47,7 +47,8 @@
 //! Pixel noise is modelled as `Var[I] = offset + slope max(I, 0)` (read noise plus shot noise;
 //! [`NoiseModel`]). With [`NoiseSpec::Estimate`] (default) a first, unweighted pass fits every
 //! line, the two coefficients are regressed from the pooled squared residuals (corrected for
-//! the degrees of freedom), and a second pass refits with weights `1 / Var[I]`. The Fisher
+//! the degrees of freedom), and a second pass refits with weights `1 / Var[I]` (one Gauss-Newton
+//! step from the unweighted fit, which the weights move by a fraction of its uncertainty). The Fisher
 //! information of one line's parameters `theta = (phi, d, a_k, b_k, ln s_k)` under Gaussian
 //! noise is
 //!
