@@ -336,6 +336,17 @@ pub fn present_rig(
     }
     rig_lines(rig, fit).iter().for_each(|l| crate::say!("{l}"));
     let mut checks = rig_checks(t, rig, fit);
+    if joint.is_none() && rig.cameras.len() > 1 {
+        // A robot's reported flange poses come from its nominal model: combined from the
+        // cameras' own fits, the transforms carry the robot's errors outside their uncertainty
+        // (36.5 mm at 15 sigma in the rig simulation, docs/handeye.md).
+        checks.push(Check::flag(
+            "handeye.rig.own_fits",
+            "camera-to-camera transforms combined from each camera's own fit on the reported flange poses: the robot's errors are not in their uncertainty (joint readings, --robot and --out adjust the robot with the cameras)",
+            "camera-to-camera transforms from the joint adjustment",
+            true,
+        ));
+    }
     if let (Some(joint), Some(out)) = (joint, joint_out) {
         checks.extend(rig_joint_checks(t, rig, joint));
         crate::say!("{}", super::joint_line(&joint.reference, out));
