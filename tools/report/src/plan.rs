@@ -60,11 +60,10 @@ pub fn write_plan(run: &PlanRun, report: Report, verdict: &Verdict) -> Result<Pa
     crate::verdict::add_verdict(&mut json, verdict);
     let mut report = report;
     report.verdict = Some(verdict.clone());
-    let mut files: Vec<(&str, Vec<u8>)> = run.files.iter().map(|(n, b)| (n.as_str(), b.clone())).collect();
-    files.push(("report.json", serde_json::to_string_pretty(&json)?.into_bytes()));
-    files.push(("index.html", report.to_html().into_bytes()));
+    let (json, html) = (serde_json::to_string_pretty(&json)?.into_bytes(), report.to_html().into_bytes());
+    let pages = [("report.json", &json), ("index.html", &html)];
     let staged = StagedFolder::create(&run.request.out)?;
-    for (name, bytes) in &files {
+    for (name, bytes) in run.files.iter().map(|(n, b)| (n.as_str(), b)).chain(pages) {
         let p = staged.path().join(name);
         std::fs::write(&p, bytes).with_context(|| format!("cannot write {}", p.display()))?;
     }

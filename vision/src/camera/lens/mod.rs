@@ -87,6 +87,7 @@ struct LensInfo {
     coefficients: &'static [&'static str],
     family: &'static str,
     calibrated: bool,
+    field_limit_rad: f64,
 }
 
 impl LensInfo {
@@ -97,6 +98,7 @@ impl LensInfo {
             coefficients: M::COEFFICIENTS,
             family: M::FAMILY,
             calibrated: M::CALIBRATED,
+            field_limit_rad: M::FIELD_LIMIT_RAD,
         }
     }
 }
@@ -153,13 +155,6 @@ macro_rules! lens_models {
                     } )*
                 }
             }
-
-            /// The largest field angle the model describes, radians.
-            pub(crate) fn field_limit_rad(self) -> f64 {
-                match self {
-                    $( DistortionKind::$variant => <$model as LensModel>::FIELD_LIMIT_RAD, )*
-                }
-            }
         }
 
         impl Distortion {
@@ -189,34 +184,30 @@ macro_rules! lens_models {
 
             /// The model's map of the camera-frame point `p`.
             pub(crate) fn distort(&self, p: [f64; 3]) -> Result<Distorted, &'static str> {
-                let kind = self.kind();
-                self.with_coefficients(|c| match kind {
-                    $( DistortionKind::$variant => <$model as LensModel>::distort(c, p), )*
-                })
+                match *self {
+                    $( Distortion::$variant $({ $( $field ),* })? => <$model as LensModel>::distort(&[$($( $field ),*)?], p), )*
+                }
             }
 
             /// Whether the map is one-to-one at the field angle `theta_rad`.
             pub(crate) fn one_to_one_at(&self, theta_rad: f64) -> bool {
-                let kind = self.kind();
-                self.with_coefficients(|c| match kind {
-                    $( DistortionKind::$variant => <$model as LensModel>::one_to_one_at(c, theta_rad), )*
-                })
+                match *self {
+                    $( Distortion::$variant $({ $( $field ),* })? => <$model as LensModel>::one_to_one_at(&[$($( $field ),*)?], theta_rad), )*
+                }
             }
 
             /// The normalised point of the distorted point `xd` ([`LensModel::unproject_normalized`]).
             pub(crate) fn unproject_normalized(&self, xd: [f64; 2], f_px: [f64; 2]) -> Result<[f64; 2], Unprojection> {
-                let kind = self.kind();
-                self.with_coefficients(|c| match kind {
-                    $( DistortionKind::$variant => <$model as LensModel>::unproject_normalized(c, xd, f_px), )*
-                })
+                match *self {
+                    $( Distortion::$variant $({ $( $field ),* })? => <$model as LensModel>::unproject_normalized(&[$($( $field ),*)?], xd, f_px), )*
+                }
             }
 
             /// The unit ray of the distorted point `xd` ([`LensModel::unproject_ray`]).
             pub(crate) fn unproject_ray(&self, xd: [f64; 2], f_px: [f64; 2]) -> Result<Vector3<f64>, Unprojection> {
-                let kind = self.kind();
-                self.with_coefficients(|c| match kind {
-                    $( DistortionKind::$variant => <$model as LensModel>::unproject_ray(c, xd, f_px), )*
-                })
+                match *self {
+                    $( Distortion::$variant $({ $( $field ),* })? => <$model as LensModel>::unproject_ray(&[$($( $field ),*)?], xd, f_px), )*
+                }
             }
         }
     };
@@ -312,6 +303,11 @@ impl DistortionKind {
         }
     }
 
+    /// The largest field angle the model describes, radians ([`LensModel::FIELD_LIMIT_RAD`]).
+    pub(crate) fn field_limit_rad(self) -> f64 {
+        self.info().field_limit_rad
+    }
+
     /// Whether coefficients of this model and of `other` with one name mean the same.
     pub(crate) fn same_family(self, other: DistortionKind) -> bool {
         self.info().family == other.info().family
@@ -362,9 +358,9 @@ impl Distortion {
             return *self;
         }
         let (old_names, old) = (from.coefficient_names(), self.coefficients());
+        let family = from.same_family(kind);
         let shared = |name: &str| old_names.iter().position(|n| *n == name).map_or(0.0, |i| old[i]);
-        let c: Vec<f64> =
-            kind.coefficient_names().iter().map(|n| if from.same_family(kind) { shared(n) } else { 0.0 }).collect();
+        let c: Vec<f64> = kind.coefficient_names().iter().map(|n| if family { shared(n) } else { 0.0 }).collect();
         Distortion::from_slice(kind, &c)
     }
 }
