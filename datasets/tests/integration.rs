@@ -16,6 +16,7 @@ mod dynamics_tables;
 mod dynamics_trajectories;
 mod force_diagnose;
 mod handeye_joint;
+mod handeye_physics;
 mod handeye_rig;
 mod handeye_sim;
 mod import_images;

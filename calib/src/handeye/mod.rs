@@ -41,6 +41,7 @@ pub mod evaluate;
 pub mod geometry;
 pub mod joint;
 pub mod opencv;
+pub mod physics;
 mod refine;
 pub mod residual;
 
@@ -206,6 +207,46 @@ pub struct HandEyeOptions {
     pub min_corners: usize,
     /// The solver (default: the Ceres back end).
     pub solver: SolverOptions,
+    /// The target's bending and anisotropic print scale as blocks of the refinement (both off
+    /// by default; [`physics::select_chain_physics`] decides them on the training images).
+    pub target_physics: TargetPhysics,
+}
+
+/// Which of the target's departures from its nominal geometry the refinement fits, beyond the
+/// overall print scale ([`HandEyeOptions::fit_target_scale`]); see
+/// `ferrocal_vision::calib::TargetDeformation` for the model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TargetPhysics {
+    /// The target bends: sags of a bowl, a saddle and a twist at its edge (metres).
+    pub shape: bool,
+    /// Its printed x spacing differs from its y spacing by the factor `1 + e_x`.
+    pub print_x: bool,
+}
+
+impl TargetPhysics {
+    /// Whether anything beyond the flat, nominally printed target is fitted.
+    pub fn any(self) -> bool {
+        self.shape || self.print_x
+    }
+}
+
+/// The target's fitted bending and anisotropic print scale (present when either was fitted).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TargetForm {
+    /// The model and its values (`shape_m` = `[b, s, t]`, `scale[0]` = `e_x`; the free flags
+    /// say which were fitted).
+    pub deformation: ferrocal_vision::calib::TargetDeformation,
+    /// Standard deviations of `[b, s, t]`, metres, when fitted.
+    pub shape_std_m: Option<[f64; 3]>,
+    /// Standard deviation of `e_x`, when fitted.
+    pub scale_x_std: Option<f64>,
+}
+
+impl TargetForm {
+    /// The target's points as the chain sees them (deformed, before the overall scale).
+    pub fn points(&self, nominal_m: &[Point3<f64>]) -> Vec<Point3<f64>> {
+        nominal_m.iter().map(|p| self.deformation.point(p)).collect()
+    }
 }
 
 impl Default for HandEyeOptions {
@@ -220,6 +261,7 @@ impl Default for HandEyeOptions {
             huber_sigmas: 3.0,
             min_corners: 6,
             solver: SolverOptions { backend: ferrocal_lsq::Backend::Ceres, ..SolverOptions::default() },
+            target_physics: TargetPhysics::default(),
         }
     }
 }
@@ -340,6 +382,10 @@ pub struct HandEyeResult {
     pub world: TransformEstimate,
     /// The target's print scale and its standard deviation, when fitted.
     pub target_scale: Option<(f64, f64)>,
+    /// The target's bending and anisotropic print scale, when fitted
+    /// ([`HandEyeOptions::target_physics`]).
+    #[serde(default)]
+    pub target_form: Option<TargetForm>,
     /// Chain figures per image and overall (robot poses as reported).
     pub figures: ChainFigures,
     /// Every closed-form start.

@@ -12,13 +12,14 @@ use ferrocal_vision::pose::{estimate_pose, CornerNoise};
 
 use super::closed::{self, ClosedForm, PosePair};
 use super::evaluate::{chain_figures, Chain};
-use super::residual::{whitening, ChainCorner, RobotPosePrior};
+use super::residual::{whitening, ChainCorner, RobotPosePrior, TargetBlocks};
 use super::{
     HandEyeData, HandEyeOptions, HandEyeResult, HandEyeView, IntrinsicsMode, NoiseLevels, SkippedView, StartReport,
-    TransformEstimate,
+    TargetForm, TransformEstimate,
 };
 use crate::error::{CalibError, Result};
 use crate::measurement::Split;
+use ferrocal_vision::calib::TargetDeformation;
 
 /// Fewest training images the calibration accepts.
 pub const MIN_TRAIN_VIEWS: usize = 3;
@@ -179,6 +180,7 @@ struct Refined {
     world_cov: Matrix6<f64>,
     camera_std: Option<Vec<f64>>,
     scale_std: Option<f64>,
+    form: Option<TargetForm>,
     s0: f64,
     iterations: usize,
     termination: String,
@@ -192,6 +194,8 @@ struct Blocks {
     w: BlockId,
     camera: BlockId,
     scale: Option<BlockId>,
+    shape: Option<BlockId>,
+    print_x: Option<BlockId>,
 }
 
 /// Poses the refinement at `chain`, `camera` with one loss for every corner.
@@ -201,16 +205,19 @@ struct Setup<'a> {
     views: &'a [HandEyeView],
     options: &'a HandEyeOptions,
     camera_free: bool,
+    /// The target's deformation the refinement starts from (free flags: what it fits).
+    form: Option<TargetDeformation>,
 }
 
 fn build(
     setup: &Setup,
     camera: &CameraModel,
     chain: &Chain,
+    form: Option<&TargetDeformation>,
     noise: &NoiseLevels,
     loss: Loss,
 ) -> Result<(Problem, Blocks)> {
-    let Setup { data, views, options, camera_free } = *setup;
+    let Setup { data, views, options, camera_free, .. } = *setup;
     let mut p = Problem::new();
     let x = p.add_block("hand_eye", Se3::from_isometry(&chain.x).to_vec(), Arc::new(Se3))?;
     let w = p.add_block("world", Se3::from_isometry(&chain.w).to_vec(), Arc::new(Se3))?;
@@ -227,6 +234,24 @@ fn build(
     } else {
         None
     };
+    let shape = match form.filter(|f| f.shape_free) {
+        Some(f) => {
+            let b = p.add_euclidean("target_shape", f.shape_m.to_vec())?;
+            p.set_coordinate_names(b, vec!["bowl_sag_m".into(), "saddle_sag_m".into(), "twist_sag_m".into()])?;
+            p.set_scales(b, vec![1e-4; 3])?;
+            Some(b)
+        }
+        None => None,
+    };
+    let print_x = match form.filter(|f| f.scale_free) {
+        Some(f) => {
+            let b = p.add_euclidean("target_print_x", vec![f.scale[0]])?;
+            p.set_scales(b, vec![1e-4])?;
+            Some(b)
+        }
+        None => None,
+    };
+    let target = TargetBlocks { scale: scale.is_some(), form: form.copied() };
     let fallback = Matrix2::identity() * options.fallback_corner_sigma_px.powi(2);
     let corner_factor = noise.corner_variance_factor.sqrt();
     let robot_free = noise.robot_sigma_m > 0.0 && noise.robot_sigma_rad > 0.0;
@@ -245,6 +270,8 @@ fn build(
         }
         let mut blocks = vec![x, w, robot, cam];
         blocks.extend(scale);
+        blocks.extend(shape);
+        blocks.extend(print_x);
         for ((&id, px), cov) in v.point_ids.iter().zip(&v.corners_px).zip(&v.covariances_px2) {
             let whiten = cov.and_then(|c| whitening(&c)).unwrap_or_else(|| whitening(&fallback).expect("positive"))
                 / corner_factor;
@@ -254,23 +281,38 @@ fn build(
                 detected_px: *px,
                 whiten,
                 camera: *camera,
-                with_scale: scale.is_some(),
+                target,
             };
             p.add_residual(&format!("{}.c{id}", v.name), Box::new(r), &blocks, loss)?;
         }
     }
-    Ok((p, Blocks { x, w, camera: cam, scale }))
+    Ok((p, Blocks { x, w, camera: cam, scale, shape, print_x }))
 }
 
-/// The current chain and camera of a solved problem.
-fn read_back(p: &Problem, b: &Blocks, template: &CameraModel) -> Result<(Chain, CameraModel)> {
+/// The current chain, camera and target deformation (`form` with the fitted values) of a solved
+/// problem.
+fn read_back(
+    p: &Problem,
+    b: &Blocks,
+    template: &CameraModel,
+    form: Option<TargetDeformation>,
+) -> Result<(Chain, CameraModel, Option<TargetDeformation>)> {
     let chain = Chain {
         x: Se3::to_isometry(&p.block(b.x).values),
         w: Se3::to_isometry(&p.block(b.w).values),
         scale: b.scale.map_or(1.0, |s| p.block(s).values[0]),
     };
     let camera = super::residual::camera_with(template, &p.block(b.camera).values)?;
-    Ok((chain, camera))
+    let form = form.map(|mut f| {
+        if let Some(s) = b.shape {
+            f.shape_m.copy_from_slice(&p.block(s).values);
+        }
+        if let Some(e) = b.print_x {
+            f.scale[0] = p.block(e).values[0];
+        }
+        f
+    });
+    Ok((chain, camera, form))
 }
 
 /// `1.4826 * median |r|` over the whitened corner residual components.
@@ -294,10 +336,16 @@ fn variance_factors(p: &Problem) -> Result<[Option<f64>; 3]> {
     for (c, dc) in d.iter().enumerate() {
         js.column_mut(c).scale_mut(1.0 / dc);
     }
-    let ninv = (js.transpose() * &js)
-        .cholesky()
-        .ok_or_else(|| CalibError::Numeric("hand-eye: the normal matrix is singular".into()))?
-        .inverse();
+    // A rank-deficient normal matrix (coefficients of a rich lens model that trade with each
+    // other on few images) still has its redundancies: the pseudo-inverse's hat matrix.
+    let normal = js.transpose() * &js;
+    let ninv = match normal.clone().cholesky() {
+        Some(c) => c.inverse(),
+        None => {
+            let eps = 1e-12 * normal.diagonal().max();
+            normal.pseudo_inverse(eps).map_err(|e| CalibError::Numeric(format!("hand-eye: the normal matrix: {e}")))?
+        }
+    };
     let jn = &js * ninv;
     let mut red = [0.0; 3];
     let mut ss = [0.0; 3];
@@ -328,13 +376,13 @@ fn refine(setup: &Setup, camera: &CameraModel, start: &Chain) -> Result<Refined>
         estimated: options.estimate_noise,
         iterations: 0,
     };
-    let (mut chain, mut cam) = (*start, *camera);
+    let (mut chain, mut cam, mut form) = (*start, *camera, setup.form);
     let mut iterations = 0;
     let (mut p, b, mut summary) = loop {
-        let (mut p, b) = build(setup, &cam, &chain, &noise, Loss::Squared)?;
+        let (mut p, b) = build(setup, &cam, &chain, form.as_ref(), &noise, Loss::Squared)?;
         let sol = p.solve(&options.solver)?;
         iterations += sol.summary.iterations;
-        (chain, cam) = read_back(&p, &b, camera)?;
+        (chain, cam, form) = read_back(&p, &b, camera, form)?;
         if !options.estimate_noise || noise.iterations >= MAX_NOISE_ITERATIONS {
             break (p, b, sol.summary);
         }
@@ -351,18 +399,20 @@ fn refine(setup: &Setup, camera: &CameraModel, start: &Chain) -> Result<Refined>
         }
     };
     if let Some(loss) = options.second_loss(robust_sigma(&p)?) {
-        let (p2, _) = build(setup, &cam, &chain, &noise, loss)?;
+        let (p2, _) = build(setup, &cam, &chain, form.as_ref(), &noise, loss)?;
         p = p2;
         let second = p.solve(&options.solver)?;
         iterations += second.summary.iterations;
         summary = second.summary;
     }
-    let (chain, cam) = read_back(&p, &b, camera)?;
+    let (chain, cam, form) = read_back(&p, &b, camera, form)?;
     let mut globals = vec![b.x, b.w];
     if camera_free {
         globals.push(b.camera);
     }
     globals.extend(b.scale);
+    globals.extend(b.shape);
+    globals.extend(b.print_x);
     let cov = p.schur_covariance(&globals)?;
     let block = |id| cov.block(id).ok_or_else(|| CalibError::Numeric("covariance block missing".into()));
     let six = |m: nalgebra::DMatrix<f64>| Matrix6::from_fn(|i, j| m[(i, j)]);
@@ -376,7 +426,19 @@ fn refine(setup: &Setup, camera: &CameraModel, start: &Chain) -> Result<Refined>
         Some(s) => Some(block(s)?[(0, 0)].max(0.0).sqrt()),
         None => None,
     };
+    let stds = |id: Option<BlockId>| -> Result<Option<Vec<f64>>> {
+        id.map(|id| block(id).map(|m| (0..m.nrows()).map(|i| m[(i, i)].max(0.0).sqrt()).collect())).transpose()
+    };
+    let form = match form {
+        Some(deformation) => Some(TargetForm {
+            deformation,
+            shape_std_m: stds(b.shape)?.map(|v| [v[0], v[1], v[2]]),
+            scale_x_std: stds(b.print_x)?.map(|v| v[0]),
+        }),
+        None => None,
+    };
     Ok(Refined {
+        form,
         chain,
         camera: cam,
         hand_eye_cov: six(block(b.x)?),
@@ -472,12 +534,26 @@ pub fn calibrate_hand_eye_from(
     };
     starts[k].chosen = true;
     let camera_free = matches!(options.intrinsics, IntrinsicsMode::Calibrate(_));
-    let setup = Setup { data, views: &views, options, camera_free };
+    let physics = options.target_physics;
+    let form = if physics.any() {
+        let mut f = TargetDeformation::of_points(&data.target_points_m)
+            .map_err(|e| data_error(format!("the target's bending and print scale: {e}")))?;
+        (f.shape_free, f.scale_free) = (physics.shape, physics.print_x);
+        Some(f)
+    } else {
+        None
+    };
+    let setup = Setup { data, views: &views, options, camera_free, form };
     let r = refine(&setup, &camera0, &start)?;
-    // The PnP yardstick uses the target geometry the chain uses (the fitted print scale).
-    let target = super::evaluate::scaled_target(&data.target_points_m, r.chain.scale);
+    // The PnP yardstick uses the target geometry the chain uses (the fitted print scale and
+    // deformation).
+    let chain_points = match &r.form {
+        Some(f) => f.points(&data.target_points_m),
+        None => data.target_points_m.clone(),
+    };
+    let target = super::evaluate::scaled_target(&chain_points, r.chain.scale);
     let pnp = pnp_poses(&r.camera, &target, &views, fallback);
-    let figures = chain_figures(data.mount, &r.camera, &data.target_points_m, &views, &pnp, &r.chain);
+    let figures = chain_figures(data.mount, &r.camera, &chain_points, &views, &pnp, &r.chain);
     let motion = super::MotionGeometry::of(&views);
     Ok(HandEyeResult {
         mount: data.mount,
@@ -487,6 +563,7 @@ pub fn calibrate_hand_eye_from(
         hand_eye: TransformEstimate { transform: r.chain.x, covariance: r.hand_eye_cov },
         world: TransformEstimate { transform: r.chain.w, covariance: r.world_cov },
         target_scale: r.scale_std.map(|s| (r.chain.scale, s)),
+        target_form: r.form,
         figures,
         starts,
         skipped,

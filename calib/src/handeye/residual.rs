@@ -11,7 +11,10 @@
 //! (`r = L^-1 (projected - detected)` with `Σ = L L^T`). Blocks, in order: `X`, `W` and the
 //! robot pose `T_base_flange` (each on the `Se3` manifold, product chart `t' = t + δt`,
 //! `R' = Exp(δr) R`), the camera's parameter vector (`fx fy cx cy k...`, Euclidean), and, when
-//! fitted, the target's scale `s` (Euclidean, 1 value).
+//! fitted, the target's scale `s` (Euclidean, 1 value), its shape `[b, s, t]` (sags of a bowl, a
+//! saddle and a twist at its edge, metres) and the relative error `e_x` of its printed x spacing
+//! against its y spacing ([`TargetBlocks`]; `P` is then the deformed point of
+//! [`ferrocal_vision::calib::TargetDeformation`], scaled by `s`).
 //!
 //! [`RobotPosePrior`]: the robot pose as a measurement, `[(t - t_reported) / σ_t,
 //! Log(R R_reported^T) / σ_r]`, for fits that let the reported flange poses move within their
@@ -20,6 +23,7 @@
 use nalgebra::{DMatrix, Isometry3, Matrix2, Matrix3, Matrix3x1, Point2, Point3, Vector3};
 
 use ferrocal_lsq::{LsqError, Residual, Se3};
+use ferrocal_vision::calib::TargetDeformation;
 use ferrocal_vision::camera::{CameraModel, Distortion, Intrinsics};
 
 use super::Mount;
@@ -63,6 +67,8 @@ pub(crate) struct ChainPoint {
     pub d_w: nalgebra::Matrix3x6<f64>,
     pub d_robot: nalgebra::Matrix3x6<f64>,
     pub d_scale: Matrix3x1<f64>,
+    /// `d p_cam / d p` for the (scaled) target-frame point `p`.
+    pub d_target: Matrix3<f64>,
 }
 
 impl ChainPoint {
@@ -78,6 +84,7 @@ impl ChainPoint {
         self.d_w = r * self.d_w;
         self.d_robot = r * self.d_robot;
         self.d_scale = r * self.d_scale;
+        self.d_target = r * self.d_target;
         let mut d = nalgebra::Matrix3x6::zeros();
         put(&mut d, Matrix3::identity(), -rp.cross_matrix());
         d
@@ -110,6 +117,7 @@ pub(crate) fn chain_point(
         d_w: nalgebra::Matrix3x6::zeros(),
         d_robot: nalgebra::Matrix3x6::zeros(),
         d_scale: Matrix3x1::zeros(),
+        d_target: Matrix3::zeros(),
     };
     match mount {
         Mount::EyeToHand => {
@@ -123,7 +131,8 @@ pub(crate) fn chain_point(
             put(&mut out.d_x, a, -a * rxp.cross_matrix());
             put(&mut out.d_w, -rwt, rwt * v.cross_matrix());
             put(&mut out.d_robot, rwt, -rwt * rmq.cross_matrix());
-            out.d_scale = a * rx * p0.coords;
+            out.d_target = a * rx;
+            out.d_scale = out.d_target * p0.coords;
         }
         Mount::EyeInHand => {
             let rwp = rw * p;
@@ -136,7 +145,8 @@ pub(crate) fn chain_point(
             put(&mut out.d_w, a, -a * rwp.cross_matrix());
             put(&mut out.d_robot, -a, a * u.cross_matrix());
             put(&mut out.d_x, -rxt, rxt * g.cross_matrix());
-            out.d_scale = a * rw * p0.coords;
+            out.d_target = a * rw;
+            out.d_scale = out.d_target * p0.coords;
         }
     }
     out
@@ -155,8 +165,28 @@ pub struct ChainCorner {
     pub whiten: Matrix2<f64>,
     /// Lens model and image size of the camera block.
     pub camera: CameraModel,
-    /// Whether a fifth block, the target scale, follows.
-    pub with_scale: bool,
+    /// The target blocks that follow the camera block.
+    pub target: TargetBlocks,
+}
+
+/// The target's blocks of a [`ChainCorner`] after the camera block, in this order: the overall
+/// scale `s` (1 value) when `scale`; the shape `[b, s, t]` (3 values, metres) when the
+/// deformation's `shape_free`; `e_x` (1 value) when its `scale_free`. A deformation's held parts
+/// keep their values; without a deformation the target is flat and printed to its nominal
+/// spacing (up to `s`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TargetBlocks {
+    /// Whether the overall scale is a block.
+    pub scale: bool,
+    /// The target's bending and anisotropic print scale.
+    pub form: Option<TargetDeformation>,
+}
+
+impl TargetBlocks {
+    /// Number of blocks after the camera block.
+    pub fn n_blocks(&self) -> usize {
+        usize::from(self.scale) + self.form.map_or(0, |f| usize::from(f.shape_free) + usize::from(f.scale_free))
+    }
 }
 
 impl Residual for ChainCorner {
@@ -174,8 +204,22 @@ impl Residual for ChainCorner {
         let w = Se3::to_isometry(params[1]);
         let m = Se3::to_isometry(params[2]);
         let camera = camera_with(&self.camera, params[3])?;
-        let scale = if self.with_scale { params[4][0] } else { 1.0 };
-        let c = chain_point(self.mount, &x, &w, &m, scale, &self.point_m);
+        let mut k = 4;
+        let mut next = || {
+            k += 1;
+            params[k - 1]
+        };
+        let scale = if self.target.scale { next()[0] } else { 1.0 };
+        let (point, form) = match &self.target.form {
+            None => (self.point_m, None),
+            Some(f) => {
+                let shape = if f.shape_free { next() } else { &f.shape_m[..] };
+                let e_x = if f.scale_free { next()[0] } else { f.scale[0] };
+                let d = f.apply(&self.point_m, shape, e_x);
+                (d.point, Some(d))
+            }
+        };
+        let c = chain_point(self.mount, &x, &w, &m, scale, &point);
         let proj = camera.project_with_jacobians(&Point3::from(c.p_cam)).map_err(LsqError::model)?;
         let r = self.whiten * (proj.pixel - self.detected_px);
         residuals[0] = r.x;
@@ -192,8 +236,20 @@ impl Residual for ChainCorner {
         fill(&mut jacs[1], (sp * c.d_w).as_slice());
         fill(&mut jacs[2], (sp * c.d_robot).as_slice());
         fill(&mut jacs[3], (self.whiten * &proj.d_pixel_d_params).as_slice());
-        if self.with_scale {
-            fill(&mut jacs[4], (sp * c.d_scale).as_slice());
+        let mut k = 4;
+        if self.target.scale {
+            fill(&mut jacs[k], (sp * c.d_scale).as_slice());
+            k += 1;
+        }
+        if let (Some(f), Some(d)) = (&self.target.form, form) {
+            let sd = sp * c.d_target * scale;
+            if f.shape_free {
+                fill(&mut jacs[k], (sd * d.d_shape).as_slice());
+                k += 1;
+            }
+            if f.scale_free {
+                fill(&mut jacs[k], (sd * d.d_scale_x).as_slice());
+            }
         }
         Ok(())
     }
@@ -271,8 +327,8 @@ mod tests {
         .unwrap()
     }
 
-    /// The analytic Jacobians of both mounts (with the target scale, off the identity of every
-    /// block) agree with central differences through the manifolds.
+    /// The analytic Jacobians of both mounts (with the target scale, shape and print scale, off
+    /// the identity of every block) agree with central differences through the manifolds.
     #[test]
     fn chain_corner_jacobians_pass_the_gradient_check() {
         let cam = camera();
@@ -285,13 +341,16 @@ mod tests {
                 Mount::EyeInHand => m * x * t_cam_target,
                 Mount::EyeToHand => m * x * t_cam_target.inverse(),
             };
+            let target = [Point3::new(-0.1, -0.08, 0.0), Point3::new(0.12, 0.09, 0.0)];
+            let mut form = TargetDeformation::of_points(&target).unwrap();
+            (form.shape_free, form.scale_free) = (true, true);
             let r = ChainCorner {
                 mount,
                 point_m: Point3::new(0.05, 0.03, 0.0),
                 detected_px: Point2::new(300.0, 250.0),
                 whiten: whitening(&Matrix2::new(0.04, 0.01, 0.01, 0.09)).unwrap(),
                 camera: cam,
-                with_scale: true,
+                target: TargetBlocks { scale: true, form: Some(form) },
             };
             let blocks: Vec<Vec<f64>> = vec![
                 Se3::from_isometry(&x).to_vec(),
@@ -299,6 +358,8 @@ mod tests {
                 Se3::from_isometry(&m).to_vec(),
                 cam.parameter_values(),
                 vec![1.002],
+                vec![0.4e-3, -0.2e-3, 0.1e-3],
+                vec![3e-4],
             ];
             let views: Vec<&[f64]> = blocks.iter().map(|b| b.as_slice()).collect();
             let manifolds: Vec<Arc<dyn Manifold>> = vec![
@@ -307,6 +368,8 @@ mod tests {
                 Arc::new(Se3),
                 Arc::new(Euclidean { n: 9 }),
                 Arc::new(Euclidean { n: 1 }),
+                Arc::new(Euclidean { n: 3 }),
+                Arc::new(Euclidean { n: 1 }),
             ];
             let scales = vec![
                 vec![1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3],
@@ -314,6 +377,8 @@ mod tests {
                 vec![1e-3; 6],
                 vec![1.0, 1.0, 1.0, 1.0, 1e-3, 1e-3, 1e-4, 1e-4, 1e-3],
                 vec![1e-4],
+                vec![1e-5; 3],
+                vec![1e-5],
             ];
             let report = check_residual(&r, &views, &manifolds, &scales, 1e-3).unwrap();
             report.assert_below(1e-6, &format!("{mount:?} chain corner")).unwrap();

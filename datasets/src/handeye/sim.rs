@@ -52,6 +52,13 @@ pub struct HandEyeSimConfig {
     pub print_scale: f64,
     /// Keep only views that show every grid point (for rendered images of a whole chessboard).
     pub full_view: bool,
+    /// The printed x spacing over the printed y spacing (1: the same scale along both axes).
+    pub print_aspect: f64,
+    /// The target rolled about an axis parallel to its y axis through its centre, with this
+    /// radius (metres; `None`: flat): a sheet bent this way keeps its printed lengths along the
+    /// arc, so its corners lie on a cylinder (`x = R sin(a)`, `z = R (1 - cos a)`, `a = dx / R`),
+    /// not on the quadratic bending model of the estimators.
+    pub roll_radius_m: Option<f64>,
 }
 
 impl HandEyeSimConfig {
@@ -75,6 +82,26 @@ impl HandEyeSimConfig {
             robot_sigma_rad: 0.005f64.to_radians(),
             print_scale: 1.0,
             full_view: false,
+            print_aspect: 1.0,
+            roll_radius_m: None,
+        }
+    }
+}
+
+impl HandEyeSimConfig {
+    /// Where the nominal grid point `p` really is on the target: printed at `print_scale` (and
+    /// `print_aspect` along x), rolled onto the cylinder of `roll_radius_m` about the axis
+    /// through the grid's `centre`.
+    fn printed(&self, p: &Point3<f64>, centre: Vector3<f64>) -> Point3<f64> {
+        let x = p.x * self.print_scale * self.print_aspect;
+        let y = p.y * self.print_scale;
+        let cx = centre.x * self.print_scale * self.print_aspect;
+        match self.roll_radius_m {
+            None => Point3::new(x, y, p.z),
+            Some(r) => {
+                let a = (x - cx) / r;
+                Point3::new(cx + r * a.sin(), y, p.z + r * (1.0 - a.cos()))
+            }
         }
     }
 }
@@ -166,7 +193,7 @@ pub fn simulate_hand_eye(config: &HandEyeSimConfig, seed: u64) -> Result<(HandEy
         let mut corners = Vec::new();
         let mut ids = Vec::new();
         for (id, p) in points.iter().enumerate() {
-            let printed = Point3::from(p.coords * config.print_scale);
+            let printed = config.printed(p, centre);
             let Ok(px) = config.camera.project(&(t_cam_target * printed)) else { continue };
             let px = Point2::new(px.x + noise_px.sample(&mut rng), px.y + noise_px.sample(&mut rng));
             let inside = px.x > 5.0

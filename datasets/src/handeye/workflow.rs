@@ -9,6 +9,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use ferrocal_calib::handeye::opencv::{opencv_baselines, BaselineReport};
+use ferrocal_calib::handeye::physics::{select_chain_physics, ChainPhysicsReport, PhysicsOptions};
 use ferrocal_calib::handeye::{
     calibrate_hand_eye_from, calibrate_joint_from, start_poses, HandEyeData, HandEyeOptions, HandEyeResult,
     IntrinsicsMode, JointCalibration, JointOptions, Mount, StartPoses,
@@ -48,6 +49,9 @@ pub struct HandEyeRunOptions {
     pub robot_sigma_mm_deg: Option<(f64, f64)>,
     /// Take the flange poses as exact (no robot-pose noise); overrides the two above.
     pub exact_robot_poses: bool,
+    /// Decide the target's bending and print scale and the lens model on the training images
+    /// ([`select_chain_physics`]) before the fit; off: the flat target and the given lens model.
+    pub physics: bool,
 }
 
 impl HandEyeRunOptions {
@@ -123,6 +127,8 @@ pub struct HandEyeFit {
     pub result: HandEyeResult,
     /// OpenCV's hand-eye solvers, with the camera the calibration started from.
     pub baselines: Vec<BaselineReport>,
+    /// The target's and lens's physics decided on the training images, when asked for.
+    pub physics: Option<ChainPhysicsReport>,
 }
 
 impl HandEyeInput {
@@ -186,7 +192,27 @@ impl HandEyeInput {
         let result = calibrate_hand_eye_from(&self.data, &options, start).map_err(|e| self.context(e))?;
         let opencv_camera = result.initial_camera.as_ref().map_or(result.camera, |c| c.camera);
         let baselines = opencv_baselines(&self.data, &options, &opencv_camera);
-        Ok(HandEyeFit { options, result, baselines })
+        Ok(HandEyeFit { options, result, baselines, physics: None })
+    }
+
+    /// [`HandEyeInput::fit_from`] after deciding the target's bending and print scale and the
+    /// lens model on the training images ([`select_chain_physics`]) when `physics` is given: the
+    /// fit then runs with the variant the selection chose (from new first steps when the lens
+    /// model changed), and carries the selection's report.
+    pub fn fit_with_physics(
+        &self,
+        options: HandEyeOptions,
+        start: Option<StartPoses>,
+        physics: Option<&PhysicsOptions>,
+    ) -> Result<HandEyeFit> {
+        let Some(p) = physics else { return self.fit_from(options, start) };
+        let report = select_chain_physics(&self.data, &options, p)
+            .map_err(|e| self.context(e).context("the target's and lens's physics on the training images"))?;
+        let chosen = report.chosen.options(&options);
+        let start = if chosen.intrinsics == options.intrinsics { start } else { None };
+        let mut fit = self.fit_from(chosen, start)?;
+        fit.physics = Some(report);
+        Ok(fit)
     }
 
     /// The robot model and the joint readings of every view (the joint adjustment's input);
@@ -217,10 +243,14 @@ impl HandEyeInput {
     pub fn joint_adjustment(&self, fit: &HandEyeFit) -> Result<JointCalibration> {
         let (model, joints) = self.joint_readings()?;
         let joint_options = JointOptions { hand_eye: fit.options.clone(), ..JointOptions::default() };
+        // The target as the hand-eye fit found it (bent, printed with its x and y scales),
+        // held at that geometry.
         let mut scaled = self.data.clone();
+        if let Some(form) = &fit.result.target_form {
+            scaled.target_points_m = form.points(&self.data.target_points_m);
+        }
         if let Some((scale, _)) = fit.result.target_scale {
-            scaled.target_points_m =
-                ferrocal_calib::handeye::evaluate::scaled_target(&self.data.target_points_m, scale);
+            scaled.target_points_m = ferrocal_calib::handeye::evaluate::scaled_target(&scaled.target_points_m, scale);
         }
         calibrate_joint_from(model, &scaled, &joints, fit.result.clone(), &joint_options)
             .map_err(|e| DatasetError::from(e).context("handeye: the joint adjustment of robot and camera"))

@@ -9,6 +9,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use clap::{Args, Subcommand};
+use ferrocal_calib::handeye::physics::PhysicsOptions;
 use ferrocal_calib::handeye::Mount;
 use ferrocal_datasets::handeye::RigInput;
 use ferrocal_datasets::handeye::{
@@ -73,6 +74,10 @@ pub struct HandeyeArgs {
     /// Hold the target at its nominal spacing instead of fitting its print scale.
     #[arg(long)]
     pub nominal_target_scale: bool,
+    /// Take the target flat and the lens model as given, without trying its bending, its
+    /// x-against-y print scale and other lens models on the training images (docs/handeye.md).
+    #[arg(long)]
+    pub no_physics: bool,
     /// Noise of the reported flange positions, mm per coordinate; with --robot-sigma-deg the
     /// poses are measurements with this fixed noise.
     #[arg(long, requires = "robot_sigma_deg")]
@@ -214,6 +219,7 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         robot_poses_as_measurements: a.robot_poses_as_measurements,
         robot_sigma_mm_deg: a.robot_sigma_mm.zip(a.robot_sigma_deg),
         exact_robot_poses: a.exact_robot_poses,
+        physics: !a.no_physics,
     };
     if groups.len() > 1 || a.rig_out.is_some() {
         return run_rig(a, vs, &run, &groups, &RigFiles { handeye: files, rig_out: a.rig_out.as_deref() });
@@ -230,7 +236,11 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     for s in input.skipped_lines() {
         eprintln!("ferrocal: skipped {s}");
     }
-    let fit = input.fit_from(options, start)?;
+    let physics = run.physics.then(PhysicsOptions::default);
+    if physics.is_some() {
+        tell!("handeye: trying the target's bending, print scale and lens models on the training images (--no-physics skips)");
+    }
+    let fit = input.fit_with_physics(options, start, physics.as_ref())?;
     let joint = (a.out.is_some() && a.robot.is_some()).then(|| input.joint_adjustment(&fit)).transpose()?;
     let verdict = present_run(&vs.thresholds, &input, &fit, joint.as_ref(), motion_check, a.out.as_deref());
     // Every output is composed first and all are written together at the end: a failing joint

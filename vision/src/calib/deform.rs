@@ -30,8 +30,8 @@ use crate::error::{Result, VisionError};
 
 /// The deformation of one target (see the module documentation), with which of its parameters
 /// the adjustment estimates.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct TargetDeformation {
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TargetDeformation {
     /// Centroid `(x0, y0)` of the nominal points, metres.
     pub centre_m: [f64; 2],
     /// Half-size `h`, metres.
@@ -48,7 +48,7 @@ pub(crate) struct TargetDeformation {
 
 /// A deformed point with its derivatives.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Deformed {
+pub struct Deformed {
     /// The point in the target frame, metres.
     pub point: Point3<f64>,
     /// `d point / d [b, s, t]`.

@@ -54,6 +54,7 @@ use serde::{Deserialize, Serialize};
 
 pub use adjust::{adjust_bundle, BundleFit, BundleMode, BundleModel, BundleSpec, PrintScale, TargetShape, ViewFit};
 pub use covariance::{CovarianceMethod, MIN_JACKKNIFE_VIEWS};
+pub use deform::{Deformed, TargetDeformation};
 pub use pattern::CalibrationPattern;
 pub use stereo::{
     calibrate_rig, calibrate_stereo, rectified_row_rms_px, RectifiedCorner, RigCalibration, StereoCalibration,

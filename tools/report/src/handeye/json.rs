@@ -58,6 +58,14 @@ pub fn corners_json(data: &HandEyeData, pattern: &str, result: &HandEyeResult, s
         "mount": data.mount.name(),
         "pattern": pattern,
         "target_points_m": data.target_points_m.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+        // The points as the chain predicts through them: bent and printed as fitted (before the
+        // overall `target_scale`); the nominal ones when no form was fitted.
+        "chain_target_points_m": result
+            .target_form
+            .map_or_else(|| data.target_points_m.clone(), |f| f.points(&data.target_points_m))
+            .iter()
+            .map(|p| [p.x, p.y, p.z])
+            .collect::<Vec<_>>(),
         "pixel_convention": "(0, 0) is the centre of the top-left pixel (OpenCV's)",
         "views": views,
         "data_source": source,
@@ -126,6 +134,22 @@ pub fn baselines_json(b: &[BaselineReport]) -> Value {
     )
 }
 
+/// The target's fitted bending (sags in mm) and x-against-y print scale, with their standard
+/// deviations.
+fn target_form_json(f: &ferrocal_calib::handeye::TargetForm) -> Value {
+    let d = &f.deformation;
+    let shape = d.shape_free.then(|| {
+        let std = f.shape_std_m.unwrap_or([f64::NAN; 3]);
+        json!({
+            "bowl_sag_mm": d.shape_m[0] * 1e3, "saddle_sag_mm": d.shape_m[1] * 1e3, "twist_sag_mm": d.shape_m[2] * 1e3,
+            "std_mm": [std[0] * 1e3, std[1] * 1e3, std[2] * 1e3],
+            "centre_m": d.centre_m, "half_size_m": d.half_m,
+        })
+    });
+    let print = d.scale_free.then(|| json!({"scale_x_minus_y": d.scale[0], "std": f.scale_x_std}));
+    json!({"shape": shape, "print_scale_x": print})
+}
+
 /// The whole JSON of `ferrocal handeye`.
 pub fn handeye_json(r: &HandEyeResult, baselines: &[BaselineReport], skipped: Value, source: Option<&str>) -> Value {
     let per_image: Vec<Value> = r
@@ -161,6 +185,7 @@ pub fn handeye_json(r: &HandEyeResult, baselines: &[BaselineReport], skipped: Va
             "world": matrix_rows(&r.world.covariance),
         },
         "target_scale": scale,
+        "target_form": r.target_form.map(|f| target_form_json(&f)),
         "pnp_agreement": figures_json(&r.figures),
         "motion": r.motion,
         "warnings": r.warnings,

@@ -8,6 +8,7 @@ pub mod demo;
 pub mod html;
 pub mod joint_demo;
 pub mod json;
+pub mod physics;
 pub mod rig;
 pub mod rig_demo;
 pub mod rig_html;
@@ -39,6 +40,9 @@ pub fn present_run(
 ) -> Verdict {
     use ferrocal_calib::handeye::opencv::best_baseline;
     print_summary(&fit.result, best_baseline(&fit.baselines), input.table.source.as_deref());
+    if let Some(p) = &fit.physics {
+        crate::say!("{}", physics::physics_line(p));
+    }
     let mut checks = verdict::fit_checks(t, &input.data, &fit.result);
     checks.push(motion);
     if let (Some(joint), Some(out)) = (joint, joint_out) {
@@ -220,6 +224,9 @@ pub fn handeye_outputs(
         prov.add_input(&run.poses);
         let mut sections = html::handeye_sections(result, baselines, source);
         sections.insert(1.min(sections.len()), scene::cell_section(result, &input.data));
+        if let Some(p) = &fit.physics {
+            sections.insert(2.min(sections.len()), physics::physics_section(p, result));
+        }
         out.html(h, Report::of(&format!("Hand-eye calibration ({mount}, {pattern})"), prov, sections), verdict);
     }
     if let Some(p) = files.json {
@@ -244,6 +251,9 @@ pub fn result_json(input: &HandEyeInput, fit: &HandEyeFit) -> Value {
     let mut v = json::handeye_json(result, baselines, Value::Array(skipped), source);
     if let Some(m) = &input.motion {
         v["motion_check"] = m.to_json();
+    }
+    if let Some(p) = &fit.physics {
+        v["physics"] = serde_json::to_value(p).unwrap_or(Value::Null);
     }
     v
 }
