@@ -70,6 +70,7 @@ pub fn demo_report(d: &DemoSettings, mut prov: Provenance, tick: Tick, run: RunC
     s.push(crate::handeye::demo::positioner_section(d.data)?);
     s.push(crate::handeye::joint_demo::joint_section(d.seed, d.quick)?);
     s.push(crate::handeye::rig_demo::rig_section(&d.out.join("handeye-rig"), d.seed, d.quick, run)?);
+    s.push(crate::handeye::physics_demo::physics_section(d.seed, d.quick)?);
     s.push(crate::recording::demo_section(d.data, &d.out.join("measure-real"))?);
     for set in
         ["test_set_charuco/cal_data.yaml", "test_set_10x10/cal_data.yaml", "kinematic_calibration/measurements.yaml"]

@@ -9,6 +9,7 @@ pub mod html;
 pub mod joint_demo;
 pub mod json;
 pub mod physics;
+pub mod physics_demo;
 pub mod rig;
 pub mod rig_demo;
 pub mod rig_html;
