@@ -4,7 +4,7 @@
 use nalgebra::{Matrix2, Point2, Vector2};
 use rayon::prelude::*;
 
-use super::line::{LineFit, LineState, Sample, Segment, LOOSE};
+use super::line::{LineFit, LineState, Sample, Segment};
 use super::{CheckerGrid, LineSupport, NoiseModel, NoiseSpec, RefineOptions, RefineSummary, RefinedCorner};
 use crate::camera::CameraModel;
 use crate::detect::{GrayF32, StageTimings};
@@ -273,7 +273,7 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
         if round == 0 {
             state.init_intensities();
         }
-        let mut fit = state.solve_to(options.max_iterations, LOOSE)?;
+        let mut fit = state.solve_intermediate(options.max_iterations)?;
         // Drop segments without a clear step and refit.
         let max_b = state.segments.iter().map(|s| s.b.abs()).fold(0.0, f64::max);
         let thresh = options.min_contrast_dn.max(0.25 * max_b);
@@ -292,7 +292,7 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
                 return None;
             }
             set_curved(&mut state, job);
-            fit = state.solve_to(options.max_iterations, LOOSE)?;
+            fit = state.solve_intermediate(options.max_iterations)?;
         }
         let new_blur = state.segments.iter().map(|s| s.ln_s.exp()).fold(0.0, f64::max);
         let reach = job.t_limit.unwrap_or(200.0);
