@@ -149,7 +149,14 @@ impl LineState {
         for (k, seg) in self.segments.iter().enumerate() {
             // Per-segment accumulation ((phi, d[, kappa], a, b, ln_s)), folded into h afterwards;
             // the number of parameters is a constant of each loop, which the compiler unrolls.
-            let (c, hs, gs) = if self.curved { self.segment_sums::<6>(seg) } else { self.segment_sums::<5>(seg) };
+            // Unit weights (the unweighted fits) skip the multiplications by 1 (the same sums).
+            let unit = seg.samples.iter().all(|p| p.w == 1.0);
+            let (c, hs, gs) = match (self.curved, unit) {
+                (true, true) => self.segment_sums::<6, true>(seg),
+                (true, false) => self.segment_sums::<6, false>(seg),
+                (false, true) => self.segment_sums::<5, true>(seg),
+                (false, false) => self.segment_sums::<5, false>(seg),
+            };
             cost += c;
             let m = l + 3;
             let idx = if self.curved {
@@ -171,9 +178,10 @@ impl LineState {
     }
 
     /// One segment's weighted cost, normal matrix (upper triangle) and gradient over its
-    /// `M` parameters: `phi, d, [kappa,] a, b, ln_s` (`M` = 6 when curved, else 5).
+    /// `M` parameters: `phi, d, [kappa,] a, b, ln_s` (`M` = 6 when curved, else 5); with
+    /// `UNIT`, every weight is 1 and is not multiplied.
     #[inline(always)]
-    fn segment_sums<const M: usize>(&self, seg: &Segment) -> (f64, [[f64; 6]; 6], [f64; 6]) {
+    fn segment_sums<const M: usize, const UNIT: bool>(&self, seg: &Segment) -> (f64, [[f64; 6]; 6], [f64; 6]) {
         let table = NormalTable::get();
         let (c, s) = (self.phi.cos(), self.phi.sin());
         let sig = seg.ln_s.exp();
@@ -188,7 +196,7 @@ impl LineState {
             let q = 1.0 + seg.g * u;
             let base = seg.a + seg.b * cdf;
             let r = p.v - base * q;
-            cost += p.w * r * r;
+            cost += if UNIT { r * r } else { p.w * r * r };
             let gu = seg.b * pdf * inv_sig * q + base * seg.g;
             // du/dphi = t + kappa t (n . x), du/dd = -1, du/dkappa = -t^2 / 2.
             let du_dphi = t + self.kappa * t * (c * p.x + s * p.y);
@@ -203,7 +211,7 @@ impl LineState {
             j[M - 2] = jb;
             j[M - 1] = js;
             for a in 0..M {
-                let wa = p.w * j[a];
+                let wa = if UNIT { j[a] } else { p.w * j[a] };
                 gs[a] += wa * r;
                 for b in a..M {
                     hs[a][b] += wa * j[b];
@@ -629,6 +637,17 @@ mod tests {
         }
         // Where the contraction does not promise it (seed 99), the fit takes every pass.
         assert!(saved >= 3, "{saved} passes saved of 5 fits");
+    }
+
+    /// The sums over unit weights (multiplications skipped) are those of the weighted path:
+    /// with every weight 2 (an exact scaling) the cost and normal equations double, bit for bit.
+    #[test]
+    fn unit_weights_give_the_weighted_sums() {
+        let (_, line) = noisy_edge(3);
+        let mut doubled = line.clone();
+        doubled.segments[0].samples.iter_mut().for_each(|p| p.w = 2.0);
+        let ((c1, (h1, g1)), (c2, (h2, g2))) = (line.evaluate(), doubled.evaluate());
+        assert!(c1 > 0.0 && c2 == 2.0 * c1 && h2 == 2.0 * &h1 && g2 == 2.0 * &g1, "{c1} {c2}");
     }
 
     /// A straight edge (normal angle 1.2 rad, 0.31 px from the origin, blur 1.4 px, levels 25
