@@ -18,6 +18,7 @@ the boards found, the corners found and, per image, ferrocal's own stage times (
 and OpenCV's per-image time measured inside its process.
 
     python3 scripts/detect_folder_vs_opencv.py [--runs 3] [--threads 1] [--folder DIR]
+        [--skip-chessboards | --skip-charuco] [--ferrocal PATH]
 
 `--threads N` limits both sides (`ferrocal detect --threads N`, which detects N images at a
 time and limits OpenCV inside ferrocal to N threads; cv2.setNumThreads for the OpenCV process,
@@ -154,12 +155,15 @@ def main():
     ap.add_argument("--ferrocal", default=os.path.join(ROOT, "target", "release", "ferrocal"))
     ap.add_argument("--realistic", default=os.path.join(ROOT, "target", "release", "examples", "realistic"))
     ap.add_argument("--skip-charuco", action="store_true")
+    ap.add_argument("--skip-chessboards", action="store_true", help="only the ChArUco set")
     args = ap.parse_args()
     for exe in (args.ferrocal, args.realistic):
         if not os.path.exists(exe):
             sys.exit(f"{exe} is missing: build the release binaries first (see the docstring)")
     names = sorted(n for n in os.listdir(args.folder)) if os.path.isdir(args.folder) else []
-    if not any(n.endswith(IMAGE_EXTENSIONS) for n in names):
+    if args.skip_chessboards:
+        names = []
+    elif not any(n.endswith(IMAGE_EXTENSIONS) for n in names):
         subprocess.run([args.realistic, "write", args.folder], check=True)
         names = sorted(os.listdir(args.folder))
     groups, files = {}, []
@@ -173,8 +177,9 @@ def main():
         groups.setdefault(pattern, []).append(path)
         files.append({"path": path, "cols": cols, "rows": rows})
     with tempfile.TemporaryDirectory() as tmp:
-        compare(f"Chessboards, real-like renders ({args.folder})", "chessboard", groups, files, args.ferrocal,
-                args.runs, args.threads, tmp)
+        if not args.skip_chessboards:
+            compare(f"Chessboards, real-like renders ({args.folder})", "chessboard", groups, files, args.ferrocal,
+                    args.runs, args.threads, tmp)
         if not args.skip_charuco:
             paths = sorted((os.path.join(CHARUCO_DIR, n) for n in os.listdir(CHARUCO_DIR) if n.endswith(".png")),
                            key=lambda p: int(os.path.splitext(os.path.basename(p))[0]))

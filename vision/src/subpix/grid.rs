@@ -4,7 +4,7 @@
 use nalgebra::{Matrix2, Point2, Vector2};
 use rayon::prelude::*;
 
-use super::line::{LineFit, LineState, Sample, Segment, LOOSE};
+use super::line::{LineFit, LineState, Sample, Segment};
 use super::{CheckerGrid, LineSupport, NoiseModel, NoiseSpec, RefineOptions, RefineSummary, RefinedCorner};
 use crate::camera::CameraModel;
 use crate::detect::{GrayF32, StageTimings};
@@ -20,6 +20,9 @@ use points::{intersect, segment_job, Points};
 
 mod snap;
 use snap::snap_line;
+
+mod band;
+use band::row_span;
 
 /// Maps between image pixels and the coordinates in which lines are straight.
 enum Coords<'a> {
@@ -197,7 +200,14 @@ fn gather(
             }
             let mut out = Vec::new();
             for yi in y0 as usize..=y1 as usize {
-                for xi in x0 as usize..=x1 as usize {
+                let (xa, xb) = match coords {
+                    Coords::Pixel => row_span(job.origin, t, n, state.d, (lo, hi), w, yi as f64, (x0, x1)),
+                    Coords::Undistorted(_) => (x0, x1),
+                };
+                if xb < xa {
+                    continue;
+                }
+                for xi in xa as usize..=xb as usize {
                     let Some(q) = coords.to_fit(Vector2::new(xi as f64, yi as f64)) else { continue };
                     let x = q - job.origin;
                     let tt = t.dot(&x);
@@ -240,8 +250,9 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
         let old: Vec<Segment> = std::mem::take(&mut state.segments);
         let mut idx = 0;
         for (k, g) in gathered.into_iter().enumerate() {
+            // The previous round's parameters of the segment (its pixels are replaced).
             let prior = if round > 0 && kept[k] {
-                let s = old.get(idx).cloned();
+                let s = old.get(idx).map(|s| (s.a, s.b, s.ln_s, s.g));
                 idx += 1;
                 s
             } else {
@@ -249,7 +260,7 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
             };
             match g {
                 Some(samples) if kept[k] => {
-                    let (a, b, ln_s, g) = prior.map(|s| (s.a, s.b, s.ln_s, s.g)).unwrap_or((0.0, 0.0, blur.ln(), 0.0));
+                    let (a, b, ln_s, g) = prior.unwrap_or((0.0, 0.0, blur.ln(), 0.0));
                     state.segments.push(Segment { a, b, ln_s, g, samples });
                 }
                 _ => kept[k] = false,
@@ -262,7 +273,7 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
         if round == 0 {
             state.init_intensities();
         }
-        let mut fit = state.solve_to(options.max_iterations, LOOSE)?;
+        let mut fit = state.solve_intermediate(options.max_iterations)?;
         // Drop segments without a clear step and refit.
         let max_b = state.segments.iter().map(|s| s.b.abs()).fold(0.0, f64::max);
         let thresh = options.min_contrast_dn.max(0.25 * max_b);
@@ -281,7 +292,7 @@ fn fit_job(img: &GrayF32, coords: &Coords, job: &LineJob, options: &RefineOption
                 return None;
             }
             set_curved(&mut state, job);
-            fit = state.solve_to(options.max_iterations, LOOSE)?;
+            fit = state.solve_intermediate(options.max_iterations)?;
         }
         let new_blur = state.segments.iter().map(|s| s.ln_s.exp()).fold(0.0, f64::max);
         let reach = job.t_limit.unwrap_or(200.0);
@@ -355,8 +366,7 @@ pub(crate) fn refine_grid_timed(
     // not move comes from the cache, bit for bit). The noise estimate and the weighted fit
     // run once, on the last unweighted pass.
     let mut current = grid.clone();
-    let mut cache = FitCache::new();
-    let mut pass = unweighted_pass(image, &coords, &current, wanted, options, &mut cache, timings.as_deref_mut())?;
+    let mut pass = unweighted_pass(image, &coords, &current, wanted, options, FitCache::new(), timings.as_deref_mut())?;
     for _ in 0..2 {
         let mut moved = false;
         for (&(i, j), q) in wanted.iter().zip(pass.corners_px(&coords)) {
@@ -371,7 +381,9 @@ pub(crate) fn refine_grid_timed(
         if !moved {
             break;
         }
-        pass = unweighted_pass(image, &coords, &current, wanted, options, &mut cache, timings.as_deref_mut())?;
+        // The fits of this pass move into the next pass's cache (no copy of their pixels).
+        let cache: FitCache = pass.keys.into_iter().zip(pass.fitted).collect();
+        pass = unweighted_pass(image, &coords, &current, wanted, options, cache, timings.as_deref_mut())?;
     }
     Ok(weighted_pass(pass, &coords, options, timings))
 }
@@ -380,6 +392,8 @@ pub(crate) fn refine_grid_timed(
 struct UnweightedPass {
     fitted: Vec<Option<FittedLine>>,
     corner_jobs: Vec<Option<(usize, usize)>>,
+    /// The job of each fit (the next pass's cache).
+    keys: Vec<JobKey>,
 }
 
 impl UnweightedPass {
@@ -397,14 +411,14 @@ impl UnweightedPass {
 }
 
 /// One pass of unweighted line fits from the grid points of `grid` (see [`refine_grid`]); a
-/// line whose job is in `cache` (the previous pass's) is taken from there.
+/// line whose job is in `cache` (the previous pass's) is moved from there.
 fn unweighted_pass(
     image: &GrayF32,
     coords: &Coords,
     grid: &CheckerGrid,
     wanted: &[(usize, usize)],
     options: &RefineOptions,
-    cache: &mut FitCache,
+    mut cache: FitCache,
     timings: Option<&mut StageTimings>,
 ) -> Result<UnweightedPass> {
     let t0 = Instant::now();
@@ -502,24 +516,19 @@ fn unweighted_pass(
     // (every sum over lines below runs in the same order as on one thread).
     // A line whose job is the same as in the previous pass (its grid points did not move) has
     // the same unweighted fit: taken from the cache, bit for bit.
+    // (A job that appears twice is taken from the cache once and fitted again the second
+    // time: the same fit.)
     let keys: Vec<JobKey> = jobs.iter().map(LineJob::key).collect();
-    let fitted: Vec<Option<FittedLine>> = jobs
-        .par_iter()
-        .zip(&keys)
-        .map(|(j, k)| match cache.get(k) {
-            Some(f) => f.clone(),
-            None => fit_job(image, coords, j, options),
-        })
-        .collect();
-    cache.clear();
-    cache.extend(keys.into_iter().zip(fitted.iter().cloned()));
+    let hits: Vec<Option<Option<FittedLine>>> = keys.iter().map(|k| cache.remove(k)).collect();
+    let fitted: Vec<Option<FittedLine>> =
+        jobs.par_iter().zip(hits).map(|(j, hit)| hit.unwrap_or_else(|| fit_job(image, coords, j, options))).collect();
     if let Some(t) = timings {
         StageTimings::add_since(&mut t.refine_ms, t0);
         t.refine_passes += 1;
         t.lines += jobs.len();
         t.band_pixels += fitted.iter().flatten().map(|f| f.pixels).sum::<usize>();
     }
-    Ok(UnweightedPass { fitted, corner_jobs })
+    Ok(UnweightedPass { fitted, corner_jobs, keys })
 }
 
 /// The noise estimate and the weighted fits on the lines of the last unweighted pass, the
@@ -531,7 +540,7 @@ fn weighted_pass(
     timings: Option<&mut StageTimings>,
 ) -> (Vec<Option<RefinedCorner>>, RefineSummary) {
     let t1 = Instant::now();
-    let UnweightedPass { mut fitted, corner_jobs } = pass;
+    let UnweightedPass { mut fitted, corner_jobs, .. } = pass;
     // Illumination (vignetting, uneven light): a smooth field fitted to the segments' light
     // levels gives each segment its fixed gradient across the edge, used from here on (the
     // noise statistics at the unweighted fit, then the final fit below: the gradient moves
