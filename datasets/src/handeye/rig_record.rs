@@ -1,7 +1,8 @@
 //! A rendered rig recording for the joint adjustment through the binary (`ferrocal handeye
 //! simulate --robot ur5 --cameras 2`): the rig study's two-camera UR5 cell
-//! ([`super::rig_study`]) at half resolution with the rendered cell's 9 x 6 chessboard
-//! ([`super::joint_record::rendered_ur5_cell`]), every view of every camera rendered with the
+//! ([`super::rig_study`]; eye-to-hand two fixed cameras, eye-in-hand a stereo head on the
+//! flange, [`RigStudyConfig::ur5_stereo_head`]) at half resolution with the rendered cell's 9 x 6
+//! chessboard ([`super::joint_record::rendered_ur5_cell`]), every view of every camera rendered with the
 //! project's renderer (blur, vignetting, sensor noise; the corners then come from the detector),
 //! one poses table with the joint readings of every pose, each camera's images in its own folder
 //! named after the table's rows, and the held-out poses measured by the study's simulated
@@ -15,12 +16,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
+use ferrocal_calib::handeye::Mount;
 use ferrocal_calib::Split;
 use ferrocal_robot::{Kinematics, RobotModel};
 use ferrocal_vision::camera::{CameraModel, ImageSize, Intrinsics};
 
 use super::joint_record::{rendered_ur5_cell, write_heldout};
-use super::joint_study::{draw_truth, Cell, Score};
+use super::joint_study::{draw_truth, Cell, JointStudyConfig, Score};
 use super::rig_study::{draw_rig_poses, RigStudyConfig};
 use crate::error::{DatasetError, Result};
 use crate::sim::Conditions;
@@ -28,9 +30,14 @@ use crate::sim::Conditions;
 /// The rig study's two-camera cell for rendering: camera 0 as [`rendered_ur5_cell`] (1224 x
 /// 1024 px, f = 1200 px), camera 1 the rig study's second camera at half its resolution (1024 x
 /// 768 px, f = 875 px, the same field of view and distortion), the 9 x 6 chessboard at 30 mm.
-pub fn rendered_ur5_rig(n_train: usize, n_test: usize) -> RigStudyConfig {
-    let mut c = RigStudyConfig::ur5_two_cameras();
-    c.base = rendered_ur5_cell(n_train, n_test);
+/// Eye-to-hand: two fixed cameras ([`RigStudyConfig::ur5_two_cameras`]); eye-in-hand: the
+/// stereo head on the flange ([`RigStudyConfig::ur5_stereo_head`]), the plate on the table.
+pub fn rendered_ur5_rig(mount: Mount, n_train: usize, n_test: usize) -> RigStudyConfig {
+    let mut c = match mount {
+        Mount::EyeToHand => RigStudyConfig::ur5_two_cameras(),
+        Mount::EyeInHand => RigStudyConfig::ur5_stereo_head(),
+    };
+    c.base = JointStudyConfig { mount, ..rendered_ur5_cell(n_train, n_test) };
     for cam in &mut c.cameras {
         let k = cam.camera.intrinsics;
         let s = cam.camera.image_size;
@@ -72,8 +79,12 @@ pub struct RigRecordingCamera {
     pub name: String,
     /// The true camera (also `<name>/camera.yaml`).
     pub camera: CameraModel,
-    /// `T_base_camera`.
-    pub t_base_camera: TransformTruth,
+    /// `T_base_camera` (eye-to-hand: the fixed camera).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t_base_camera: Option<TransformTruth>,
+    /// `T_flange_camera` (eye-in-hand: the camera on the flange).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t_flange_camera: Option<TransformTruth>,
     /// `T_camk_cam0`: the reference camera's frame into this camera's (identity for camera 0).
     pub t_cam_cam0: TransformTruth,
     /// Training images rendered (the training poses this camera sees).
@@ -87,14 +98,18 @@ pub struct RigRecordingCamera {
 pub struct RigRecording {
     /// The pattern string of the rendered chessboard.
     pub pattern: String,
-    /// The mount (`eye-to-hand`).
+    /// The mount (`eye-to-hand` or `eye-in-hand`).
     pub mount: String,
     /// The robot preset.
     pub robot: String,
     /// The cameras, the reference first.
     pub cameras: Vec<RigRecordingCamera>,
-    /// `T_flange_target` (the plate on the flange, grid origin at the first corner).
-    pub t_flange_target: TransformTruth,
+    /// `T_flange_target` (eye-to-hand: the plate on the flange, grid origin at the first corner).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t_flange_target: Option<TransformTruth>,
+    /// `T_base_target` (eye-in-hand: the plate on the table, grid origin at the first corner).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t_base_target: Option<TransformTruth>,
     /// The true robot's parameters that differ from the nominal (name, true value, nominal).
     pub robot_errors: Vec<(String, f64, f64)>,
     /// The nominal model scored on `heldout.csv` like `evaluate --refit-frame`, mm.
@@ -141,7 +156,8 @@ pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Re
     let cond = Conditions { temp_c: 20.0, dir: vec![0; cell.nominal.dof()], ..Default::default() };
     let n = cell.nominal.dof();
     let mut csv = format!(
-        "# simulated eye-to-hand recording of the rig study's {} cell with {} cameras, seed {seed} (ferrocal handeye simulate); each camera's images in cam<k>/images\nimage,{},split\n",
+        "# simulated {} recording of the rig study's {} cell with {} cameras, seed {seed} (ferrocal handeye simulate); each camera's images in cam<k>/images\nimage,{},split\n",
+        base.mount.name(),
         base.robot,
         cells.len(),
         (1..=n).map(|j| format!("q{j}_rad")).collect::<Vec<_>>().join(",")
@@ -153,12 +169,15 @@ pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Re
         let renderer = Renderer::new(c.camera, &target, RenderConfig::default())?;
         let images = dir.join(format!("cam{k}")).join("images");
         std::fs::create_dir_all(&images).map_err(|source| DatasetError::Write { path: images.clone(), source })?;
-        let w_inv = c.t_base_camera.inverse();
         for (i, (q, seen, split)) in all.iter().enumerate() {
             if !seen[k] {
                 continue;
             }
-            let t_cam_target = w_inv * cell.truth.tool_pose(q, &cond)? * base.t_flange_target;
+            let flange = cell.truth.tool_pose(q, &cond)?;
+            let t_cam_target = match base.mount {
+                Mount::EyeToHand => c.t_base_camera.inverse() * flange * base.t_flange_target,
+                Mount::EyeInHand => c.t_flange_camera.inverse() * flange.inverse() * base.t_base_target,
+            };
             let image_seed = seed.wrapping_mul(1000).wrapping_add(i as u64).wrapping_add(500_000 * k as u64);
             let img = renderer.render(&(t_cam_target * t_grid_render), image_seed)?;
             let path = images.join(format!("j{i:03}.png"));
@@ -190,7 +209,10 @@ pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Re
     super::poses::write_atomic(&dir.join("poses.csv"), csv.as_bytes(), &[])?;
     super::poses::write_atomic(&dir.join("flange_poses.csv"), flange_csv.as_bytes(), &[])?;
     let held = write_heldout(base, &mut cell, dir, seed)?;
-    let t_cam0 = cells[0].t_base_camera;
+    // T_camk_cam0 = W_k^-1 W_0 of the fixed cameras, X_k^-1 X_0 of a head on the flange.
+    let in_hand = base.mount == Mount::EyeInHand;
+    let mounted = |c: &JointStudyConfig| if in_hand { c.t_flange_camera } else { c.t_base_camera };
+    let t_cam0 = mounted(&cells[0]);
     let cameras = cells
         .iter()
         .zip(&counts)
@@ -198,18 +220,20 @@ pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Re
         .map(|(k, (c, &(n_train_images, n_test_images)))| RigRecordingCamera {
             name: format!("cam{k}"),
             camera: c.camera,
-            t_base_camera: (&c.t_base_camera).into(),
-            t_cam_cam0: (&(c.t_base_camera.inverse() * t_cam0)).into(),
+            t_base_camera: (!in_hand).then(|| (&c.t_base_camera).into()),
+            t_flange_camera: in_hand.then(|| (&c.t_flange_camera).into()),
+            t_cam_cam0: (&(mounted(c).inverse() * t_cam0)).into(),
             n_train_images,
             n_test_images,
         })
         .collect();
     let out = RigRecording {
         pattern: format!("chessboard:{cols}x{rows}:{}mm", base.spacing_m * 1e3),
-        mount: "eye-to-hand".into(),
+        mount: base.mount.name().into(),
         robot: base.robot.clone(),
         cameras,
-        t_flange_target: (&base.t_flange_target).into(),
+        t_flange_target: (!in_hand).then(|| (&base.t_flange_target).into()),
+        t_base_target: in_hand.then(|| (&base.t_base_target).into()),
         robot_errors: held.robot_errors,
         nominal_heldout: held.nominal_heldout,
         truth_heldout: held.truth_heldout,
