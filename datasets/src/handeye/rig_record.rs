@@ -8,10 +8,14 @@
 //! named after the table's rows, and the held-out poses measured by the study's simulated
 //! tracker. The cameras, the chain and the robot's error model are the estimator's own family;
 //! the images are not (rendered, detected corners).
+//!
+//! The rendering of each camera's views and the poses table are the single-camera recorder's
+//! ([`super::joint_record::render_camera`], [`super::joint_record::joint_table`]): a one-camera
+//! recording is this rig's camera 0 with its own folder names and truth file.
 
 use std::path::Path;
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::Isometry3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
@@ -21,7 +25,9 @@ use ferrocal_calib::Split;
 use ferrocal_robot::{Kinematics, RobotModel};
 use ferrocal_vision::camera::{CameraModel, ImageSize, Intrinsics};
 
-use super::joint_record::{rendered_ur5_cell, write_heldout};
+use super::joint_record::{
+    joint_table, refuse_existing, render_camera, rendered_ur5_cell, write_heldout, RecordedPose,
+};
 use super::joint_study::{draw_truth, Cell, JointStudyConfig, Score};
 use super::rig_study::{draw_rig_poses, RigStudyConfig};
 use crate::error::{DatasetError, Result};
@@ -130,10 +136,7 @@ pub struct RigRecording {
 /// it), `cam<k>/camera.yaml` (the true camera, OpenCV), `heldout.csv` (the tracker's readings of
 /// the held-out poses) and `truth.json` ([`RigRecording`]).
 pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Result<RigRecording> {
-    use crate::render::{RenderConfig, Renderer, TargetConfig};
-    if dir.join("poses.csv").exists() {
-        return Err(DatasetError::Input(format!("{} already holds a recording (poses.csv)", dir.display())));
-    }
+    refuse_existing(dir)?;
     let base = &config.base;
     let cells: Vec<_> = (0..config.n_cameras()).map(|k| config.camera_cell(k)).collect();
     let nominal = RobotModel::load(&base.robot).map_err(|e| DatasetError::Config(e.to_string()))?;
@@ -145,61 +148,35 @@ pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Re
     let test_q = test.iter().map(|(q, _)| q.clone()).collect();
     let mut cell = Cell { nominal, truth, truth_values, train_q, test_q, rng };
     let (cols, rows) = base.grid;
-    let target = TargetConfig::Chessboard {
-        inner_cols: cols,
-        inner_rows: rows,
-        square_m: base.spacing_m,
-        margin_m: base.spacing_m,
-    };
-    let centre = Vector3::new((cols - 1) as f64, (rows - 1) as f64, 0.0) * (0.5 * base.spacing_m);
-    let t_grid_render = Isometry3::from_parts(Translation3::from(centre), UnitQuaternion::identity());
     let cond = Conditions { temp_c: 20.0, dir: vec![0; cell.nominal.dof()], ..Default::default() };
-    let n = cell.nominal.dof();
-    let mut csv = format!(
-        "# simulated {} recording of the rig study's {} cell with {} cameras, seed {seed} (ferrocal handeye simulate); each camera's images in cam<k>/images\nimage,{},split\n",
-        base.mount.name(),
-        base.robot,
-        cells.len(),
-        (1..=n).map(|j| format!("q{j}_rad")).collect::<Vec<_>>().join(",")
-    );
-    let all: Vec<(&Vec<f64>, &Vec<bool>, Split)> =
-        train.iter().map(|(q, s)| (q, s, Split::Train)).chain(test.iter().map(|(q, s)| (q, s, Split::Test))).collect();
-    let mut counts = vec![(0usize, 0usize); cells.len()];
+    let all: Vec<RecordedPose> = train
+        .iter()
+        .map(|(q, s)| (q, s, Split::Train))
+        .chain(test.iter().map(|(q, s)| (q, s, Split::Test)))
+        .map(|(q, seen, split)| RecordedPose { q, split, seen: seen.clone() })
+        .collect();
+    let mut counts = Vec::with_capacity(cells.len());
     for (k, c) in cells.iter().enumerate() {
-        let renderer = Renderer::new(c.camera, &target, RenderConfig::default())?;
         let images = dir.join(format!("cam{k}")).join("images");
-        std::fs::create_dir_all(&images).map_err(|source| DatasetError::Write { path: images.clone(), source })?;
-        for (i, (q, seen, split)) in all.iter().enumerate() {
-            if !seen[k] {
-                continue;
-            }
-            let flange = cell.truth.tool_pose(q, &cond)?;
-            let t_cam_target = match base.mount {
-                Mount::EyeToHand => c.t_base_camera.inverse() * flange * base.t_flange_target,
-                Mount::EyeInHand => c.t_flange_camera.inverse() * flange.inverse() * base.t_base_target,
-            };
-            let image_seed = seed.wrapping_mul(1000).wrapping_add(i as u64).wrapping_add(500_000 * k as u64);
-            let img = renderer.render(&(t_cam_target * t_grid_render), image_seed)?;
-            let path = images.join(format!("j{i:03}.png"));
-            img.image.save(&path).map_err(|e| DatasetError::Image { path: path.clone(), reason: e.to_string() })?;
-            match split {
-                Split::Train => counts[k].0 += 1,
-                Split::Test => counts[k].1 += 1,
-            }
-        }
+        counts.push(render_camera(c, k, &cell, &all, &images, seed)?);
         let yaml = ferrocal_vision::camera::io::to_opencv_yaml(&c.camera)?;
         super::poses::write_atomic(&dir.join(format!("cam{k}")).join("camera.yaml"), yaml.as_bytes(), &[])?;
     }
+    let comment = format!(
+        "simulated {} recording of the rig study's {} cell with {} cameras, seed {seed} (ferrocal handeye simulate); each camera's images in cam<k>/images",
+        base.mount.name(),
+        base.robot,
+        cells.len(),
+    );
+    let csv = joint_table(&comment, cell.nominal.dof(), &all);
     // The same rows with the true robot's flange poses: what a controller of an exactly
     // calibrated robot would report (for the rig without a robot model).
     let mut flange_csv = format!(
         "# the true flange poses of the rig recording's rows (an exactly calibrated robot), seed {seed}\nimage,x_mm,y_mm,z_mm,qw,qx,qy,qz,split\n"
     );
-    for (i, (q, _, split)) in all.iter().enumerate() {
-        let joints: Vec<String> = q.iter().map(|v| format!("{v:.17}")).collect();
-        let split = if *split == Split::Test { "test" } else { "train" };
-        csv.push_str(&format!("j{i:03}.png,{},{split}\n", joints.join(",")));
-        let t = cell.truth.tool_pose(q, &cond)?;
+    for (i, pose) in all.iter().enumerate() {
+        let split = if pose.split == Split::Test { "test" } else { "train" };
+        let t = cell.truth.tool_pose(pose.q, &cond)?;
         let (p, r) = (t.translation.vector * 1e3, t.rotation);
         flange_csv.push_str(&format!(
             "j{i:03}.png,{:.17},{:.17},{:.17},{:.17},{:.17},{:.17},{:.17},{split}\n",
