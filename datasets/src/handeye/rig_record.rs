@@ -10,8 +10,7 @@
 //! the images are not (rendered, detected corners).
 //!
 //! The rendering of each camera's views and the poses table are the single-camera recorder's
-//! ([`super::joint_record::render_camera`], [`super::joint_record::joint_table`]): a one-camera
-//! recording is this rig's camera 0 with its own folder names and truth file.
+//! (`joint_record::render_camera`, `joint_record::joint_table`).
 
 use std::path::Path;
 
