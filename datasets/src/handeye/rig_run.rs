@@ -292,6 +292,38 @@ pub fn rig_transform(mount: Mount, cam0: &HandEyeResult, cam_k: &HandEyeResult) 
 mod tests {
     use super::*;
 
+    /// A rig file's `R`, `T` read back as `[R | T]` (`T` in its unit); a file without them and a
+    /// JSON camera give none; an `R` that is not a rotation is refused naming the file.
+    #[test]
+    fn a_rig_files_r_and_t_are_read_and_checked() {
+        use ferrocal_vision::camera::io::to_opencv_rig_yaml;
+        use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
+        let camera = CameraModel::new(
+            Intrinsics { fx_px: 875.0, fy_px: 875.5, cx_px: 509.0, cy_px: 386.0 },
+            Distortion::Brown5 { k1: -0.08, k2: 0.06, p1: -0.0002, p2: 0.0003, k3: -0.01 },
+            ImageSize { width_px: 1024, height_px: 768 },
+        )
+        .unwrap();
+        let t = Isometry3::new(Vector3::new(-0.116, 0.001, 0.031), Vector3::new(0.01, 0.26, -0.02));
+        let (r, tv) = (t.rotation.to_rotation_matrix().into_inner(), t.translation.vector);
+        let dir = tempfile::tempdir().unwrap();
+        let good = dir.path().join("cam1.yaml");
+        std::fs::write(&good, to_opencv_rig_yaml(&camera, Some((&r, &tv))).unwrap()).unwrap();
+        let back = read_rig_extrinsics(&good).unwrap().unwrap();
+        assert!((back.translation.vector - tv).norm() < 1e-15);
+        assert!(back.rotation.angle_to(&t.rotation) < 1e-12);
+        let plain = dir.path().join("cam0.yaml");
+        std::fs::write(&plain, to_opencv_rig_yaml(&camera, None).unwrap()).unwrap();
+        assert!(read_rig_extrinsics(&plain).unwrap().is_none());
+        let json = dir.path().join("camera.json");
+        std::fs::write(&json, "{\"fx\": 875.0}").unwrap();
+        assert!(read_rig_extrinsics(&json).unwrap().is_none());
+        let scaled = dir.path().join("scaled.yaml");
+        std::fs::write(&scaled, to_opencv_rig_yaml(&camera, Some((&(r * 1.01), &tv))).unwrap()).unwrap();
+        let err = read_rig_extrinsics(&scaled).unwrap_err().to_string();
+        assert!(err.contains("scaled.yaml") && err.contains("not a rotation"), "{err}");
+    }
+
     /// The chart Jacobian of `A^-1 B` with respect to `B` is the analytic one in the product
     /// chart (`t_B + dt`, `Exp(dr) R_B`: both map by `R_A^T`), and a rotation-only uncertainty
     /// of `B` moves only the rotation of `A^-1 B`.
