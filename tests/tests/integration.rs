@@ -7,6 +7,7 @@ mod coupled;
 mod handeye;
 mod handeye_checks;
 mod handeye_rig;
+mod handeye_rig_in_hand;
 mod hostile;
 mod kill;
 mod measure;

@@ -56,7 +56,8 @@ pub use closed::{ClosedForm, PosePair};
 pub use evaluate::{chain_figures, chain_residuals_px, Chain, ChainFigures, ViewFigures};
 pub use geometry::{MotionGeometry, MIN_ROTATION_DEG};
 pub use joint::rig::{
-    calibrate_joint_rig, calibrate_joint_rig_from, rig_transform_from_starts, RigCamera, RigJointCalibration,
+    calibrate_joint_rig, calibrate_joint_rig_from, calibrate_joint_rig_with, rig_transform_from_starts, RigCamera,
+    RigJointCalibration,
 };
 pub use joint::{calibrate_joint, calibrate_joint_from, JointCalibration, JointOptions};
 pub use refine::{

@@ -11,6 +11,7 @@ use std::path::Path;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
+use ferrocal_calib::handeye::Mount;
 use ferrocal_calib::kinematic::CalibratedModel;
 use ferrocal_calib::{MeasurementSet, PoseMeasurement, Split};
 use ferrocal_robot::{Kinematics, Parameterized};
@@ -70,47 +71,29 @@ pub struct JointRecording {
 /// joint readings `q1_rad..q6_rad`, split), `camera.yaml`, `heldout.csv` (the tracker's
 /// readings of a reflector on the flange at the held-out poses) and `truth.json`.
 pub fn write_joint_recording(config: &JointStudyConfig, dir: &Path, seed: u64) -> Result<JointRecording> {
-    use crate::render::{RenderConfig, Renderer, TargetConfig};
-    if dir.join("poses.csv").exists() {
-        return Err(DatasetError::Input(format!("{} already holds a recording (poses.csv)", dir.display())));
-    }
+    refuse_existing(dir)?;
     let mut cell = draw_cell(config, seed)?;
-    let (cols, rows) = config.grid;
-    let target = TargetConfig::Chessboard {
-        inner_cols: cols,
-        inner_rows: rows,
-        square_m: config.spacing_m,
-        margin_m: config.spacing_m,
-    };
-    let renderer = Renderer::new(config.camera, &target, RenderConfig::default())?;
-    let centre = Vector3::new((cols - 1) as f64, (rows - 1) as f64, 0.0) * (0.5 * config.spacing_m);
-    let t_grid_render = Isometry3::from_parts(Translation3::from(centre), UnitQuaternion::identity());
-    let images = dir.join("images");
-    std::fs::create_dir_all(&images).map_err(|source| DatasetError::Write { path: images.clone(), source })?;
-    let cond = Conditions { temp_c: 20.0, dir: vec![0; cell.nominal.dof()], ..Default::default() };
-    let w_inv = config.t_base_camera.inverse();
-    let n = cell.nominal.dof();
-    let mut csv = format!(
-        "# simulated eye-to-hand recording of the joint study's {} cell, seed {seed} (ferrocal handeye simulate)\nimage,{},split\n",
-        config.robot,
-        (1..=n).map(|j| format!("q{j}_rad")).collect::<Vec<_>>().join(",")
+    let all: Vec<RecordedPose> = cell
+        .train_q
+        .iter()
+        .map(|q| (q, Split::Train))
+        .chain(cell.test_q.iter().map(|q| (q, Split::Test)))
+        .map(|(q, split)| RecordedPose { q, split, seen: vec![true] })
+        .collect();
+    render_camera(config, 0, &cell, &all, &dir.join("images"), seed)?;
+    let comment = format!(
+        "simulated eye-to-hand recording of the joint study's {} cell, seed {seed} (ferrocal handeye simulate)",
+        config.robot
     );
-    let all: Vec<(&Vec<f64>, Split)> =
-        cell.train_q.iter().map(|q| (q, Split::Train)).chain(cell.test_q.iter().map(|q| (q, Split::Test))).collect();
-    for (k, (q, split)) in all.iter().enumerate() {
-        let t_cam_target = w_inv * cell.truth.tool_pose(q, &cond)? * config.t_flange_target;
-        let img = renderer.render(&(t_cam_target * t_grid_render), seed.wrapping_mul(1000).wrapping_add(k as u64))?;
-        let name = format!("j{k:03}.png");
-        let path = images.join(&name);
-        img.image.save(&path).map_err(|e| DatasetError::Image { path: path.clone(), reason: e.to_string() })?;
-        let joints: Vec<String> = q.iter().map(|v| format!("{v:.17}")).collect();
-        let split = if *split == Split::Test { "test" } else { "train" };
-        csv.push_str(&format!("{name},{},{split}\n", joints.join(",")));
-    }
-    super::poses::write_atomic(&dir.join("poses.csv"), csv.as_bytes(), &[])?;
+    super::poses::write_atomic(
+        &dir.join("poses.csv"),
+        joint_table(&comment, cell.nominal.dof(), &all).as_bytes(),
+        &[],
+    )?;
     let yaml = ferrocal_vision::camera::io::to_opencv_yaml(&config.camera)?;
     super::poses::write_atomic(&dir.join("camera.yaml"), yaml.as_bytes(), &[])?;
     let held = write_heldout(config, &mut cell, dir, seed)?;
+    let (cols, rows) = config.grid;
     let out = JointRecording {
         pattern: format!("chessboard:{cols}x{rows}:{}mm", config.spacing_m * 1e3),
         robot: config.robot.clone(),
@@ -124,6 +107,82 @@ pub fn write_joint_recording(config: &JointStudyConfig, dir: &Path, seed: u64) -
     };
     super::poses::write_atomic(&dir.join("truth.json"), serde_json::to_string_pretty(&out)?.as_bytes(), &[])?;
     Ok(out)
+}
+
+/// Refuses a folder that already holds a recording (its `poses.csv`).
+pub(crate) fn refuse_existing(dir: &Path) -> Result<()> {
+    if dir.join("poses.csv").exists() {
+        return Err(DatasetError::Input(format!("{} already holds a recording (poses.csv)", dir.display())));
+    }
+    Ok(())
+}
+
+/// One pose of a rendered recording (a row of its poses table, named `jNNN.png` after its
+/// index): the joint readings, the split and which cameras see it.
+pub(crate) struct RecordedPose<'a> {
+    /// Joint readings, model order.
+    pub(crate) q: &'a [f64],
+    /// Training or held out.
+    pub(crate) split: Split,
+    /// Per camera: whether it sees the plate (and has an image of the pose).
+    pub(crate) seen: Vec<bool>,
+}
+
+/// Renders camera `k` (`camera`: its cell, camera and mount) at every pose of `poses` it sees,
+/// through `cell`'s true robot, into `images/jNNN.png` (created; image noise seeded by `seed`,
+/// the pose and the camera); returns its training and held-out image counts.
+pub(crate) fn render_camera(
+    camera: &JointStudyConfig,
+    k: usize,
+    cell: &Cell,
+    poses: &[RecordedPose],
+    images: &Path,
+    seed: u64,
+) -> Result<(usize, usize)> {
+    use crate::render::{RenderConfig, Renderer, TargetConfig};
+    let (cols, rows) = camera.grid;
+    let target = TargetConfig::Chessboard {
+        inner_cols: cols,
+        inner_rows: rows,
+        square_m: camera.spacing_m,
+        margin_m: camera.spacing_m,
+    };
+    // The renderer's board is centred; the grid's origin is its first corner.
+    let centre = Vector3::new((cols - 1) as f64, (rows - 1) as f64, 0.0) * (0.5 * camera.spacing_m);
+    let t_grid_render = Isometry3::from_parts(Translation3::from(centre), UnitQuaternion::identity());
+    let renderer = Renderer::new(camera.camera, &target, RenderConfig::default())?;
+    std::fs::create_dir_all(images).map_err(|source| DatasetError::Write { path: images.to_path_buf(), source })?;
+    let cond = Conditions { temp_c: 20.0, dir: vec![0; cell.nominal.dof()], ..Default::default() };
+    let mut counts = (0, 0);
+    for (i, pose) in poses.iter().enumerate().filter(|(_, p)| p.seen[k]) {
+        let flange = cell.truth.tool_pose(pose.q, &cond)?;
+        let t_cam_target = match camera.mount {
+            Mount::EyeToHand => camera.t_base_camera.inverse() * flange * camera.t_flange_target,
+            Mount::EyeInHand => camera.t_flange_camera.inverse() * flange.inverse() * camera.t_base_target,
+        };
+        let image_seed = seed.wrapping_mul(1000).wrapping_add(i as u64).wrapping_add(500_000 * k as u64);
+        let img = renderer.render(&(t_cam_target * t_grid_render), image_seed)?;
+        let path = images.join(format!("j{i:03}.png"));
+        img.image.save(&path).map_err(|e| DatasetError::Image { path: path.clone(), reason: e.to_string() })?;
+        match pose.split {
+            Split::Train => counts.0 += 1,
+            Split::Test => counts.1 += 1,
+        }
+    }
+    Ok(counts)
+}
+
+/// The poses table of a rendered recording: `# comment`, then `image,q1_rad..q<dof>_rad,split`
+/// and a row `jNNN.png` per pose.
+pub(crate) fn joint_table(comment: &str, dof: usize, poses: &[RecordedPose]) -> String {
+    let mut csv =
+        format!("# {comment}\nimage,{},split\n", (1..=dof).map(|j| format!("q{j}_rad")).collect::<Vec<_>>().join(","));
+    for (i, pose) in poses.iter().enumerate() {
+        let joints: Vec<String> = pose.q.iter().map(|v| format!("{v:.17}")).collect();
+        let split = if pose.split == Split::Test { "test" } else { "train" };
+        csv.push_str(&format!("j{i:03}.png,{},{split}\n", joints.join(",")));
+    }
+    csv
 }
 
 /// What [`write_heldout`] measured: the true robot's errors and the held-out scores.

@@ -27,7 +27,9 @@ pub use motion_check::{check_motion, FlaggedView, MotionCheck};
 pub use poses::{read_handeye_poses, read_poses_header, PoseRow, PosesHeader, PosesTable, RobotReading};
 pub use recording::{load_recording, read_camera_file, Skipped};
 pub use rig_record::{rendered_ur5_rig, write_rig_recording, RigRecording};
-pub use rig_run::{rig_transform, RigCameraInput, RigFit, RigInput};
+pub use rig_run::{
+    read_rig_extrinsics, rig_file_differences, rig_transform, RigCameraInput, RigFileDifference, RigFit, RigInput,
+};
 pub use sim::{
     coverage_study, simulate_hand_eye, write_rendered_recording, CoverageSummary, HandEyeSimConfig, HandEyeTruth,
     RenderedRecording, StudyMode,

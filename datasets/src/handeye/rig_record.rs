@@ -1,26 +1,33 @@
 //! A rendered rig recording for the joint adjustment through the binary (`ferrocal handeye
 //! simulate --robot ur5 --cameras 2`): the rig study's two-camera UR5 cell
-//! ([`super::rig_study`]) at half resolution with the rendered cell's 9 x 6 chessboard
-//! ([`super::joint_record::rendered_ur5_cell`]), every view of every camera rendered with the
+//! ([`super::rig_study`]; eye-to-hand two fixed cameras, eye-in-hand a stereo head on the
+//! flange, [`RigStudyConfig::ur5_stereo_head`]) at half resolution with the rendered cell's 9 x 6
+//! chessboard ([`super::joint_record::rendered_ur5_cell`]), every view of every camera rendered with the
 //! project's renderer (blur, vignetting, sensor noise; the corners then come from the detector),
 //! one poses table with the joint readings of every pose, each camera's images in its own folder
 //! named after the table's rows, and the held-out poses measured by the study's simulated
 //! tracker. The cameras, the chain and the robot's error model are the estimator's own family;
 //! the images are not (rendered, detected corners).
+//!
+//! The rendering of each camera's views and the poses table are the single-camera recorder's
+//! (`joint_record::render_camera`, `joint_record::joint_table`).
 
 use std::path::Path;
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::Isometry3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
+use ferrocal_calib::handeye::Mount;
 use ferrocal_calib::Split;
 use ferrocal_robot::{Kinematics, RobotModel};
 use ferrocal_vision::camera::{CameraModel, ImageSize, Intrinsics};
 
-use super::joint_record::{rendered_ur5_cell, write_heldout};
-use super::joint_study::{draw_truth, Cell, Score};
+use super::joint_record::{
+    joint_table, refuse_existing, render_camera, rendered_ur5_cell, write_heldout, RecordedPose,
+};
+use super::joint_study::{draw_truth, Cell, JointStudyConfig, Score};
 use super::rig_study::{draw_rig_poses, RigStudyConfig};
 use crate::error::{DatasetError, Result};
 use crate::sim::Conditions;
@@ -28,9 +35,14 @@ use crate::sim::Conditions;
 /// The rig study's two-camera cell for rendering: camera 0 as [`rendered_ur5_cell`] (1224 x
 /// 1024 px, f = 1200 px), camera 1 the rig study's second camera at half its resolution (1024 x
 /// 768 px, f = 875 px, the same field of view and distortion), the 9 x 6 chessboard at 30 mm.
-pub fn rendered_ur5_rig(n_train: usize, n_test: usize) -> RigStudyConfig {
-    let mut c = RigStudyConfig::ur5_two_cameras();
-    c.base = rendered_ur5_cell(n_train, n_test);
+/// Eye-to-hand: two fixed cameras ([`RigStudyConfig::ur5_two_cameras`]); eye-in-hand: the
+/// stereo head on the flange ([`RigStudyConfig::ur5_stereo_head`]), the plate on the table.
+pub fn rendered_ur5_rig(mount: Mount, n_train: usize, n_test: usize) -> RigStudyConfig {
+    let mut c = match mount {
+        Mount::EyeToHand => RigStudyConfig::ur5_two_cameras(),
+        Mount::EyeInHand => RigStudyConfig::ur5_stereo_head(),
+    };
+    c.base = JointStudyConfig { mount, ..rendered_ur5_cell(n_train, n_test) };
     for cam in &mut c.cameras {
         let k = cam.camera.intrinsics;
         let s = cam.camera.image_size;
@@ -72,8 +84,12 @@ pub struct RigRecordingCamera {
     pub name: String,
     /// The true camera (also `<name>/camera.yaml`).
     pub camera: CameraModel,
-    /// `T_base_camera`.
-    pub t_base_camera: TransformTruth,
+    /// `T_base_camera` (eye-to-hand: the fixed camera).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t_base_camera: Option<TransformTruth>,
+    /// `T_flange_camera` (eye-in-hand: the camera on the flange).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t_flange_camera: Option<TransformTruth>,
     /// `T_camk_cam0`: the reference camera's frame into this camera's (identity for camera 0).
     pub t_cam_cam0: TransformTruth,
     /// Training images rendered (the training poses this camera sees).
@@ -87,14 +103,18 @@ pub struct RigRecordingCamera {
 pub struct RigRecording {
     /// The pattern string of the rendered chessboard.
     pub pattern: String,
-    /// The mount (`eye-to-hand`).
+    /// The mount (`eye-to-hand` or `eye-in-hand`).
     pub mount: String,
     /// The robot preset.
     pub robot: String,
     /// The cameras, the reference first.
     pub cameras: Vec<RigRecordingCamera>,
-    /// `T_flange_target` (the plate on the flange, grid origin at the first corner).
-    pub t_flange_target: TransformTruth,
+    /// `T_flange_target` (eye-to-hand: the plate on the flange, grid origin at the first corner).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t_flange_target: Option<TransformTruth>,
+    /// `T_base_target` (eye-in-hand: the plate on the table, grid origin at the first corner).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t_base_target: Option<TransformTruth>,
     /// The true robot's parameters that differ from the nominal (name, true value, nominal).
     pub robot_errors: Vec<(String, f64, f64)>,
     /// The nominal model scored on `heldout.csv` like `evaluate --refit-frame`, mm.
@@ -115,10 +135,7 @@ pub struct RigRecording {
 /// it), `cam<k>/camera.yaml` (the true camera, OpenCV), `heldout.csv` (the tracker's readings of
 /// the held-out poses) and `truth.json` ([`RigRecording`]).
 pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Result<RigRecording> {
-    use crate::render::{RenderConfig, Renderer, TargetConfig};
-    if dir.join("poses.csv").exists() {
-        return Err(DatasetError::Input(format!("{} already holds a recording (poses.csv)", dir.display())));
-    }
+    refuse_existing(dir)?;
     let base = &config.base;
     let cells: Vec<_> = (0..config.n_cameras()).map(|k| config.camera_cell(k)).collect();
     let nominal = RobotModel::load(&base.robot).map_err(|e| DatasetError::Config(e.to_string()))?;
@@ -130,57 +147,35 @@ pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Re
     let test_q = test.iter().map(|(q, _)| q.clone()).collect();
     let mut cell = Cell { nominal, truth, truth_values, train_q, test_q, rng };
     let (cols, rows) = base.grid;
-    let target = TargetConfig::Chessboard {
-        inner_cols: cols,
-        inner_rows: rows,
-        square_m: base.spacing_m,
-        margin_m: base.spacing_m,
-    };
-    let centre = Vector3::new((cols - 1) as f64, (rows - 1) as f64, 0.0) * (0.5 * base.spacing_m);
-    let t_grid_render = Isometry3::from_parts(Translation3::from(centre), UnitQuaternion::identity());
     let cond = Conditions { temp_c: 20.0, dir: vec![0; cell.nominal.dof()], ..Default::default() };
-    let n = cell.nominal.dof();
-    let mut csv = format!(
-        "# simulated eye-to-hand recording of the rig study's {} cell with {} cameras, seed {seed} (ferrocal handeye simulate); each camera's images in cam<k>/images\nimage,{},split\n",
-        base.robot,
-        cells.len(),
-        (1..=n).map(|j| format!("q{j}_rad")).collect::<Vec<_>>().join(",")
-    );
-    let all: Vec<(&Vec<f64>, &Vec<bool>, Split)> =
-        train.iter().map(|(q, s)| (q, s, Split::Train)).chain(test.iter().map(|(q, s)| (q, s, Split::Test))).collect();
-    let mut counts = vec![(0usize, 0usize); cells.len()];
+    let all: Vec<RecordedPose> = train
+        .iter()
+        .map(|(q, s)| (q, s, Split::Train))
+        .chain(test.iter().map(|(q, s)| (q, s, Split::Test)))
+        .map(|(q, seen, split)| RecordedPose { q, split, seen: seen.clone() })
+        .collect();
+    let mut counts = Vec::with_capacity(cells.len());
     for (k, c) in cells.iter().enumerate() {
-        let renderer = Renderer::new(c.camera, &target, RenderConfig::default())?;
         let images = dir.join(format!("cam{k}")).join("images");
-        std::fs::create_dir_all(&images).map_err(|source| DatasetError::Write { path: images.clone(), source })?;
-        let w_inv = c.t_base_camera.inverse();
-        for (i, (q, seen, split)) in all.iter().enumerate() {
-            if !seen[k] {
-                continue;
-            }
-            let t_cam_target = w_inv * cell.truth.tool_pose(q, &cond)? * base.t_flange_target;
-            let image_seed = seed.wrapping_mul(1000).wrapping_add(i as u64).wrapping_add(500_000 * k as u64);
-            let img = renderer.render(&(t_cam_target * t_grid_render), image_seed)?;
-            let path = images.join(format!("j{i:03}.png"));
-            img.image.save(&path).map_err(|e| DatasetError::Image { path: path.clone(), reason: e.to_string() })?;
-            match split {
-                Split::Train => counts[k].0 += 1,
-                Split::Test => counts[k].1 += 1,
-            }
-        }
+        counts.push(render_camera(c, k, &cell, &all, &images, seed)?);
         let yaml = ferrocal_vision::camera::io::to_opencv_yaml(&c.camera)?;
         super::poses::write_atomic(&dir.join(format!("cam{k}")).join("camera.yaml"), yaml.as_bytes(), &[])?;
     }
+    let comment = format!(
+        "simulated {} recording of the rig study's {} cell with {} cameras, seed {seed} (ferrocal handeye simulate); each camera's images in cam<k>/images",
+        base.mount.name(),
+        base.robot,
+        cells.len(),
+    );
+    let csv = joint_table(&comment, cell.nominal.dof(), &all);
     // The same rows with the true robot's flange poses: what a controller of an exactly
     // calibrated robot would report (for the rig without a robot model).
     let mut flange_csv = format!(
         "# the true flange poses of the rig recording's rows (an exactly calibrated robot), seed {seed}\nimage,x_mm,y_mm,z_mm,qw,qx,qy,qz,split\n"
     );
-    for (i, (q, _, split)) in all.iter().enumerate() {
-        let joints: Vec<String> = q.iter().map(|v| format!("{v:.17}")).collect();
-        let split = if *split == Split::Test { "test" } else { "train" };
-        csv.push_str(&format!("j{i:03}.png,{},{split}\n", joints.join(",")));
-        let t = cell.truth.tool_pose(q, &cond)?;
+    for (i, pose) in all.iter().enumerate() {
+        let split = if pose.split == Split::Test { "test" } else { "train" };
+        let t = cell.truth.tool_pose(pose.q, &cond)?;
         let (p, r) = (t.translation.vector * 1e3, t.rotation);
         flange_csv.push_str(&format!(
             "j{i:03}.png,{:.17},{:.17},{:.17},{:.17},{:.17},{:.17},{:.17},{split}\n",
@@ -190,7 +185,10 @@ pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Re
     super::poses::write_atomic(&dir.join("poses.csv"), csv.as_bytes(), &[])?;
     super::poses::write_atomic(&dir.join("flange_poses.csv"), flange_csv.as_bytes(), &[])?;
     let held = write_heldout(base, &mut cell, dir, seed)?;
-    let t_cam0 = cells[0].t_base_camera;
+    // T_camk_cam0 = W_k^-1 W_0 of the fixed cameras, X_k^-1 X_0 of a head on the flange.
+    let in_hand = base.mount == Mount::EyeInHand;
+    let mounted = |c: &JointStudyConfig| if in_hand { c.t_flange_camera } else { c.t_base_camera };
+    let t_cam0 = mounted(&cells[0]);
     let cameras = cells
         .iter()
         .zip(&counts)
@@ -198,18 +196,20 @@ pub fn write_rig_recording(config: &RigStudyConfig, dir: &Path, seed: u64) -> Re
         .map(|(k, (c, &(n_train_images, n_test_images)))| RigRecordingCamera {
             name: format!("cam{k}"),
             camera: c.camera,
-            t_base_camera: (&c.t_base_camera).into(),
-            t_cam_cam0: (&(c.t_base_camera.inverse() * t_cam0)).into(),
+            t_base_camera: (!in_hand).then(|| (&c.t_base_camera).into()),
+            t_flange_camera: in_hand.then(|| (&c.t_flange_camera).into()),
+            t_cam_cam0: (&(mounted(c).inverse() * t_cam0)).into(),
             n_train_images,
             n_test_images,
         })
         .collect();
     let out = RigRecording {
         pattern: format!("chessboard:{cols}x{rows}:{}mm", base.spacing_m * 1e3),
-        mount: "eye-to-hand".into(),
+        mount: base.mount.name().into(),
         robot: base.robot.clone(),
         cameras,
-        t_flange_target: (&base.t_flange_target).into(),
+        t_flange_target: (!in_hand).then(|| (&base.t_flange_target).into()),
+        t_base_target: in_hand.then(|| (&base.t_base_target).into()),
         robot_errors: held.robot_errors,
         nominal_heldout: held.nominal_heldout,
         truth_heldout: held.truth_heldout,

@@ -3,7 +3,12 @@
 //! own hand-eye calibration with the rig transforms `T_camk_cam0` combined from them
 //! ([`RigInput::fit`], [`rig_transform`]); with a robot model and joint readings the joint
 //! adjustment of the robot and every camera in one problem in pixels
-//! ([`RigInput::joint_adjustment`], [`ferrocal_calib::handeye::calibrate_joint_rig_from`]).
+//! ([`RigInput::joint_adjustment`], [`ferrocal_calib::handeye::calibrate_joint_rig_with`]).
+//!
+//! Camera files given with `--intrinsics` that carry OpenCV's stereo `R`, `T` (the files of
+//! `--rig-out`, or `stereoCalibrate`'s) give the start of `T_camk_cam0` in the joint adjustment
+//! ([`RigInput::file_t_cam_cam0`]) and are checked against the fitted transform
+//! ([`rig_file_differences`]: millimetres, degrees, standard deviations).
 //!
 //! Without the joint adjustment the rig transforms are **not** refined together: each camera's
 //! hand-eye fit is its own problem, and `T_camk_cam0 = W_k^-1 W_0` (eye-to-hand) or `X_k^-1
@@ -15,10 +20,13 @@
 use std::collections::HashSet;
 use std::path::PathBuf;
 
-use nalgebra::{Isometry3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
+use std::path::Path;
+
+use nalgebra::{Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+use serde::Serialize;
 
 use ferrocal_calib::handeye::{
-    calibrate_joint_rig_from, rig_transform_from_starts, HandEyeResult, JointOptions, Mount, RigJointCalibration,
+    calibrate_joint_rig_with, rig_transform_from_starts, HandEyeResult, JointOptions, Mount, RigJointCalibration,
     TransformEstimate,
 };
 
@@ -34,6 +42,9 @@ pub struct RigCameraInput {
     pub run: HandEyeRunOptions,
     /// Its recording.
     pub input: HandEyeInput,
+    /// `R`, `T` of its camera file (OpenCV stereo FileStorage: `p_k = R p_ref + T`, the
+    /// reference's frame into this camera's), when the file carries them.
+    pub file_extrinsics: Option<Isometry3<f64>>,
 }
 
 impl RigCameraInput {
@@ -82,9 +93,18 @@ impl RigInput {
             let label = format!("camera {name} ({})", specs.join(", "));
             let input = HandEyeInput::load(&cam_run).map_err(|e| e.context(label.clone()))?;
             check_matched(&input, &label)?;
-            out.push(RigCameraInput { name, run: cam_run, input });
+            let file_extrinsics = intrinsics.get(k).map(|p| read_rig_extrinsics(p)).transpose()?.flatten();
+            out.push(RigCameraInput { name, run: cam_run, input, file_extrinsics });
         }
         Ok(Self { cameras: out })
+    }
+
+    /// Camera `k`'s `T_camk_cam0` from the camera files' `R`, `T`: `E_k E_0^-1` with `E` a file's
+    /// transform (camera 0's the identity when its file carries none); `None` for camera 0 and
+    /// when camera `k`'s file carries no `R`, `T`.
+    pub fn file_t_cam_cam0(&self, k: usize) -> Option<Isometry3<f64>> {
+        let e_k = self.cameras.get(k).filter(|_| k > 0)?.file_extrinsics?;
+        Some(e_k * self.cameras[0].file_extrinsics.unwrap_or_else(Isometry3::identity).inverse())
     }
 
     /// Each camera's hand-eye calibration (after its motion check, as the single-camera command
@@ -103,9 +123,10 @@ impl RigInput {
     }
 
     /// The joint adjustment of the robot's kinematic parameters with every camera, its
-    /// `T_camk_cam0` and the hand-eye transforms, started from each camera's fit in `fit`, the
-    /// target held at camera 0's print scale; every image needs joint readings and the input a
-    /// robot model.
+    /// `T_camk_cam0` and the hand-eye transforms, started from each camera's fit in `fit` and
+    /// `T_camk_cam0` from the camera files' `R`, `T` where they carry them
+    /// ([`RigInput::file_t_cam_cam0`], else combined from the fits), the target held at camera
+    /// 0's print scale; every image needs joint readings and the input a robot model.
     pub fn joint_adjustment(&self, fit: &RigFit) -> Result<RigJointCalibration> {
         let mut data = Vec::with_capacity(self.cameras.len());
         let mut joints = Vec::with_capacity(self.cameras.len());
@@ -124,9 +145,84 @@ impl RigInput {
         let model = model.ok_or_else(|| DatasetError::Input("handeye: a rig needs at least one camera".into()))?;
         let options = JointOptions { hand_eye: fit.fits[0].options.clone(), ..JointOptions::default() };
         let starts = fit.fits.iter().map(|f| f.result.clone()).collect();
-        calibrate_joint_rig_from(model, &data, &joints, starts, &options)
+        let transforms: Vec<_> = (1..self.cameras.len()).map(|k| self.file_t_cam_cam0(k)).collect();
+        calibrate_joint_rig_with(model, &data, &joints, starts, &transforms, &options)
             .map_err(|e| DatasetError::from(e).context("handeye: the joint adjustment of the robot and the rig"))
     }
+}
+
+/// `R`, `T` of a camera file, when it is OpenCV FileStorage carrying them (`T` in the file's
+/// `translation_unit`, metres by default); `None` for other files. An `R` that is not a rotation
+/// is an error naming the file.
+pub fn read_rig_extrinsics(path: &Path) -> Result<Option<Isometry3<f64>>> {
+    let text = crate::import::table::read_text(path)?;
+    let json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) || text.trim_start().starts_with('{');
+    if json || !(text.contains("!!opencv-matrix") || text.starts_with("%YAML")) {
+        return Ok(None);
+    }
+    let (_, ext) = ferrocal_vision::camera::io::from_opencv_rig_yaml(&text)
+        .map_err(|e| DatasetError::Input(format!("{}: the rig's R, T: {e}", path.display())))?;
+    let Some((r, t_m)) = ext else { return Ok(None) };
+    let off = (r.transpose() * r - Matrix3::identity()).abs().max();
+    if off > 1e-6 || r.determinant() < 0.0 {
+        return Err(DatasetError::Input(format!(
+            "{}: R is not a rotation (|R^T R - I| = {off:.2e}, det {:.6})",
+            path.display(),
+            r.determinant()
+        )));
+    }
+    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&r));
+    Ok(Some(Isometry3::from_parts(Translation3::from(t_m), rotation)))
+}
+
+/// A camera file's `T_camk_cam0` ([`RigInput::file_t_cam_cam0`]) against the fitted one.
+#[derive(Clone, Debug, Serialize)]
+pub struct RigFileDifference {
+    /// The camera (`k >= 1`).
+    pub camera: usize,
+    /// The file's `T_camk_cam0`.
+    pub file: Isometry3<f64>,
+    /// The fitted estimate it is compared with: `joint adjustment` or `the cameras' own fits`.
+    pub fitted_by: &'static str,
+    /// Fitted minus file translation, mm.
+    pub translation_mm: Vector3<f64>,
+    /// Rotation vector of `R_fitted R_file^-1`, degrees.
+    pub rotation_deg: Vector3<f64>,
+    /// The largest of the six chart coordinates' differences in the fitted transform's standard
+    /// deviations (`[t, r]`, the rotation on the left, as its covariance).
+    pub max_sigma: f64,
+    /// `sqrt(d^T C^-1 d)` over the six coordinates, `C` the fitted transform's covariance.
+    pub mahalanobis: f64,
+}
+
+/// Every camera file's `T_camk_cam0` against the fitted one: the joint adjustment's when it ran,
+/// else the one combined from the cameras' own fits. Empty when no file carries `R`, `T`.
+pub fn rig_file_differences(
+    rig: &RigInput,
+    fit: &RigFit,
+    joint: Option<&RigJointCalibration>,
+) -> Vec<RigFileDifference> {
+    (1..rig.cameras.len())
+        .filter_map(|k| {
+            let file = rig.file_t_cam_cam0(k)?;
+            let (est, fitted_by) = match joint {
+                Some(j) => (&j.cameras[k - 1].t_cam_cam0, "joint adjustment"),
+                None => (&fit.t_cam_cam0[k - 1], "the cameras' own fits"),
+            };
+            let d = chart_diff(&file, &est.transform);
+            let max_sigma = (0..6).map(|i| d[i].abs() / est.covariance[(i, i)].max(1e-300).sqrt()).fold(0.0, f64::max);
+            let mahalanobis = est.covariance.try_inverse().map_or(f64::NAN, |c| (d.transpose() * c * d)[(0, 0)].sqrt());
+            Some(RigFileDifference {
+                camera: k,
+                file,
+                fitted_by,
+                translation_mm: Vector3::new(d[0], d[1], d[2]) * 1e3,
+                rotation_deg: Vector3::new(d[3], d[4], d[5]).map(f64::to_degrees),
+                max_sigma,
+                mahalanobis,
+            })
+        })
+        .collect()
 }
 
 /// Refuses a camera none of whose images a row of the poses table names.
@@ -195,6 +291,38 @@ pub fn rig_transform(mount: Mount, cam0: &HandEyeResult, cam_k: &HandEyeResult) 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A rig file's `R`, `T` read back as `[R | T]` (`T` in its unit); a file without them and a
+    /// JSON camera give none; an `R` that is not a rotation is refused naming the file.
+    #[test]
+    fn a_rig_files_r_and_t_are_read_and_checked() {
+        use ferrocal_vision::camera::io::to_opencv_rig_yaml;
+        use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
+        let camera = CameraModel::new(
+            Intrinsics { fx_px: 875.0, fy_px: 875.5, cx_px: 509.0, cy_px: 386.0 },
+            Distortion::Brown5 { k1: -0.08, k2: 0.06, p1: -0.0002, p2: 0.0003, k3: -0.01 },
+            ImageSize { width_px: 1024, height_px: 768 },
+        )
+        .unwrap();
+        let t = Isometry3::new(Vector3::new(-0.116, 0.001, 0.031), Vector3::new(0.01, 0.26, -0.02));
+        let (r, tv) = (t.rotation.to_rotation_matrix().into_inner(), t.translation.vector);
+        let dir = tempfile::tempdir().unwrap();
+        let good = dir.path().join("cam1.yaml");
+        std::fs::write(&good, to_opencv_rig_yaml(&camera, Some((&r, &tv))).unwrap()).unwrap();
+        let back = read_rig_extrinsics(&good).unwrap().unwrap();
+        assert!((back.translation.vector - tv).norm() < 1e-15);
+        assert!(back.rotation.angle_to(&t.rotation) < 1e-12);
+        let plain = dir.path().join("cam0.yaml");
+        std::fs::write(&plain, to_opencv_rig_yaml(&camera, None).unwrap()).unwrap();
+        assert!(read_rig_extrinsics(&plain).unwrap().is_none());
+        let json = dir.path().join("camera.json");
+        std::fs::write(&json, "{\"fx\": 875.0}").unwrap();
+        assert!(read_rig_extrinsics(&json).unwrap().is_none());
+        let scaled = dir.path().join("scaled.yaml");
+        std::fs::write(&scaled, to_opencv_rig_yaml(&camera, Some((&(r * 1.01), &tv))).unwrap()).unwrap();
+        let err = read_rig_extrinsics(&scaled).unwrap_err().to_string();
+        assert!(err.contains("scaled.yaml") && err.contains("not a rotation"), "{err}");
+    }
 
     /// The chart Jacobian of `A^-1 B` with respect to `B` is the analytic one in the product
     /// chart (`t_B + dt`, `Exp(dr) R_B`: both map by `R_A^T`), and a rotation-only uncertainty

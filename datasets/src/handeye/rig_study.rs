@@ -58,20 +58,23 @@ use super::joint_study::{
 use crate::error::{DatasetError, Result};
 use crate::sim::{Conditions, TrackerConfig, TrueRobot};
 
-/// One further fixed camera of the rig.
+/// One further camera of the rig: fixed (eye-to-hand, `t_base_camera`) or on the flange
+/// beside camera 0 (eye-in-hand, `t_flange_camera`), as the base cell's mount says.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RigCameraConfig {
     /// The true camera.
     pub camera: CameraModel,
-    /// `T_base_camera`.
+    /// `T_base_camera` (eye-to-hand).
     pub t_base_camera: Isometry3<f64>,
+    /// `T_flange_camera` (eye-in-hand).
+    pub t_flange_camera: Isometry3<f64>,
 }
 
 /// The rig study's settings.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RigStudyConfig {
-    /// Camera 0 and everything else: robot, poses, plate, noise, tracker, true errors (the
-    /// mount must be eye-to-hand).
+    /// Camera 0 and everything else: robot, poses, plate, noise, tracker, true errors, the
+    /// mount (the study runs eye-to-hand; recordings either mount).
     pub base: JointStudyConfig,
     /// Cameras 1, 2, ...
     pub cameras: Vec<RigCameraConfig>,
@@ -101,8 +104,25 @@ impl RigStudyConfig {
                     Vector3::new(0.35, -0.1, 0.35),
                     Vector3::new(0.0, 0.0, 1.0),
                 ),
+                t_flange_camera: JointStudyConfig::ur5().t_flange_camera,
             }],
         }
+    }
+
+    /// A stereo head on the flange (eye-in-hand): the joint study's eye-in-hand cell
+    /// ([`JointStudyConfig::ur5_eye_in_hand`]: camera 0 50 mm out on the flange, 60 mm off its
+    /// axis, the plate flat on the table) with camera 1 the second camera of
+    /// [`RigStudyConfig::ur5_two_cameras`] 120 mm beside camera 0 and turned 15 degrees towards
+    /// its axis (the two axes cross about 0.45 m out).
+    pub fn ur5_stereo_head() -> Self {
+        let mut c = Self::ur5_two_cameras();
+        c.base = JointStudyConfig::ur5_eye_in_hand();
+        let x0 = c.base.t_flange_camera;
+        c.cameras[0].t_flange_camera = Isometry3::from_parts(
+            Translation3::from(x0.translation.vector + Vector3::new(0.12, 0.0, 0.0)),
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -15f64.to_radians()) * x0.rotation,
+        );
+        c
     }
 
     /// Number of cameras.
@@ -117,6 +137,7 @@ impl RigStudyConfig {
             _ => JointStudyConfig {
                 camera: self.cameras[k - 1].camera,
                 t_base_camera: self.cameras[k - 1].t_base_camera,
+                t_flange_camera: self.cameras[k - 1].t_flange_camera,
                 ..self.base.clone()
             },
         }

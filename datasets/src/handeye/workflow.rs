@@ -284,8 +284,9 @@ pub fn check_simulated_images(train: usize, test: usize) -> Result<()> {
 
 /// Writes a simulated recording with rendered chessboard images into `dir`: `train` + `test`
 /// images of the default cell of `mount`, or with `robot` (`ur5`, eye-to-hand only) the joint
-/// study's UR5 with true kinematic errors; with `cameras` 2 (and `robot` `ur5`) the rig study's
-/// two fixed cameras ([`super::rig_record`]). Returns what was written, in words, naming the
+/// study's UR5 with true kinematic errors; with `cameras` 2 (`robot` `ur5` or none: the rig is
+/// always the UR5 cell) the rig study's two fixed cameras (eye-to-hand) or its stereo head on the
+/// flange (eye-in-hand) ([`super::rig_record`]). Returns what was written, in words, naming the
 /// folder as `shown` (where `dir` will be moved).
 pub fn write_simulated_recording(
     mount: Mount,
@@ -296,12 +297,12 @@ pub fn write_simulated_recording(
     shown: &Path,
 ) -> Result<String> {
     if cameras != 1 {
-        if cameras != 2 || robot != Some("ur5") || mount != Mount::EyeToHand {
+        if cameras != 2 || robot.is_some_and(|r| r != "ur5") {
             return Err(DatasetError::Input(format!(
-                "handeye simulate --cameras {cameras}: rig recordings are simulated for two cameras in the ur5 cell, eye-to-hand (--cameras 2 --robot ur5 --mount eye-to-hand)"
+                "handeye simulate --cameras {cameras}: rig recordings are simulated for two cameras in the ur5 cell (--cameras 2 --robot ur5, --mount eye-to-hand or eye-in-hand)"
             )));
         }
-        let config = super::rig_record::rendered_ur5_rig(train, test);
+        let config = super::rig_record::rendered_ur5_rig(mount, train, test);
         let r = super::rig_record::write_rig_recording(&config, dir, seed)?;
         let per_camera: Vec<String> =
             r.cameras.iter().map(|c| format!("{} {} + {} images", c.name, c.n_train_images, c.n_test_images)).collect();

@@ -53,7 +53,8 @@ pub struct HandeyeArgs {
     pub robot: Option<String>,
     /// Camera file to hold fixed (camera calibrate JSON, OpenCV or ROS YAML); without it the
     /// camera is calibrated from the training images and refined with the chain. With a rig:
-    /// once per camera, in the order of --images (the files of --rig-out read back), or not at all.
+    /// once per camera, in the order of --images, or not at all; OpenCV files' R, T (those of
+    /// --rig-out) start the joint adjustment's T_camk_cam0 and are compared with the fit.
     #[arg(long)]
     pub intrinsics: Vec<PathBuf>,
     /// Write the JSON result here.
@@ -141,9 +142,10 @@ pub struct SimulateArgs {
     /// Held-out images.
     #[arg(long, default_value_t = 6)]
     pub test: usize,
-    /// Cameras: 2 writes a rig recording (with --robot ur5, eye-to-hand): the rig study's two
-    /// fixed cameras, each camera's images in cam<k>/images named after the poses table's rows,
-    /// its true camera in cam<k>/camera.yaml, the true T_camk_cam0 in truth.json.
+    /// Cameras: 2 writes a rig recording of the ur5 cell: eye-to-hand the rig study's two fixed
+    /// cameras, eye-in-hand a stereo head on the flange; each camera's images in cam<k>/images
+    /// named after the poses table's rows, its true camera in cam<k>/camera.yaml, the true
+    /// T_camk_cam0 in truth.json.
     #[arg(long, default_value_t = 1)]
     pub cameras: usize,
     /// A robot cell instead (eye-to-hand only; `ur5`): the joint study's UR5 with true
@@ -281,8 +283,9 @@ fn run_simulate(s: &SimulateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     if s.cameras > 1 {
         let counts = [("poses", s.train + s.test)];
         let next = format!(
-            "calibrate the rig with its robot: ferrocal handeye --images {dir}/cam0/images --images {dir}/cam1/images --poses {dir}/poses.csv --robot ur5 --pattern <truth.json's pattern> --mount eye-to-hand --out <calibration.json> --rig-out <folder>",
-            dir = s.out.display()
+            "calibrate the rig with its robot: ferrocal handeye --images {dir}/cam0/images --images {dir}/cam1/images --poses {dir}/poses.csv --robot ur5 --pattern <truth.json's pattern> --mount {mount} --out <calibration.json> --rig-out <folder>",
+            dir = s.out.display(),
+            mount = s.mount.name()
         );
         return Ok(vs.conclude(&ferrocal_calib::verdict::commands::simulated("handeye", &counts, &next)));
     }

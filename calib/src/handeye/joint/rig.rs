@@ -140,13 +140,39 @@ pub fn calibrate_joint_rig_from(
     starts: Vec<HandEyeResult>,
     options: &JointOptions,
 ) -> Result<RigJointCalibration> {
+    let transforms = vec![None; starts.len().saturating_sub(1)];
+    calibrate_joint_rig_with(model, data, joints, starts, &transforms, options)
+}
+
+/// [`calibrate_joint_rig_from`] with given starts of the rig transforms: `t_cam_cam0[k - 1]`,
+/// when `Some`, is camera `k`'s `T_camk_cam0` start (a rig file's `R`, `T`, say) instead of the
+/// one combined from the hand-eye starts ([`rig_transform_from_starts`]). One entry per further
+/// camera.
+pub fn calibrate_joint_rig_with(
+    model: &RobotModel,
+    data: &[HandEyeData],
+    joints: &[Vec<Vec<f64>>],
+    starts: Vec<HandEyeResult>,
+    t_cam_cam0: &[Option<Isometry3<f64>>],
+    options: &JointOptions,
+) -> Result<RigJointCalibration> {
     check_rig(model, data, joints)?;
     if starts.len() != data.len() {
         return Err(CalibError::Data(format!("{} starts for {} cameras", starts.len(), data.len())));
     }
+    if t_cam_cam0.len() + 1 != data.len() {
+        return Err(CalibError::Data(format!(
+            "{} rig transform starts for {} further cameras",
+            t_cam_cam0.len(),
+            data.len() - 1
+        )));
+    }
     let mount = data[0].mount;
-    let others0: Vec<(CameraModel, Isometry3<f64>)> =
-        starts[1..].iter().map(|s| (s.camera, rig_transform_from_starts(mount, &starts[0], s))).collect();
+    let others0: Vec<(CameraModel, Isometry3<f64>)> = starts[1..]
+        .iter()
+        .zip(t_cam_cam0)
+        .map(|(s, given)| (s.camera, given.unwrap_or_else(|| rig_transform_from_starts(mount, &starts[0], s))))
+        .collect();
     let cams: Vec<CamInput> = data.iter().zip(joints).map(|(data, joints)| CamInput { data, joints }).collect();
     let mut starts = starts.into_iter();
     let start0 = starts.next().expect("checked: at least one camera");

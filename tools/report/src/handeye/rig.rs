@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use ferrocal_calib::handeye::{HandEyeResult, RigJointCalibration, TransformEstimate};
 use ferrocal_calib::verdict::{Check, Thresholds, Verdict};
 use ferrocal_calib::Split;
-use ferrocal_datasets::handeye::{RigFit, RigInput};
+use ferrocal_datasets::handeye::{rig_file_differences, RigFileDifference, RigFit, RigInput};
 use ferrocal_vision::camera::{io, CameraModel};
 use nalgebra::Isometry3;
 use serde_json::{json, Value};
@@ -62,6 +62,44 @@ fn camera_std_json(c: &CameraModel, s: &[f64]) -> Value {
     })
 }
 
+/// A camera file's `T_camk_cam0` and its difference from the fitted one, as JSON.
+fn file_difference_json(d: &RigFileDifference, file: &Path) -> Value {
+    let mut v = transform_json(&d.file);
+    v["file"] = json!(file.display().to_string());
+    let (t, r) = (d.translation_mm, d.rotation_deg);
+    v["difference"] = json!({
+        "compared_with": d.fitted_by,
+        "is": "fitted minus the file's: translation (mm), rotation vector of R_fitted R_file^-1 (deg); in the fitted transform's standard deviations",
+        "translation_mm": [t.x, t.y, t.z],
+        "translation_norm_mm": t.norm(),
+        "rotation_deg": [r.x, r.y, r.z],
+        "rotation_norm_deg": r.norm(),
+        "max_sigma": d.max_sigma,
+        "mahalanobis": d.mahalanobis,
+    });
+    v
+}
+
+/// The terminal line of a camera file's `T_camk_cam0` against the fitted one.
+pub fn file_difference_line(name: &str, file: &Path, d: &RigFileDifference) -> String {
+    let (t, r) = (d.translation_mm, d.rotation_deg);
+    format!(
+        "T_{name}_cam0 of {} (R, T) against the {}: [{:.3}, {:.3}, {:.3}] mm ({:.3} mm), [{:.4}, {:.4}, {:.4}] deg ({:.4} deg); largest {:.2} sigma (Mahalanobis {:.2})",
+        file.display(),
+        d.fitted_by,
+        t.x,
+        t.y,
+        t.z,
+        t.norm(),
+        r.x,
+        r.y,
+        r.z,
+        r.norm(),
+        d.max_sigma,
+        d.mahalanobis
+    )
+}
+
 fn count(r: &HandEyeResult, split: Split) -> usize {
     r.figures.views.iter().filter(|v| v.split == split).count()
 }
@@ -70,6 +108,11 @@ fn count(r: &HandEyeResult, split: Split) -> usize {
 /// JSON without OpenCV's solvers) and `T_camk_cam0` combined from the fits; with the joint
 /// adjustment, per camera its camera, `T_camk_cam0` and chain figures from it.
 pub fn rig_json(rig: &RigInput, fit: &RigFit, joint: Option<&RigJointCalibration>) -> Value {
+    let diffs = rig_file_differences(rig, fit, joint);
+    let file_json = |k: usize| {
+        let d = diffs.iter().find(|d| d.camera == k)?;
+        Some(file_difference_json(d, rig.cameras[k].run.intrinsics.as_deref()?))
+    };
     let cameras: Vec<Value> = rig
         .cameras
         .iter()
@@ -87,6 +130,7 @@ pub fn rig_json(rig: &RigInput, fit: &RigFit, joint: Option<&RigJointCalibration
                 "train_images": count(&f.result, Split::Train),
                 "test_images": count(&f.result, Split::Test),
                 "t_cam_cam0": if k == 0 { Value::Null } else { rig_transform_json(&fit.t_cam_cam0[k - 1]) },
+                "t_cam_cam0_file": file_json(k),
                 "hand_eye_fit": own,
             })
         })
@@ -98,11 +142,16 @@ pub fn rig_json(rig: &RigInput, fit: &RigFit, joint: Option<&RigJointCalibration
             "t_cam_cam0": Value::Null,
             "figures": figures_json(&j.reference.figures),
         })];
-        for (c, cam) in j.cameras.iter().zip(&rig.cameras[1..]) {
+        for (k, (c, cam)) in j.cameras.iter().zip(&rig.cameras[1..]).enumerate() {
+            let start = match rig.file_t_cam_cam0(k + 1) {
+                Some(_) => "the camera files' R, T (--intrinsics)",
+                None => "combined from the cameras' own fits",
+            };
             cams.push(json!({
                 "name": cam.name,
                 "camera": camera_std_json(&c.camera, &c.camera_std),
                 "t_cam_cam0": rig_transform_json(&c.t_cam_cam0),
+                "t_cam_cam0_start": start,
                 "figures": figures_json(&c.figures),
             }));
         }
@@ -351,6 +400,12 @@ pub fn present_rig(
         checks.extend(rig_joint_checks(t, rig, joint));
         crate::say!("{}", super::joint_line(&joint.reference, out));
         rig_joint_lines(rig, joint).iter().for_each(|l| crate::say!("{l}"));
+    }
+    for d in rig_file_differences(rig, fit, joint) {
+        let cam = &rig.cameras[d.camera];
+        if let Some(file) = cam.run.intrinsics.as_deref() {
+            crate::say!("{}", file_difference_line(&cam.name, file, &d));
+        }
     }
     super::verdict::run_verdict(checks, &fit.fits[0].result, joint_out)
 }

@@ -4,7 +4,7 @@
 
 use ferrocal_calib::handeye::{ChainFigures, RigJointCalibration, TransformEstimate};
 use ferrocal_calib::Split;
-use ferrocal_datasets::handeye::{RigFit, RigInput};
+use ferrocal_datasets::handeye::{rig_file_differences, RigFit, RigInput};
 use ferrocal_vision::camera::CameraModel;
 
 use crate::report::Section;
@@ -103,14 +103,43 @@ pub fn rig_section(rig: &RigInput, fit: &RigFit, joint: Option<&RigJointCalibrat
         &["transform", "from", "translation (mm)", "std (mm)", "rotation vector (deg)", "std (deg)"],
         rows,
     );
+    let diffs = rig_file_differences(rig, fit, joint);
+    if !diffs.is_empty() {
+        let rows = diffs
+            .iter()
+            .map(|d| {
+                let cam = &rig.cameras[d.camera];
+                let (t, r) = (d.translation_mm, d.rotation_deg);
+                vec![
+                    format!("T_{}_cam0", cam.name),
+                    cam.run.intrinsics.as_ref().map_or(String::new(), |p| p.display().to_string()),
+                    d.fitted_by.to_string(),
+                    format!("{:.3}, {:.3}, {:.3} ({:.3})", t.x, t.y, t.z, t.norm()),
+                    format!("{:.4}, {:.4}, {:.4} ({:.4})", r.x, r.y, r.z, r.norm()),
+                    format!("{:.2}", d.max_sigma),
+                    format!("{:.2}", d.mahalanobis),
+                ]
+            })
+            .collect();
+        s.table(
+            "The camera files' R, T against the fit (fitted minus file; the joint adjustment starts from the files' transforms)",
+            &["transform", "file", "fitted by", "translation (mm)", "rotation vector (deg)", "largest (sigma)", "Mahalanobis"],
+            rows,
+        );
+    }
     s.text(match joint {
         Some(j) => format!(
             "The joint adjustment poses one problem in pixels over every camera's training corners: the robot's {} \
              kinematic parameters, the device frame and the tool, every camera's intrinsics and T_camk_cam0 (s0 = \
-             {:.3}, {} iterations). The transforms combined from the cameras' own fits are its start.",
+             {:.3}, {} iterations). Its start: the transforms {}.",
             j.reference.free.len(),
             j.reference.s0,
-            j.reference.iterations
+            j.reference.iterations,
+            if diffs.is_empty() {
+                "combined from the cameras' own fits"
+            } else {
+                "of the camera files' R, T where they carry them, else combined from the cameras' own fits"
+            }
         ),
         None => "Without the joint adjustment (--robot with joint readings and --out) the transforms are not \
                  refined together: each camera's hand-eye fit is its own problem, and T_camk_cam0 = W_k^-1 W_0 \
