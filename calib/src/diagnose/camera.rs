@@ -296,8 +296,7 @@ fn unexplained_structure(
 type ViewErrors = Vec<(f64, usize)>;
 
 fn rms(sq: &[(f64, usize)]) -> f64 {
-    let (s, n) = sq.iter().fold((0.0, 0usize), |(a, b), (s, n)| (a + s, b + n));
-    (s / n.max(1) as f64).sqrt()
+    Baseline::of_pooled(sq).heldout
 }
 
 /// A candidate: its label and the model variant it leads to.
@@ -343,8 +342,7 @@ impl Family for CameraFamily<'_> {
     }
 
     fn begin_step(&mut self, _accepted: &[Variant]) -> Result<StepStart> {
-        let (s, n) = self.current_cv.errors.iter().fold((0.0, 0usize), |(a, b), (s, n)| (a + s, b + n));
-        Ok(StepStart::Baseline(Baseline { heldout: rms(&self.current_cv.errors), mse: s / n.max(1) as f64 }))
+        Ok(StepStart::Baseline(Baseline::of_pooled(&self.current_cv.errors)))
     }
 
     fn candidates(&self, _accepted: &[Variant], _retired: &[Variant]) -> Vec<CameraCandidate> {

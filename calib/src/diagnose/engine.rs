@@ -113,6 +113,16 @@ pub struct Baseline {
     pub mse: f64,
 }
 
+impl Baseline {
+    /// The baseline of per-unit held-out errors, each given as (sum of squared errors, number
+    /// of errors): the pooled mean squared error and its root.
+    pub fn of_pooled(errors: &[(f64, usize)]) -> Self {
+        let (s, n) = errors.iter().fold((0.0, 0usize), |(a, b), (s, n)| (a + s, b + n));
+        let mse = s / n.max(1) as f64;
+        Self { heldout: mse.sqrt(), mse }
+    }
+}
+
 /// How a step starts.
 #[derive(Clone, Debug, PartialEq)]
 pub enum StepStart {

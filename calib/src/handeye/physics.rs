@@ -156,8 +156,7 @@ pub struct ChainPhysicsReport {
 type ImageErrors = Vec<(f64, usize)>;
 
 fn rms(e: &ImageErrors) -> f64 {
-    let (s, n) = e.iter().fold((0.0, 0usize), |(a, b), (s, n)| (a + s, b + n));
-    (s / n.max(1) as f64).sqrt()
+    Baseline::of_pooled(e).heldout
 }
 
 /// The recording's training images.
@@ -250,8 +249,7 @@ impl Family for ChainFamily<'_> {
     }
 
     fn begin_step(&mut self, _accepted: &[ChainVariant]) -> Result<StepStart> {
-        let (s, n) = self.current_cv.iter().fold((0.0, 0usize), |(a, b), (s, n)| (a + s, b + n));
-        Ok(StepStart::Baseline(Baseline { heldout: rms(&self.current_cv), mse: s / n.max(1) as f64 }))
+        Ok(StepStart::Baseline(Baseline::of_pooled(&self.current_cv)))
     }
 
     fn candidates(&self, _accepted: &[ChainVariant], _retired: &[ChainVariant]) -> Vec<Candidate> {
