@@ -31,9 +31,12 @@ use serde::{Deserialize, Serialize};
 
 use ferrocal_vision::camera::DistortionKind;
 
-use super::{calibrate_hand_eye, HandEyeData, HandEyeOptions, HandEyeResult, IntrinsicsMode, TargetPhysics};
+use super::{
+    calibrate_hand_eye, HandEyeData, HandEyeOptions, HandEyeResult, IntrinsicsMode, TargetForm, TargetPhysics,
+};
 use crate::diagnose::engine::{
-    select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection, StepStart, Test,
+    select as engine_select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection,
+    StepStart, Test,
 };
 use crate::diagnose::report::{best_verdict, Decision, Finding, Unit};
 use crate::error::Result;
@@ -149,6 +152,21 @@ pub struct ChainPhysicsReport {
     pub declined: Option<String>,
     /// Settings.
     pub settings: PhysicsOptions,
+    /// A rig's chosen lens model of every camera, camera 0 first (`chosen` is camera 0's);
+    /// empty for one camera.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rig_lenses: Vec<DistortionKind>,
+    /// A rig's training images per camera (`n_train` is their sum); empty for one camera.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub n_train_per_camera: Vec<usize>,
+}
+
+impl ChainPhysicsReport {
+    /// Camera `k`'s chosen variant: the target's physics and its lens model (`chosen` for one
+    /// camera).
+    pub fn variant_of(&self, k: usize) -> ChainVariant {
+        ChainVariant { lens: self.rig_lenses.get(k).copied().unwrap_or(self.chosen.lens), target: self.chosen.target }
+    }
 }
 
 /// Per training image (in the order of the recording's training images): its held-out chain
@@ -200,91 +218,137 @@ fn cross_validate(
     Ok(errors)
 }
 
-/// Which effect a variant adds to the current one.
+/// The selection's own variant: the target's physics (one target, shared by every camera) and
+/// each camera's lens model, camera 0 first.
+#[derive(Clone, Debug, PartialEq)]
+struct Variant {
+    lens: Vec<DistortionKind>,
+    target: TargetPhysics,
+}
+
+impl Variant {
+    /// Camera `k`'s chain variant.
+    fn chain(&self, k: usize) -> ChainVariant {
+        ChainVariant { lens: self.lens[k], target: self.target }
+    }
+}
+
+/// Which effect a variant adds to the current one (a lens: of which camera).
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Added {
-    Lens,
+    Lens(usize),
     Shape,
     PrintScale,
 }
 
-fn added(current: ChainVariant, v: ChainVariant) -> Added {
+fn added(current: &Variant, v: &Variant) -> Added {
     if v.target.shape && !current.target.shape {
         Added::Shape
     } else if v.target.print_x && !current.target.print_x {
         Added::PrintScale
     } else {
-        Added::Lens
+        Added::Lens(current.lens.iter().zip(&v.lens).position(|(a, b)| a != b).unwrap_or(0))
     }
 }
 
-type Candidate = (String, ChainVariant);
+type Candidate = (String, Variant);
+
+/// One camera's chain: its training images, its whole recording, its options.
+struct Chain<'a> {
+    train: HandEyeData,
+    all: &'a HandEyeData,
+    base: &'a HandEyeOptions,
+    /// Whether its lens model may change (the camera is calibrated, not given).
+    lens_free: bool,
+}
 
 struct ChainFamily<'a> {
-    train: HandEyeData,
-    base: &'a HandEyeOptions,
-    all: &'a HandEyeData,
+    chains: Vec<Chain<'a>>,
     opts: &'a PhysicsOptions,
-    lens_free: bool,
-    current: ChainVariant,
+    current: Variant,
+    /// The current variant's held-out errors, every camera's training images in camera order.
     current_cv: ImageErrors,
     /// Per accepted effect, its parameters' standard deviations.
     stds: Vec<BTreeMap<String, f64>>,
 }
 
 impl ChainFamily<'_> {
-    fn fit(&self, v: ChainVariant) -> Result<HandEyeResult> {
-        calibrate_hand_eye(self.all, &v.options(self.base))
+    fn fit(&self, v: &Variant) -> Result<Vec<HandEyeResult>> {
+        self.chains.iter().enumerate().map(|(k, c)| calibrate_hand_eye(c.all, &v.chain(k).options(c.base))).collect()
+    }
+
+    /// Every camera's cross-validated errors of `v`, concatenated in camera order.
+    fn cross_validate(&self, v: &Variant) -> Result<ImageErrors> {
+        let mut out = Vec::new();
+        for (k, c) in self.chains.iter().enumerate() {
+            out.extend(cross_validate(&c.train, c.base, v.chain(k), self.opts.folds)?);
+        }
+        Ok(out)
+    }
+
+    /// The camera's name in words, for a rig (empty for one camera).
+    fn of_camera(&self, k: usize) -> String {
+        if self.chains.len() > 1 {
+            format!(" of cam{k}")
+        } else {
+            String::new()
+        }
     }
 }
 
 impl Family for ChainFamily<'_> {
     type Candidate = Candidate;
-    type Effect = ChainVariant;
+    type Effect = Variant;
     type Screen = ImageErrors;
-    type Fit = HandEyeResult;
+    type Fit = Vec<HandEyeResult>;
 
     fn unit(&self) -> Unit {
         Unit::Pixel
     }
 
-    fn begin_step(&mut self, _accepted: &[ChainVariant]) -> Result<StepStart> {
+    fn begin_step(&mut self, _accepted: &[Variant]) -> Result<StepStart> {
         Ok(StepStart::Baseline(Baseline::of_pooled(&self.current_cv)))
     }
 
-    fn candidates(&self, _accepted: &[ChainVariant], _retired: &[ChainVariant]) -> Vec<Candidate> {
-        let c = self.current;
+    fn candidates(&self, _accepted: &[Variant], _retired: &[Variant]) -> Vec<Candidate> {
+        let c = &self.current;
         let mut out = Vec::new();
         if !c.target.shape {
-            let v = ChainVariant { target: TargetPhysics { shape: true, ..c.target }, ..c };
+            let v = Variant { target: TargetPhysics { shape: true, ..c.target }, ..c.clone() };
             out.push(("target_nonflatness (bowl, saddle, twist)".to_string(), v));
         }
         if !c.target.print_x {
-            let v = ChainVariant { target: TargetPhysics { print_x: true, ..c.target }, ..c };
+            let v = Variant { target: TargetPhysics { print_x: true, ..c.target }, ..c.clone() };
             out.push(("target_print_scale (x spacing against y)".to_string(), v));
         }
-        if self.lens_free && c.lens == DistortionKind::Brown5 {
+        for (k, chain) in self.chains.iter().enumerate() {
+            if !chain.lens_free || c.lens[k] != DistortionKind::Brown5 {
+                continue;
+            }
+            let camera = self.of_camera(k);
             for (label, lens) in [
-                ("lens_distortion (rational radial k4..k6)", DistortionKind::Rational8),
-                ("lens_distortion (Kannala-Brandt fisheye)", DistortionKind::KannalaBrandt),
+                ("rational radial k4..k6", DistortionKind::Rational8),
+                ("Kannala-Brandt fisheye", DistortionKind::KannalaBrandt),
             ] {
-                out.push((label.to_string(), ChainVariant { lens, ..c }));
+                let mut v = c.clone();
+                v.lens[k] = lens;
+                out.push((format!("lens_distortion{camera} ({label})"), v));
             }
         }
         out
     }
 
     fn describe(&self, (label, v): &Candidate) -> Describe {
-        let (effect, n_params) = match added(self.current, *v) {
+        let (effect, n_params) = match added(&self.current, v) {
             Added::Shape => ("target_nonflatness", 3),
             Added::PrintScale => ("target_print_scale", 1),
-            Added::Lens => ("lens_distortion", v.lens.coefficient_names().len().saturating_sub(5).max(1)),
+            Added::Lens(k) => ("lens_distortion", v.lens[k].coefficient_names().len().saturating_sub(5).max(1)),
         };
         Describe { label: label.clone(), effect: effect.into(), joints: Vec::new(), n_params }
     }
 
     fn screen(&mut self, (_, v): &Candidate) -> Result<Screened<ImageErrors>> {
-        let cv = match cross_validate(&self.train, self.base, *v, self.opts.folds) {
+        let cv = match self.cross_validate(v) {
             Ok(cv) => cv,
             Err(e) => return Ok(Screened::Unscored { heldout: f64::NAN, why: format!("could not be fitted: {e}") }),
         };
@@ -308,13 +372,13 @@ impl Family for ChainFamily<'_> {
         &mut self,
         (_, v): &Candidate,
         _cv: &ImageErrors,
-    ) -> Result<Option<AllFit<ChainVariant, HandEyeResult>>> {
-        let fit = self.fit(*v)?;
-        let (parameters, _) = parameters_of(added(self.current, *v), &fit);
-        Ok(Some(AllFit { effect: *v, parameters, overlap_sine: None, data: fit }))
+    ) -> Result<Option<AllFit<Variant, Vec<HandEyeResult>>>> {
+        let fits = self.fit(v)?;
+        let (parameters, _) = parameters_of(added(&self.current, v), &fits);
+        Ok(Some(AllFit { effect: v.clone(), parameters, overlap_sine: None, data: fits }))
     }
 
-    fn plausible(&self, fit: &AllFit<ChainVariant, HandEyeResult>) -> std::result::Result<(), String> {
+    fn plausible(&self, fit: &AllFit<Variant, Vec<HandEyeResult>>) -> std::result::Result<(), String> {
         if fit.parameters.values().all(|v| v.is_finite()) {
             Ok(())
         } else {
@@ -322,15 +386,15 @@ impl Family for ChainFamily<'_> {
         }
     }
 
-    fn unusual(&self, fit: &AllFit<ChainVariant, HandEyeResult>) -> Option<String> {
+    fn unusual(&self, fit: &AllFit<Variant, Vec<HandEyeResult>>) -> Option<String> {
         let p = &fit.parameters;
         let big = |names: &[&str], limit: f64| names.iter().filter_map(|n| p.get(*n)).any(|v| v.abs() > limit);
-        match added(self.current, fit.effect) {
+        match added(&self.current, &fit.effect) {
             Added::Shape => big(&["bowl_sag_m", "saddle_sag_m", "twist_sag_m"], self.opts.typical_sag_m)
                 .then(|| format!("a sag above {} mm at the target's edge is unusual", self.opts.typical_sag_m * 1e3)),
             Added::PrintScale => big(&["scale_x_minus_y"], self.opts.typical_print_scale)
                 .then(|| format!("a print scale error above {} % is unusual", self.opts.typical_print_scale * 100.0)),
-            Added::Lens => p
+            Added::Lens(_) => p
                 .values()
                 .any(|v| v.abs() > self.opts.typical_rational)
                 .then(|| format!("a lens coefficient above {} in size is unusual", self.opts.typical_rational)),
@@ -339,14 +403,15 @@ impl Family for ChainFamily<'_> {
 
     fn accept(
         &mut self,
-        fit: AllFit<ChainVariant, HandEyeResult>,
+        fit: AllFit<Variant, Vec<HandEyeResult>>,
         cv: &ImageErrors,
         decision: &Decision,
-    ) -> Result<Finding<ChainVariant>> {
-        let kind = added(self.current, fit.effect);
-        let (effect, statement) = statement(kind, &fit, decision);
-        self.current = fit.effect;
+    ) -> Result<Finding<Variant>> {
+        let kind = added(&self.current, &fit.effect);
+        let (effect, statement) = statement(kind, &fit, decision, &self.of_camera_of(kind));
+        self.current = fit.effect.clone();
         self.current_cv = cv.clone();
+        let std = parameters_of(kind, &fit.data).1;
         let mut finding = Finding::without_evidence(
             fit.effect,
             effect,
@@ -355,20 +420,76 @@ impl Family for ChainFamily<'_> {
             statement,
             decision.clone(),
         );
-        let std = parameters_of(kind, &fit.data).1;
         finding.std_from_covariance = std.values().next().copied();
         self.stds.push(std);
         Ok(finding)
     }
 }
 
-/// The parameters of the effect `kind` in `fit`, and their standard deviations by name.
-fn parameters_of(kind: Added, fit: &HandEyeResult) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
+impl ChainFamily<'_> {
+    /// [`ChainFamily::of_camera`] of a lens effect; empty for the target's.
+    fn of_camera_of(&self, kind: Added) -> String {
+        match kind {
+            Added::Lens(k) => self.of_camera(k),
+            _ => String::new(),
+        }
+    }
+}
+
+/// Inverse-variance mean of `(value, std)` pairs with its standard deviation; the plain mean
+/// (no standard deviation) when a pair has none or a zero one; one pair as it is.
+fn pooled(pairs: &[(f64, Option<f64>)]) -> (f64, Option<f64>) {
+    if let [(v, s)] = pairs {
+        return (*v, *s);
+    }
+    let weights: Option<Vec<f64>> = pairs.iter().map(|(_, s)| s.filter(|s| *s > 0.0).map(|s| 1.0 / (s * s))).collect();
+    match weights {
+        Some(w) => {
+            let sum: f64 = w.iter().sum();
+            (pairs.iter().zip(&w).map(|((v, _), w)| v * w).sum::<f64>() / sum, Some(sum.sqrt().recip()))
+        }
+        None => (pairs.iter().map(|(v, _)| v).sum::<f64>() / pairs.len() as f64, None),
+    }
+}
+
+/// The target's form pooled over a rig's cameras' fits (each camera's estimate of the one
+/// target): every sag and `e_x` the inverse-variance mean of the cameras that fitted it, with its
+/// standard deviation (taking the cameras' estimates as independent); `None` when no fit carries
+/// a form. One fit's form as it is.
+pub fn pooled_target_form(fits: &[&HandEyeResult]) -> Option<TargetForm> {
+    let forms: Vec<&TargetForm> = fits.iter().filter_map(|f| f.target_form.as_ref()).collect();
+    let first = *forms.first()?;
+    let mut out = first.clone();
+    if first.deformation.shape_free {
+        let mut std = [0.0; 3];
+        for i in 0..3 {
+            let pairs: Vec<_> = forms.iter().map(|f| (f.deformation.shape_m[i], f.shape_std_m.map(|s| s[i]))).collect();
+            let (v, s) = pooled(&pairs);
+            out.deformation.shape_m[i] = v;
+            std[i] = s.unwrap_or(f64::NAN);
+        }
+        out.shape_std_m = first.shape_std_m.map(|_| std);
+    }
+    if first.deformation.scale_free {
+        let pairs: Vec<_> = forms.iter().map(|f| (f.deformation.scale[0], f.scale_x_std)).collect();
+        let (v, s) = pooled(&pairs);
+        out.deformation.scale[0] = v;
+        out.scale_x_std = s;
+    }
+    Some(out)
+}
+
+/// The parameters of the effect `kind` in `fits` (one per camera), and their standard
+/// deviations by name: the target's pooled over the cameras ([`pooled`]), a lens's from its
+/// camera's fit.
+fn parameters_of(kind: Added, fits: &[HandEyeResult]) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
     let mut values = BTreeMap::new();
     let mut std = BTreeMap::new();
+    let refs: Vec<&HandEyeResult> = fits.iter().collect();
+    let form = pooled_target_form(&refs);
     match kind {
         Added::Shape => {
-            if let Some(f) = &fit.target_form {
+            if let Some(f) = &form {
                 for (i, name) in ["bowl_sag_m", "saddle_sag_m", "twist_sag_m"].iter().enumerate() {
                     values.insert(name.to_string(), f.deformation.shape_m[i]);
                     if let Some(s) = f.shape_std_m {
@@ -378,14 +499,15 @@ fn parameters_of(kind: Added, fit: &HandEyeResult) -> (BTreeMap<String, f64>, BT
             }
         }
         Added::PrintScale => {
-            if let Some(f) = &fit.target_form {
+            if let Some(f) = &form {
                 values.insert("scale_x_minus_y".into(), f.deformation.scale[0]);
                 if let Some(s) = f.scale_x_std {
                     std.insert("scale_x_minus_y".into(), s);
                 }
             }
         }
-        Added::Lens => {
+        Added::Lens(k) => {
+            let fit = &fits[k];
             let d = fit.camera.distortion;
             let names = d.kind().coefficient_names();
             for (i, (name, v)) in names.iter().zip(&d.coefficients()).enumerate() {
@@ -399,7 +521,12 @@ fn parameters_of(kind: Added, fit: &HandEyeResult) -> (BTreeMap<String, f64>, BT
     (values, std)
 }
 
-fn statement(kind: Added, fit: &AllFit<ChainVariant, HandEyeResult>, d: &Decision) -> (&'static str, String) {
+fn statement(
+    kind: Added,
+    fit: &AllFit<Variant, Vec<HandEyeResult>>,
+    d: &Decision,
+    camera: &str,
+) -> (&'static str, String) {
     let (before, after, p, m) = (d.heldout_before, d.heldout_after, d.p_corrected, d.candidates_tried);
     let tail = format!(
         "the chain then predicts held-out training images at {after:.3} px instead of {before:.3} px (p = {p:.1e} after correcting for {m} candidates)"
@@ -429,9 +556,9 @@ fn statement(kind: Added, fit: &AllFit<ChainVariant, HandEyeResult>, d: &Decisio
                 pm("scale_x_minus_y", 1e6)
             ),
         ),
-        Added::Lens => (
+        Added::Lens(k) => (
             "lens_distortion",
-            format!("the lens is better described by the {} model; {tail}.{caution}", fit.effect.lens.name()),
+            format!("the lens{camera} is better described by the {} model; {tail}.{caution}", fit.effect.lens[k].name()),
         ),
     }
 }
@@ -445,16 +572,49 @@ pub fn select_chain_physics(
     base: &HandEyeOptions,
     opts: &PhysicsOptions,
 ) -> Result<ChainPhysicsReport> {
-    let train = training(data);
-    let n = train.views.len();
-    let (lens, lens_free) = match &base.intrinsics {
-        IntrinsicsMode::Calibrate(c) => (c.model, true),
-        IntrinsicsMode::Fixed(c) => (c.distortion.kind(), false),
+    select(&[(data, base)], opts)
+}
+
+/// [`select_chain_physics`] for a rig: `cameras` are every camera's recording and hand-eye
+/// options, camera 0 first. The target is one physical object, so its bending and print scale
+/// are candidates shared by every camera, scored on every camera's held-out training images
+/// together (each camera's chain is its own hand-eye fit, as the rig's first step fits them);
+/// each calibrated camera's lens model is a candidate of its own. The report's
+/// [`ChainPhysicsReport::rig_lenses`] holds every camera's chosen lens
+/// ([`ChainPhysicsReport::variant_of`]); its parameters of the target are the cameras' estimates
+/// pooled by inverse variance ([`pooled_target_form`]). Declines when a camera has fewer than
+/// [`MIN_PHYSICS_TRAIN_VIEWS`] training images.
+pub fn select_rig_physics(
+    cameras: &[(&HandEyeData, &HandEyeOptions)],
+    opts: &PhysicsOptions,
+) -> Result<ChainPhysicsReport> {
+    let mut report = select(cameras, opts)?;
+    report.n_train_per_camera = cameras.iter().map(|(d, _)| training(d).views.len()).collect();
+    Ok(report)
+}
+
+fn select(cameras: &[(&HandEyeData, &HandEyeOptions)], opts: &PhysicsOptions) -> Result<ChainPhysicsReport> {
+    let chains: Vec<Chain> = cameras
+        .iter()
+        .map(|(data, base)| Chain {
+            train: training(data),
+            all: data,
+            base,
+            lens_free: matches!(base.intrinsics, IntrinsicsMode::Calibrate(_)),
+        })
+        .collect();
+    let lens_of = |base: &HandEyeOptions| match &base.intrinsics {
+        IntrinsicsMode::Calibrate(c) => c.model,
+        IntrinsicsMode::Fixed(c) => c.distortion.kind(),
     };
-    let nominal = ChainVariant { lens, target: base.target_physics };
-    let folds = opts.folds.clamp(2, n.max(2));
+    let nominal =
+        Variant { lens: cameras.iter().map(|(_, b)| lens_of(b)).collect(), target: cameras[0].1.target_physics };
+    let n_min = chains.iter().map(|c| c.train.views.len()).min().unwrap_or(0);
+    let n: usize = chains.iter().map(|c| c.train.views.len()).sum();
+    let folds = opts.folds.clamp(2, n_min.max(2));
+    let rig = cameras.len() > 1;
     let mut report = ChainPhysicsReport {
-        chosen: nominal,
+        chosen: nominal.chain(0),
         findings: Vec::new(),
         candidates: Vec::new(),
         nominal_cv_rms_px: f64::NAN,
@@ -463,17 +623,19 @@ pub fn select_chain_physics(
         folds,
         declined: None,
         settings: opts.clone(),
+        rig_lenses: if rig { nominal.lens.clone() } else { Vec::new() },
+        n_train_per_camera: Vec::new(),
     };
-    if n < MIN_PHYSICS_TRAIN_VIEWS {
+    if n_min < MIN_PHYSICS_TRAIN_VIEWS {
+        let who = if rig { " (the camera with the fewest)" } else { "" };
         report.declined = Some(format!(
-            "{n} training images: at least {MIN_PHYSICS_TRAIN_VIEWS} are needed to hold images out and still calibrate; the target is taken flat and the lens model as given"
+            "{n_min} training images{who}: at least {MIN_PHYSICS_TRAIN_VIEWS} are needed to hold images out and still calibrate; the target is taken flat and the lens model as given"
         ));
         return Ok(report);
     }
-    let current_cv = cross_validate(&train, base, nominal, folds)?;
-    report.nominal_cv_rms_px = rms(&current_cv);
-    let mut family =
-        ChainFamily { train, base, all: data, opts, lens_free, current: nominal, current_cv, stds: Vec::new() };
+    let mut family = ChainFamily { chains, opts, current: nominal.clone(), current_cv: Vec::new(), stds: Vec::new() };
+    family.current_cv = family.cross_validate(&nominal)?;
+    report.nominal_cv_rms_px = rms(&family.current_cv);
     let policy = Policy {
         alpha: opts.alpha,
         min_improvement: opts.min_improvement,
@@ -484,8 +646,11 @@ pub fn select_chain_physics(
         improvement: Improvement::RmsFraction,
         selection: Selection::SmallestP,
     };
-    let diagnosis = select(&mut family, &policy)?;
-    report.chosen = family.current;
+    let diagnosis = engine_select(&mut family, &policy)?;
+    report.chosen = family.current.chain(0);
+    if rig {
+        report.rig_lenses = family.current.lens.clone();
+    }
     report.chosen_cv_rms_px = rms(&family.current_cv);
     report.findings = diagnosis
         .findings

@@ -181,6 +181,11 @@ pub struct HandeyeLimits {
     pub pnp_rotation_deg_warn: f64,
     /// PnP orientation agreement: failure above (default 3, the 10 x 10 set's limit).
     pub pnp_rotation_deg_fail: f64,
+    /// A rig file's camera-to-camera transform (`--intrinsics` carrying OpenCV's `R`, `T`)
+    /// against the fitted one, in the fit's standard deviations (the largest of the six
+    /// coordinates): warning above (default 3). A warning only: the file's own uncertainty is not
+    /// known, and a camera knocked since the file was made shows exactly so.
+    pub rig_file_sigma_warn: f64,
 }
 
 impl Default for HandeyeLimits {
@@ -195,6 +200,7 @@ impl Default for HandeyeLimits {
             pnp_position_mm_fail: 20.0,
             pnp_rotation_deg_warn: 1.5,
             pnp_rotation_deg_fail: 3.0,
+            rig_file_sigma_warn: 3.0,
         }
     }
 }

@@ -25,9 +25,10 @@ use std::path::Path;
 use nalgebra::{Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 use serde::Serialize;
 
+use ferrocal_calib::handeye::physics::{pooled_target_form, select_rig_physics, ChainPhysicsReport, PhysicsOptions};
 use ferrocal_calib::handeye::{
     calibrate_joint_rig_with, rig_transform_from_starts, HandEyeResult, JointOptions, Mount, RigJointCalibration,
-    TransformEstimate,
+    TargetForm, TransformEstimate,
 };
 
 use super::workflow::{HandEyeFit, HandEyeInput, HandEyeRunOptions};
@@ -69,6 +70,8 @@ pub struct RigFit {
     pub fits: Vec<HandEyeFit>,
     /// `T_camk_cam0` of cameras 1, 2, ... from the fits ([`rig_transform`]).
     pub t_cam_cam0: Vec<TransformEstimate>,
+    /// What the selection of the target's and lenses' physics decided, when it ran.
+    pub physics: Option<ChainPhysicsReport>,
 }
 
 impl RigInput {
@@ -110,32 +113,76 @@ impl RigInput {
     /// Each camera's hand-eye calibration (after its motion check, as the single-camera command
     /// runs it) and the rig transforms combined from them.
     pub fn fit(&mut self) -> Result<RigFit> {
-        let mut fits = Vec::with_capacity(self.cameras.len());
+        self.fit_with_physics(None)
+    }
+
+    /// [`RigInput::fit`] after deciding, when `physics` is given, the target's bending and print
+    /// scale (one target: every camera's held-out training images together) and each camera's
+    /// lens model on the training images ([`select_rig_physics`]); every camera's fit then runs
+    /// with the chosen variant and the rig fit carries the selection's report.
+    pub fn fit_with_physics(&mut self, physics: Option<&PhysicsOptions>) -> Result<RigFit> {
+        let mut prepared = Vec::with_capacity(self.cameras.len());
         for cam in &mut self.cameras {
             let label = cam.label();
             let options = cam.run.hand_eye_options()?;
             let (_, start) = cam.input.check_motion(&options).map_err(|e| e.context(label.clone()))?;
-            fits.push(cam.input.fit_from(options, start).map_err(|e| e.context(label))?);
+            prepared.push((options, start));
+        }
+        let report = match physics {
+            Some(p) => {
+                let cameras: Vec<_> =
+                    self.cameras.iter().zip(&prepared).map(|(c, (o, _))| (&c.input.data, o)).collect();
+                Some(select_rig_physics(&cameras, p).map_err(|e| {
+                    DatasetError::from(e)
+                        .context("handeye: the target's and lenses' physics on the rig's training images")
+                })?)
+            }
+            None => None,
+        };
+        let mut fits = Vec::with_capacity(self.cameras.len());
+        for (k, (cam, (options, start))) in self.cameras.iter().zip(prepared).enumerate() {
+            let (options, start) = match &report {
+                Some(r) => {
+                    let chosen = r.variant_of(k).options(&options);
+                    let start = if chosen.intrinsics == options.intrinsics { start } else { None };
+                    (chosen, start)
+                }
+                None => (options, start),
+            };
+            fits.push(cam.input.fit_from(options, start).map_err(|e| e.context(cam.label()))?);
         }
         let mount = fits[0].result.mount;
         let t_cam_cam0 = fits[1..].iter().map(|f| rig_transform(mount, &fits[0].result, &f.result)).collect();
-        Ok(RigFit { fits, t_cam_cam0 })
+        Ok(RigFit { fits, t_cam_cam0, physics: report })
+    }
+
+    /// The target's form the joint adjustment holds: the cameras' fitted forms pooled by inverse
+    /// variance ([`pooled_target_form`]); `None` when the target is taken flat and nominally
+    /// printed.
+    pub fn target_form(fit: &RigFit) -> Option<TargetForm> {
+        let results: Vec<&HandEyeResult> = fit.fits.iter().map(|f| &f.result).collect();
+        pooled_target_form(&results)
     }
 
     /// The joint adjustment of the robot's kinematic parameters with every camera, its
     /// `T_camk_cam0` and the hand-eye transforms, started from each camera's fit in `fit` and
     /// `T_camk_cam0` from the camera files' `R`, `T` where they carry them
     /// ([`RigInput::file_t_cam_cam0`], else combined from the fits), the target held at camera
-    /// 0's print scale; every image needs joint readings and the input a robot model.
+    /// 0's print scale and, when the physics selection found them, at the cameras' pooled
+    /// bending and x print scale ([`RigInput::target_form`]); every image needs joint readings and the input a robot model.
     pub fn joint_adjustment(&self, fit: &RigFit) -> Result<RigJointCalibration> {
         let mut data = Vec::with_capacity(self.cameras.len());
         let mut joints = Vec::with_capacity(self.cameras.len());
         let mut model = None;
         let scale = fit.fits[0].result.target_scale.map(|(s, _)| s);
+        let form = Self::target_form(fit);
         for cam in &self.cameras {
             let (m, q) = cam.input.joint_readings().map_err(|e| e.context(cam.label()))?;
             model = Some(m);
             let mut d = cam.input.data.clone();
+            if let Some(f) = &form {
+                d.target_points_m = f.points(&d.target_points_m);
+            }
             if let Some(s) = scale {
                 d.target_points_m = ferrocal_calib::handeye::evaluate::scaled_target(&d.target_points_m, s);
             }

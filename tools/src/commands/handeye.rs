@@ -76,7 +76,8 @@ pub struct HandeyeArgs {
     #[arg(long)]
     pub nominal_target_scale: bool,
     /// Take the target flat and the lens model as given, without trying its bending, its
-    /// x-against-y print scale and other lens models on the training images (docs/handeye.md).
+    /// x-against-y print scale and other lens models (each rig camera's) on the training images
+    /// (docs/handeye.md).
     #[arg(long)]
     pub no_physics: bool,
     /// Noise of the reported flange positions, mm per coordinate; with --robot-sigma-deg the
@@ -262,7 +263,7 @@ fn run_rig(
     files: &RigFiles,
 ) -> Result<ExitCode> {
     let mut rig = RigInput::load(run, cameras, &a.intrinsics)?;
-    let fit = rig.fit()?;
+    let fit = rig.fit_with_physics(run.physics.then(PhysicsOptions::default).as_ref())?;
     let joint = (a.out.is_some() && a.robot.is_some()).then(|| rig.joint_adjustment(&fit)).transpose()?;
     let verdict = present_rig(&vs.thresholds, &rig, &fit, joint.as_ref(), a.out.as_deref());
     // Composed first, written together: a failing joint adjustment leaves no half of a run.

@@ -2,7 +2,7 @@
 //! the terminal and an HTML section with every candidate and the accepted effects.
 
 use ferrocal_calib::handeye::physics::ChainPhysicsReport;
-use ferrocal_calib::handeye::HandEyeResult;
+use ferrocal_calib::handeye::{HandEyeResult, TargetForm};
 
 use crate::report::Section;
 
@@ -17,8 +17,14 @@ pub fn physics_line(p: &ChainPhysicsReport) -> String {
     } else {
         p.findings.iter().map(|f| f.effect.as_str()).collect::<Vec<_>>().join(", ")
     };
+    let lenses = if p.rig_lenses.is_empty() {
+        String::new()
+    } else {
+        let names: Vec<String> = p.rig_lenses.iter().enumerate().map(|(k, l)| format!("cam{k} {}", l.name())).collect();
+        format!(" (lens models: {})", names.join(", "))
+    };
     format!(
-        "target and lens physics (decided on {} training images, {} folds): {chosen}; cross-validated chain RMS {:.4} -> {:.4} px",
+        "target and lens physics (decided on {} training images, {} folds): {chosen}{lenses}; cross-validated chain RMS {:.4} -> {:.4} px",
         p.n_train, p.folds, p.nominal_cv_rms_px, p.chosen_cv_rms_px
     )
 }
@@ -26,6 +32,11 @@ pub fn physics_line(p: &ChainPhysicsReport) -> String {
 /// The HTML section: the decision, the accepted effects in words and every candidate of every
 /// step, with the fitted form's values and standard deviations.
 pub fn physics_section(p: &ChainPhysicsReport, r: &HandEyeResult) -> Section {
+    physics_section_with(p, r.target_form.as_ref())
+}
+
+/// [`physics_section`] with the target's form given (a rig's: pooled over its cameras).
+pub fn physics_section_with(p: &ChainPhysicsReport, form: Option<&TargetForm>) -> Section {
     let mut s = Section::new("physics", "Target and lens physics in the chain (decided on the training images)");
     s.text(
         "Each candidate (the target's bending, its x-against-y print scale, another lens model) is kept only when \
@@ -57,7 +68,7 @@ pub fn physics_section(p: &ChainPhysicsReport, r: &HandEyeResult) -> Section {
         &["step", "candidate", "held-out RMS (px)", "p (corrected)", "verdict"],
         rows,
     );
-    if let Some(form) = &r.target_form {
+    if let Some(form) = form {
         let d = &form.deformation;
         if let (true, Some(std)) = (d.shape_free, form.shape_std_m) {
             s.text(format!(

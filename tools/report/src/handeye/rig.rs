@@ -321,12 +321,20 @@ pub fn rig_outputs(
         let source = cam0.input.table.source.as_deref();
         let mut sections = super::html::handeye_sections(&f0.result, &f0.baselines, source);
         sections.insert(1.min(sections.len()), super::rig_html::rig_section(rig, fit, joint));
+        if let Some(p) = &fit.physics {
+            let form = RigInput::target_form(fit);
+            sections.insert(2.min(sections.len()), super::physics::physics_section_with(p, form.as_ref()));
+        }
         let title = format!("Hand-eye calibration of a rig of {} cameras ({mount}, {pattern})", rig.cameras.len());
         out.html(h, Report::of(&title, prov, sections), verdict);
     }
     if let Some(p) = files.handeye.json {
         let mut v = result_json(&cam0.input, &fit.fits[0]);
         v["rig"] = rig_json(rig, fit, joint);
+        if let Some(p) = &fit.physics {
+            v["rig"]["physics"] = serde_json::to_value(p).unwrap_or(Value::Null);
+            v["rig"]["target_form"] = serde_json::to_value(RigInput::target_form(fit)).unwrap_or(Value::Null);
+        }
         crate::verdict::add_verdict(&mut v, verdict);
         out.json_first(p, &v)?;
     }
@@ -384,6 +392,9 @@ pub fn present_rig(
         crate::say!("data: {src}");
     }
     rig_lines(rig, fit).iter().for_each(|l| crate::say!("{l}"));
+    if let Some(p) = &fit.physics {
+        crate::say!("{}", super::physics::physics_line(p));
+    }
     let mut checks = rig_checks(t, rig, fit);
     if joint.is_none() && rig.cameras.len() > 1 {
         // A robot's reported flange poses come from its nominal model: combined from the
@@ -405,6 +416,17 @@ pub fn present_rig(
         let cam = &rig.cameras[d.camera];
         if let Some(file) = cam.run.intrinsics.as_deref() {
             crate::say!("{}", file_difference_line(&cam.name, file, &d));
+            let label =
+                format!("T_{}_cam0 of {} against the {} (largest coordinate)", cam.name, file.display(), d.fitted_by);
+            let name = format!("handeye.rig.{}.file_sigma", cam.name);
+            checks.push(Check::at_most(
+                &name,
+                &label,
+                "sigma",
+                d.max_sigma,
+                t.handeye.rig_file_sigma_warn,
+                f64::INFINITY,
+            ));
         }
     }
     super::verdict::run_verdict(checks, &fit.fits[0].result, joint_out)

@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use ferrocal_calib::check::Check;
+use ferrocal_calib::handeye::physics::ChainPhysicsReport;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde_json::{json, Value};
 
@@ -115,6 +116,14 @@ pub fn rig_section(work: &Path, seed: u64, quick: bool, run: RunCommand) -> Resu
         ]);
     }
     s.table("Against the recording's truth (joint adjustment)", &["quantity", "error", "in its sigmas"], rows);
+    // The physics selection over both cameras (on by default): the rendered target is flat and
+    // printed to scale, and each lens is Brown's, so the expected outcome is that nothing is kept.
+    if let Ok(p) = serde_json::from_value::<ChainPhysicsReport>(r["rig"]["physics"].clone()) {
+        s.text(format!(
+            "{} (the rendered target is flat and printed to scale and both lenses are Brown's: nothing should be kept).",
+            super::physics::physics_line(&p)
+        ));
+    }
     s.data = json!({"seed": seed, "truth": truth, "result_rig": r["rig"], "verdict": r["verdict"]});
     s.check(Check::from_bool(
         "a two-camera rig and its robot calibrated in one command",
