@@ -120,6 +120,9 @@ fn run_camera(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         bail!("diagnose --pattern needs --images");
     }
     let opts = CameraDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..CameraDiagnoseOptions::default() };
+    if args.image_groups.len() > 2 {
+        bail!("diagnose takes --images once (one camera) or twice (a stereo pair: --images left/ --images right/)");
+    }
     if let [left, right] = args.image_groups.as_slice() {
         return Ok(run_stereo([left, right], pattern_text, &opts, files(args), vs)?);
     }
