@@ -5,4 +5,5 @@ mod camera_diagnose;
 mod design_excitation;
 mod design_selection;
 mod engine_diagnose;
+mod stereo_diagnose;
 mod stiffness_onelink;

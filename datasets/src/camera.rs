@@ -328,3 +328,19 @@ pub fn target_point_views(
     }
     Ok((views, PlanarTarget { points_m: points, reversible: false }))
 }
+
+/// The views of a stereo pair's diagnosis: the pattern `pattern` (a pattern string, e.g.
+/// `chessboard:9x6:25mm`) found in the `left` and `right` images (files, globs or folders),
+/// paired by sorted order as `camera stereo` pairs them (refused unless both sides name as many
+/// images), with the pattern's target. Images left out are in [`StereoViews::skipped`] with the
+/// reason.
+pub fn stereo_diagnosis_views(left: &[String], right: &[String], pattern: &str) -> Result<(StereoViews, PlanarTarget)> {
+    let pattern: CalibrationPattern = pattern.parse().map_err(|e| DatasetError::Input(format!("--pattern: {e}")))?;
+    let mut skipped = Vec::new();
+    let paths = |specs: &[String], skipped: &mut Vec<SkippedImage>| {
+        crate::import::images::expand_image_specs(&specs.iter().map(PathBuf::from).collect::<Vec<_>>(), skipped)
+    };
+    let (l, r) = (paths(left, &mut skipped), paths(right, &mut skipped));
+    check_pairs(l.len(), r.len())?;
+    Ok((StereoViews::detect(l, r, skipped, &pattern, CornerMethod::Own), pattern.target()))
+}

@@ -486,3 +486,34 @@ fn asymmetric_circle_grid_and_aprilgrid_through_camera_calibrate() {
         assert!(v["rms_px"].as_f64().unwrap() < 0.1, "{name}: RMS {}", v["rms_px"]);
     }
 }
+
+/// `diagnose` over both cameras of a stereo pair (`--images` given twice, paired by sorted order
+/// as `camera stereo` pairs them) on OpenCV's stereo sample: it runs, pairs all 13 image pairs,
+/// writes the spec's JSON with the verdict and ends with the verdict line. What it finds on this
+/// sample is reported in docs/diagnose.md, not asserted (there is no truth for it).
+#[test]
+fn diagnose_a_stereo_pair_on_the_opencv_sample() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (j, html) = (tmp.path().join("stereo.json"), tmp.path().join("stereo.html"));
+    let side = |s: &str| data("opencv_stereo").join(format!("{s}*.jpg")).to_str().unwrap().to_string();
+    let out = run(ferrocal()
+        .args(["diagnose", "--images", &side("left"), "--images", &side("right")])
+        .args(["--pattern", "chessboard:9x6:25mm", "--json"])
+        .arg(&j)
+        .arg("--report")
+        .arg(&html));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.trim_end().lines().last().is_some_and(|l| l.starts_with("verdict: ")), "{stdout}");
+    let v = json(&j);
+    assert_verdict_box(&html, &v);
+    assert_eq!(v["n_pairs"], 13, "{v:#}");
+    assert_eq!(v["n_single_views"], serde_json::json!([0, 0]));
+    assert!(v["declined"].is_null(), "{v:#}");
+    for k in ["nominal", "final"] {
+        let rms = v[k]["heldout_rms_px"].as_f64().unwrap();
+        assert!(rms > 0.0 && rms < 1.0, "{k}: held-out {rms} px");
+    }
+    for f in v["findings"].as_array().unwrap() {
+        assert_eq!(f["camera"].is_u64(), f["effect"] == "lens_distortion", "{f:#}");
+    }
+}

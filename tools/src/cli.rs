@@ -31,8 +31,9 @@ pub struct Cli {
 }
 
 impl Cli {
-    /// Parses `args` as [`clap::Parser::try_parse_from`] does, and keeps `handeye --images`
-    /// grouped by occurrence (`--images cam0/ --images cam1/`: one group per camera of a rig),
+    /// Parses `args` as [`clap::Parser::try_parse_from`] does, and keeps `handeye --images` and
+    /// `diagnose --images` grouped by occurrence (`--images cam0/ --images cam1/`: one group per
+    /// camera of a rig or stereo pair),
     /// which the derived parser flattens.
     pub fn try_parse_grouped<I, T>(args: I) -> Result<Self, clap::Error>
     where
@@ -42,13 +43,19 @@ impl Cli {
         use clap::{CommandFactory, FromArgMatches};
         let matches = Self::command().try_get_matches_from(args)?;
         let mut cli = Self::from_arg_matches(&matches).map_err(|e| e.format(&mut Self::command()))?;
-        if let (Command::Handeye(h), Some(("handeye", m))) = (&mut cli.command, matches.subcommand()) {
-            if let Ok(Some(groups)) = m.try_get_occurrences::<PathBuf>("images") {
-                h.image_groups = groups.map(|g| g.cloned().collect()).collect();
-            }
+        match (&mut cli.command, matches.subcommand()) {
+            (Command::Handeye(h), Some(("handeye", m))) => h.image_groups = grouped(m),
+            (Command::Diagnose(d), Some(("diagnose", m))) => d.image_groups = grouped(m),
+            _ => {}
         }
         Ok(cli)
     }
+}
+
+/// A subcommand's `--images` grouped by occurrence (empty without any).
+fn grouped<T: Clone + Send + Sync + 'static>(m: &clap::ArgMatches) -> Vec<Vec<T>> {
+    let groups = m.try_get_occurrences::<T>("images").ok().flatten();
+    groups.map(|g| g.map(|g| g.cloned().collect()).collect()).unwrap_or_default()
 }
 
 /// The verdict and the exit status, in `--help`.

@@ -56,14 +56,14 @@ const NOMINAL: Variant = Variant { lens: Lens::Brown5, bent: false, scaled: fals
 
 /// Lens model of a variant.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Lens {
+pub(super) enum Lens {
     Brown5,
     Rational8,
     KannalaBrandt,
 }
 
 impl Lens {
-    fn kind(self) -> DistortionKind {
+    pub(super) fn kind(self) -> DistortionKind {
         match self {
             Lens::Brown5 => DistortionKind::Brown5,
             Lens::Rational8 => DistortionKind::Rational8,
@@ -83,7 +83,7 @@ struct Fit {
 }
 
 /// Target centred on its centroid (so the bending and scale terms do not trade with the pose).
-fn centred(target: &PlanarTarget) -> PlanarTarget {
+pub(super) fn centred(target: &PlanarTarget) -> PlanarTarget {
     let n = target.points_m.len() as f64;
     let c = target.points_m.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
     PlanarTarget {
@@ -92,7 +92,7 @@ fn centred(target: &PlanarTarget) -> PlanarTarget {
     }
 }
 
-fn vision_error(what: &str) -> impl Fn(ferrocal_vision::VisionError) -> CalibError + '_ {
+pub(super) fn vision_error(what: &str) -> impl Fn(ferrocal_vision::VisionError) -> CalibError + '_ {
     move |e| CalibError::Data(format!("{what}: {e}"))
 }
 
@@ -186,7 +186,7 @@ fn cross_validate(views: &[View], target: &PlanarTarget, variant: Variant, folds
 /// residuals are tested against zero with a t test, Bonferroni-corrected over all cells; a
 /// dependence counts when significant at `alpha` and larger than a third of the held-out RMS
 /// (per corner, both axes).
-fn unexplained_structure(
+pub(super) fn unexplained_structure(
     views: &[View],
     residuals: &[Option<DVector<f64>>],
     opts: &CameraDiagnoseOptions,
@@ -489,7 +489,7 @@ impl Family for CameraFamily<'_> {
 }
 
 /// Extent of the target's points along its x axis, metres.
-fn board_width_m(target: &PlanarTarget) -> f64 {
+pub(super) fn board_width_m(target: &PlanarTarget) -> f64 {
     let (lo, hi) =
         target.points_m.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.x), b.max(p.x)));
     hi - lo
@@ -497,7 +497,12 @@ fn board_width_m(target: &PlanarTarget) -> f64 {
 
 /// The print-scale finding in words: which axis, how large (ppm, and millimetres over the
 /// board's width), how sure.
-fn print_scale_statement(e: f64, std: f64, width_m: f64, (before, after, p, m): (f64, f64, f64, usize)) -> String {
+pub(super) fn print_scale_statement(
+    e: f64,
+    std: f64,
+    width_m: f64,
+    (before, after, p, m): (f64, f64, f64, usize),
+) -> String {
     let (ppm, std_ppm) = (e * 1e6, std * 1e6);
     let sense = if e >= 0.0 { "longer" } else { "shorter" };
     format!(

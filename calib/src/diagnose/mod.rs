@@ -11,6 +11,8 @@
 //!   family's [`report::Unit`]); each variant's JSON is a thin view of it;
 //! - [`kinematic`] (arms and parallel machines; re-exported here: [`diagnose`]), [`camera`]
 //!   ([`camera::diagnose_camera`]) and [`force`] ([`force::diagnose_force_sensor`]): the families;
+//! - [`stereo`] ([`stereo::diagnose_stereo`]): the camera family over both cameras of a stereo
+//!   pair (one target, per-camera lenses);
 //! - [`stats`]: the distribution tails and tests.
 
 pub mod camera;
@@ -20,6 +22,7 @@ mod force_crosstalk;
 pub mod kinematic;
 pub mod report;
 pub mod stats;
+pub mod stereo;
 
 pub use kinematic::{
     compensated_calibration, diagnose, Bounds, CandidateScore, DiagnoseOptions, DiagnoseReport, FinalFit, Finding,

@@ -49,6 +49,66 @@ pub fn variant_outputs(
     Ok((Outputs::json_and_report(json, &rep_json, report, &verdict)?, verdict))
 }
 
+/// Where the camera, stereo and force variants of `ferrocal diagnose` write: the JSON, the
+/// optional HTML report, and the attribution of the recording printed in it.
+#[derive(Clone, Copy, Debug)]
+pub struct VariantFiles<'a> {
+    /// The JSON report (`shared/spec/diagnose.md`).
+    pub json: &'a Path,
+    /// The HTML report.
+    pub report: Option<&'a Path>,
+    /// Data attribution printed in the HTML report.
+    pub attribution: Option<&'a str>,
+}
+
+/// The camera variant's outputs: the JSON of `rep` (from `n_views` views of the images and
+/// pattern string `input`) with its verdict and the report, written together; then the summary
+/// and the verdict line.
+pub fn camera_outputs(
+    rep: &CameraDiagnoseReport,
+    n_views: usize,
+    (images, pattern): (&[String], &str),
+    opts: &ferrocal_calib::diagnose::camera::CameraDiagnoseOptions,
+    files: VariantFiles,
+    vs: &crate::verdict::VerdictSettings,
+) -> Result<std::process::ExitCode> {
+    let next =
+        "calibrate with the lens model or target shape the findings name (ferrocal camera calibrate --model ...)";
+    let page = || {
+        let title = format!("Missing physics of a camera ({n_views} views of {pattern})");
+        let settings = json!({"images": images, "pattern": pattern, "options": opts});
+        (title, settings, camera_section(rep, opts.folds, files.attribution))
+    };
+    // Both files together: no report without its JSON.
+    let (out, verdict) = variant_outputs(&vs.thresholds, rep, ("px", next), files.json, files.report, page)?;
+    out.write()?;
+    camera_summary_lines(rep).iter().for_each(|l| crate::say!("{l}"));
+    Ok(vs.conclude(&verdict))
+}
+
+/// The force-sensor variant of `ferrocal diagnose` on the quasi-static table at `path`:
+/// identifies the rigid body and offsets, tests the deformation terms on held-out poses, writes
+/// the JSON (and the report), prints the summary and ends with the verdict.
+pub fn run_forces(
+    path: &Path,
+    opts: &ferrocal_calib::diagnose::force::ForceDiagnoseOptions,
+    files: VariantFiles,
+    vs: &crate::verdict::VerdictSettings,
+) -> Result<std::process::ExitCode> {
+    let (n_poses, rep) = ferrocal_datasets::dynsim::identify::diagnose_static_table(path, opts)?;
+    let next = "identify the sensor with the terms the findings name (docs/dynamics.md)";
+    let page = || {
+        let title = format!("Missing physics of a force-sensing end-effector ({n_poses} poses)");
+        let settings = json!({"forces": path.display().to_string(), "options": opts});
+        (title, settings, force_section(&rep, opts.folds, files.attribution))
+    };
+    // Both files together: no report without its JSON.
+    let (out, verdict) = variant_outputs(&vs.thresholds, &rep, ("n", next), files.json, files.report, page)?;
+    out.write()?;
+    force_summary_lines(&rep, n_poses).iter().for_each(|l| crate::say!("{l}"));
+    Ok(vs.conclude(&verdict))
+}
+
 /// Where the robot variant of `ferrocal diagnose` writes, and what it read.
 #[derive(Clone, Copy, Debug)]
 pub struct DiagnoseFiles<'a> {
@@ -230,7 +290,7 @@ pub fn force_section(rep: &ForceDiagnoseReport, folds: usize, attribution: Optio
 
 /// The candidates of step `k` (0-based) as a table: name, held-out RMS in `unit`, corrected
 /// p-value, verdict.
-fn candidate_table<'a>(
+pub(crate) fn candidate_table<'a>(
     s: &mut Section,
     k: usize,
     unit: &str,

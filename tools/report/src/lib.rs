@@ -11,6 +11,7 @@
 //! - [`plan`]: the measurement plan (`ferrocal plan`), its flow and its report;
 //! - [`dynamics`]: force-sensor models and hexapod dynamics (`ferrocal dynamics study`);
 //! - [`stiffness`]: elastostatic identification (`ferrocal stiffness study` and `identify`);
+//! - [`diagnose_stereo`]: the stereo variant of `ferrocal diagnose` (run, JSON, HTML, summary);
 //! - [`demo`]: the sections of `ferrocal demo`;
 //! - [`robot`]: `ferrocal robot info` and a tool pose, as terminal lines and JSON;
 //! - [`outputs`]: a command's output files, composed first and written together;
@@ -25,6 +26,7 @@ pub mod compensate;
 pub mod corner_study;
 pub mod demo;
 pub mod diagnose;
+pub mod diagnose_stereo;
 pub mod dynamics;
 pub mod error;
 pub mod handeye;

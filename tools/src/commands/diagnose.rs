@@ -9,12 +9,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use ferrocal_datasets::camera::target_point_views;
 use ferrocal_datasets::diagnose::{diagnose_options, diagnose_rows};
-use ferrocal_datasets::dynsim::identify::diagnose_static_table;
-use ferrocal_report::diagnose::{
-    camera_section, camera_summary_lines, compensated_line, force_section, force_summary_lines, robot_outputs,
-    summary_lines, variant_outputs, DiagnoseFiles,
-};
-use serde_json::json;
+use ferrocal_report::diagnose::{compensated_line, robot_outputs, summary_lines, DiagnoseFiles, VariantFiles};
+use ferrocal_report::diagnose_stereo::run_stereo;
 
 use ferrocal_report::verdict::VerdictSettings;
 
@@ -32,9 +28,13 @@ pub struct DiagnoseArgs {
     /// format of `ferrocal dynamics simulate`'s static.csv, docs/dynamics.md).
     #[arg(long)]
     pub forces: Option<PathBuf>,
-    /// Camera variant: image files, globs or folders.
+    /// Camera variant: image files, globs or folders; given twice for a stereo pair
+    /// (`--images left/ --images right/`, paired by sorted order as in `camera stereo`).
     #[arg(long, num_args = 1..)]
     pub images: Vec<String>,
+    /// `--images` grouped by occurrence (filled by [`crate::cli::Cli::try_parse_grouped`]).
+    #[arg(skip)]
+    pub image_groups: Vec<Vec<String>>,
     /// Camera variant: the calibration pattern.
     #[arg(long)]
     pub pattern: Option<String>,
@@ -119,24 +119,20 @@ fn run_camera(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     if args.images.is_empty() {
         bail!("diagnose --pattern needs --images");
     }
+    let opts = CameraDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..CameraDiagnoseOptions::default() };
+    if args.image_groups.len() > 2 {
+        bail!("diagnose takes --images once (one camera) or twice (a stereo pair: --images left/ --images right/)");
+    }
+    if let [left, right] = args.image_groups.as_slice() {
+        return Ok(run_stereo([left, right], pattern_text, &opts, files(args), vs)?);
+    }
     let bars = crate::progress::Bars::default();
     let (views, target) = target_point_views(&args.images, pattern_text, &|m| eprintln!("ferrocal: {m}"), &|k, n| {
         bars.tick("detecting", k as u64, n as u64)
     })?;
-    let opts = CameraDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..CameraDiagnoseOptions::default() };
     let rep = diagnose_camera(&views, &target, &opts).context("camera diagnosis")?;
-    let next =
-        "calibrate with the lens model or target shape the findings name (ferrocal camera calibrate --model ...)";
-    let page = || {
-        let title = format!("Missing physics of a camera ({} views of {pattern_text})", views.len());
-        let settings = json!({"images": args.images, "pattern": pattern_text, "options": opts});
-        (title, settings, camera_section(&rep, opts.folds, args.attribution.as_deref()))
-    };
-    // Both files together: no report without its JSON.
-    let (out, verdict) = variant_outputs(&vs.thresholds, &rep, ("px", next), &args.json, args.report.as_deref(), page)?;
-    out.write()?;
-    camera_summary_lines(&rep).iter().for_each(|l| say!("{l}"));
-    Ok(vs.conclude(&verdict))
+    let input = (args.images.as_slice(), pattern_text.as_str());
+    Ok(ferrocal_report::diagnose::camera_outputs(&rep, views.len(), input, &opts, files(args), vs)?)
 }
 
 /// The force-sensor variant: identify the rigid body and offsets, test the deformation terms on
@@ -144,16 +140,10 @@ fn run_camera(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
 fn run_forces(args: &DiagnoseArgs, path: &Path, vs: &VerdictSettings) -> Result<ExitCode> {
     use ferrocal_calib::diagnose::force::ForceDiagnoseOptions;
     let opts = ForceDiagnoseOptions { folds: args.folds, alpha: args.alpha, ..ForceDiagnoseOptions::default() };
-    let (n_poses, rep) = diagnose_static_table(path, &opts)?;
-    let next = "identify the sensor with the terms the findings name (docs/dynamics.md)";
-    let page = || {
-        let title = format!("Missing physics of a force-sensing end-effector ({n_poses} poses)");
-        let settings = json!({"forces": path.display().to_string(), "options": opts});
-        (title, settings, force_section(&rep, opts.folds, args.attribution.as_deref()))
-    };
-    // Both files together: no report without its JSON.
-    let (out, verdict) = variant_outputs(&vs.thresholds, &rep, ("n", next), &args.json, args.report.as_deref(), page)?;
-    out.write()?;
-    force_summary_lines(&rep, n_poses).iter().for_each(|l| say!("{l}"));
-    Ok(vs.conclude(&verdict))
+    Ok(ferrocal_report::diagnose::run_forces(path, &opts, files(args), vs)?)
+}
+
+/// The camera, stereo and force variants' output files.
+fn files(args: &DiagnoseArgs) -> VariantFiles<'_> {
+    VariantFiles { json: &args.json, report: args.report.as_deref(), attribution: args.attribution.as_deref() }
 }

@@ -34,6 +34,9 @@
 use nalgebra::{DMatrix, Isometry3, Matrix6, Vector2};
 use serde::{Deserialize, Serialize};
 
+mod rig;
+pub use rig::{adjust_rig, RigBundleFit, RigBundleModel, RigBundleSpec};
+
 use super::bundle::{loss_weight, Bundle, CameraLayout, Obs};
 use super::deform::TargetDeformation;
 use super::{check_views, PlanarTarget, RobustLoss, View};

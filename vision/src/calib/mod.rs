@@ -52,7 +52,7 @@ mod tests;
 use nalgebra::{DMatrix, DVector, Isometry3, Point2, Point3};
 use serde::{Deserialize, Serialize};
 
-pub use adjust::{adjust_bundle, BundleFit, BundleMode, BundleModel, BundleSpec, PrintScale, TargetShape, ViewFit};
+pub use adjust::*;
 pub use covariance::{CovarianceMethod, MIN_JACKKNIFE_VIEWS};
 pub use deform::{Deformed, TargetDeformation};
 pub use pattern::CalibrationPattern;
