@@ -459,7 +459,7 @@ fn pooled(pairs: &[(f64, Option<f64>)]) -> (f64, Option<f64>) {
 pub fn pooled_target_form(fits: &[&HandEyeResult]) -> Option<TargetForm> {
     let forms: Vec<&TargetForm> = fits.iter().filter_map(|f| f.target_form.as_ref()).collect();
     let first = *forms.first()?;
-    let mut out = first.clone();
+    let mut out = *first;
     if first.deformation.shape_free {
         let mut std = [0.0; 3];
         for i in 0..3 {
