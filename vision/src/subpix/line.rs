@@ -48,6 +48,13 @@ type NormalEquations = (DMatrix<f64>, DVector<f64>);
 /// One segment's cost, normal matrix (upper triangle, padded to 6) and gradient.
 type SegmentSums = (f64, [[f64; 6]; 6], [f64; 6]);
 
+/// Whether the CPU has AVX2 and FMA (the pixel loops are then compiled for them).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn avx2_fma() -> bool {
+    std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+}
+
 /// Parameters per segment.
 const PS: usize = 3;
 
@@ -187,7 +194,7 @@ impl LineState {
     #[inline(always)]
     fn segment_sums<const M: usize, const UNIT: bool>(&self, seg: &Segment) -> SegmentSums {
         #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+        if avx2_fma() {
             // SAFETY: the CPU has the features the function is compiled for (checked above).
             return unsafe { self.segment_sums_avx2::<M, UNIT>(seg) };
         }
@@ -477,8 +484,28 @@ impl LineState {
         Some(LineFit { chi2: c_new, n, p: np, h_inv_line })
     }
 
-    /// The weighted cost alone (one pass over the pixels, no derivatives).
+    /// The weighted cost alone (one pass over the pixels, no derivatives); compiled for AVX2
+    /// and FMA where the CPU has them, as [`Self::segment_sums`].
     fn cost(&self) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if avx2_fma() {
+            // SAFETY: the CPU has the features the function is compiled for (checked above).
+            return unsafe { self.cost_avx2() };
+        }
+        self.cost_with::<false>()
+    }
+
+    /// [`Self::cost_with`] compiled for AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn cost_avx2(&self) -> f64 {
+        self.cost_with::<true>()
+    }
+
+    /// [`Self::cost`]; with `FMA`, fused multiply-adds (only inside a function compiled for
+    /// FMA).
+    #[inline(always)]
+    fn cost_with<const FMA: bool>(&self) -> f64 {
         let table = NormalTable::get();
         let cs = (self.phi.cos(), self.phi.sin());
         let mut cost = 0.0;
@@ -486,8 +513,9 @@ impl LineState {
             let inv_sig = 1.0 / seg.ln_s.exp();
             for p in &seg.samples {
                 let (u, _) = self.u_t(cs, p.x, p.y);
-                let r = p.v - (seg.a + seg.b * table.cdf(u * inv_sig)) * (1.0 + seg.g * u);
-                cost += p.w * r * r;
+                let cdf = table.cdf_pdf_with::<FMA>(u * inv_sig).0;
+                let r = p.v - madd::<FMA>(seg.b, cdf, seg.a) * madd::<FMA>(seg.g, u, 1.0);
+                cost = madd::<FMA>(p.w * r, r, cost);
             }
         }
         cost
