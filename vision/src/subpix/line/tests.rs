@@ -165,3 +165,38 @@ fn noisy_edge(seed: u64) -> (NoiseModel, LineState) {
     line.init_intensities();
     (model, line)
 }
+
+/// The sums compiled for AVX2 and FMA (where the CPU has them) are those of the portable
+/// code up to rounding, for straight and bent lines, unit and other weights.
+#[test]
+fn the_dispatched_sums_are_the_portable_sums() {
+    let (model, mut line) = noisy_edge(5);
+    for weighted in [false, true] {
+        if weighted {
+            line.set_weights(Some(&model));
+        }
+        let seg = &line.segments[0];
+        // Relative to the scales of the sums (Cauchy-Schwarz bounds: an entry near zero is a
+        // sum of terms that are not).
+        let close = |(c1, h1, g1): SegmentSums, (c2, h2, g2): SegmentSums| {
+            let near = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-11 * scale;
+            let d = |a: usize| h1[a][a].max(1e-300);
+            let ok = near(c1, c2, c1)
+                && (0..6).all(|a| near(g1[a], g2[a], (d(a) * c1).sqrt()))
+                && (0..6).all(|a| (0..6).all(|b| near(h1[a][b], h2[a][b], (d(a) * d(b)).sqrt())));
+            if !ok {
+                eprintln!("{c1} {c2}\n{g1:?}\n{g2:?}\n{h1:?}\n{h2:?}");
+            }
+            ok
+        };
+        if weighted {
+            assert!(close(line.segment_sums::<5, false>(seg), line.segment_sums_with::<5, false, false>(seg)));
+        } else {
+            assert!(close(line.segment_sums::<5, true>(seg), line.segment_sums_with::<5, true, false>(seg)));
+        }
+        let bent = LineState { curved: true, kappa: 1e-3, ..line.clone() };
+        let seg = &bent.segments[0];
+        assert!(close(bent.segment_sums::<6, false>(seg), bent.segment_sums_with::<6, false, false>(seg)));
+        assert!((line.cost() / line.cost_with::<false>() - 1.0).abs() < 1e-12);
+    }
+}
