@@ -40,6 +40,18 @@ pub(crate) fn normal_pdf(z: f64) -> f64 {
     INV_SQRT_2PI * (-0.5 * z * z).exp()
 }
 
+/// `a b + c`: one fused multiply-add with `FMA` (a single rounding; call it so only inside
+/// functions compiled for a CPU with FMA, else it is a slow library call), else a product and
+/// a sum.
+#[inline(always)]
+pub(crate) fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
 /// Half-width of the tabulated range of `z`; outside, the closed forms are used.
 const Z_MAX: f64 = 8.0;
 /// Table nodes per unit of `z`.
@@ -50,29 +62,54 @@ const INTERVALS: usize = (2.0 * Z_MAX * PER_UNIT) as usize;
 /// `Phi` and `phi` tabulated on `z_k = -8 + k / 64`, interpolated by cubic Hermite
 /// polynomials through the values and the derivatives (`Phi' = phi`, `phi' = -z phi`):
 /// interpolation error below 3e-10 for `phi`; `Phi`'s nodes come from [`normal_cdf`], whose
-/// own error (1.2e-7 fractional) dominates.
+/// own error (1.2e-7 fractional) dominates. Each interval stores both cubics' coefficients
+/// in the local coordinate `t` in `[0, 1)`, so a lookup is two Horner evaluations.
 pub(crate) struct NormalTable {
-    /// `[Phi(z_k), phi(z_k)]`.
-    nodes: Vec<[f64; 2]>,
+    /// Per interval, `Phi = c0 + t (c1 + t (c2 + t c3))` and `phi` likewise:
+    /// `[c0, c1, c2, c3, p0, p1, p2, p3]`.
+    coefficients: Vec<[f64; 8]>,
+}
+
+/// The cubic `f(t) = y0 + t (h s0 + t (...))` through `y0`, `y1` with slopes `s0`, `s1` (per
+/// unit of `z`) at the ends of an interval of width `h`, in `t = (z - z0) / h`: its Horner
+/// coefficients.
+fn hermite_coefficients(y0: f64, s0: f64, y1: f64, s1: f64, h: f64) -> [f64; 4] {
+    let (m0, m1) = (h * s0, h * s1);
+    [y0, m0, 3.0 * (y1 - y0) - 2.0 * m0 - m1, 2.0 * (y0 - y1) + m0 + m1]
 }
 
 impl NormalTable {
     /// The table (built once, on first use).
     pub(crate) fn get() -> &'static NormalTable {
         static TABLE: OnceLock<NormalTable> = OnceLock::new();
-        TABLE.get_or_init(|| NormalTable {
-            nodes: (0..=INTERVALS)
+        TABLE.get_or_init(|| {
+            let h = 1.0 / PER_UNIT;
+            let node = |k: usize| {
+                let z = k as f64 / PER_UNIT - Z_MAX;
+                (z, normal_cdf(z), normal_pdf(z))
+            };
+            let coefficients = (0..INTERVALS)
                 .map(|k| {
-                    let z = k as f64 / PER_UNIT - Z_MAX;
-                    [normal_cdf(z), normal_pdf(z)]
+                    let ((z0, c0, p0), (z1, c1, p1)) = (node(k), node(k + 1));
+                    let c = hermite_coefficients(c0, p0, c1, p1, h);
+                    let p = hermite_coefficients(p0, -z0 * p0, p1, -z1 * p1, h);
+                    [c[0], c[1], c[2], c[3], p[0], p[1], p[2], p[3]]
                 })
-                .collect(),
+                .collect();
+            NormalTable { coefficients }
         })
     }
 
     /// `(Phi(z), phi(z))`.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn cdf_pdf(&self, z: f64) -> (f64, f64) {
+        self.cdf_pdf_with::<false>(z)
+    }
+
+    /// `(Phi(z), phi(z))`; with `FMA`, the Horner steps are fused multiply-adds (call only
+    /// where the CPU has them, see [`madd`]).
+    #[inline(always)]
+    pub(crate) fn cdf_pdf_with<const FMA: bool>(&self, z: f64) -> (f64, f64) {
         let x = (z + Z_MAX) * PER_UNIT;
         // Also catches NaN.
         if !(x >= 0.0 && x < INTERVALS as f64) {
@@ -80,17 +117,9 @@ impl NormalTable {
         }
         let k = x as usize;
         let t = x - k as f64;
-        let [c0, p0] = self.nodes[k];
-        let [c1, p1] = self.nodes[k + 1];
-        let h = 1.0 / PER_UNIT;
-        let z0 = k as f64 * h - Z_MAX;
-        let z1 = z0 + h;
-        let t1 = 1.0 - t;
-        let (h00, h10) = ((1.0 + 2.0 * t) * t1 * t1, t * t1 * t1 * h);
-        let (h01, h11) = (t * t * (3.0 - 2.0 * t), -t * t * t1 * h);
-        let cdf = h00 * c0 + h10 * p0 + h01 * c1 + h11 * p1;
-        let pdf = h00 * p0 - h10 * z0 * p0 + h01 * p1 - h11 * z1 * p1;
-        (cdf, pdf)
+        let [c0, c1, c2, c3, p0, p1, p2, p3] = self.coefficients[k];
+        let horner = |a0, a1, a2, a3| madd::<FMA>(t, madd::<FMA>(t, madd::<FMA>(t, a3, a2), a1), a0);
+        (horner(c0, c1, c2, c3), horner(p0, p1, p2, p3))
     }
 
     /// `Phi(z)`.

@@ -12,7 +12,7 @@ use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 
 #[cfg(test)]
 use super::erf::normal_cdf;
-use super::erf::NormalTable;
+use super::erf::{madd, NormalTable};
 use super::NoiseModel;
 
 /// Lower and upper bounds of `ln(blur)` (blur from 0.1 px to 15 px).
@@ -44,6 +44,16 @@ pub(crate) struct Segment {
 
 /// Normal matrix and gradient of a weighted least-squares problem.
 type NormalEquations = (DMatrix<f64>, DVector<f64>);
+
+/// One segment's cost, normal matrix (upper triangle, padded to 6) and gradient.
+type SegmentSums = (f64, [[f64; 6]; 6], [f64; 6]);
+
+/// Whether the CPU has AVX2 and FMA (the pixel loops are then compiled for them).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn avx2_fma() -> bool {
+    std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+}
 
 /// Parameters per segment.
 const PS: usize = 3;
@@ -179,29 +189,51 @@ impl LineState {
 
     /// One segment's weighted cost, normal matrix (upper triangle) and gradient over its
     /// `M` parameters: `phi, d, [kappa,] a, b, ln_s` (`M` = 6 when curved, else 5); with
-    /// `UNIT`, every weight is 1 and is not multiplied.
+    /// `UNIT`, every weight is 1 and is not multiplied. On a CPU with AVX2 and FMA (checked at
+    /// run time), the same sums compiled for it, with fused multiply-adds.
     #[inline(always)]
-    fn segment_sums<const M: usize, const UNIT: bool>(&self, seg: &Segment) -> (f64, [[f64; 6]; 6], [f64; 6]) {
+    fn segment_sums<const M: usize, const UNIT: bool>(&self, seg: &Segment) -> SegmentSums {
+        #[cfg(target_arch = "x86_64")]
+        if avx2_fma() {
+            // SAFETY: the CPU has the features the function is compiled for (checked above).
+            return unsafe { self.segment_sums_avx2::<M, UNIT>(seg) };
+        }
+        self.segment_sums_with::<M, UNIT, false>(seg)
+    }
+
+    /// [`Self::segment_sums_with`] compiled for AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn segment_sums_avx2<const M: usize, const UNIT: bool>(&self, seg: &Segment) -> SegmentSums {
+        self.segment_sums_with::<M, UNIT, true>(seg)
+    }
+
+    /// [`Self::segment_sums`]; with `FMA`, products are accumulated by fused multiply-adds
+    /// (only inside a function compiled for FMA).
+    #[inline(always)]
+    fn segment_sums_with<const M: usize, const UNIT: bool, const FMA: bool>(&self, seg: &Segment) -> SegmentSums {
         let table = NormalTable::get();
         let (c, s) = (self.phi.cos(), self.phi.sin());
         let sig = seg.ln_s.exp();
         let inv_sig = 1.0 / sig;
-        let mut hs = [[0.0f64; M]; M];
-        let mut gs = [0.0f64; M];
+        // Rows padded to 8 columns: with FMA (AVX2), a whole row is two vector multiply-adds
+        // (the entries below the diagonal are summed too, and not used).
+        let mut hs = [[0.0f64; 8]; M];
+        let mut gs = [0.0f64; 8];
         let mut cost = 0.0;
         for p in &seg.samples {
             let (u, t) = self.u_t((c, s), p.x, p.y);
             let z = u * inv_sig;
-            let (cdf, pdf) = table.cdf_pdf(z);
-            let q = 1.0 + seg.g * u;
-            let base = seg.a + seg.b * cdf;
+            let (cdf, pdf) = table.cdf_pdf_with::<FMA>(z);
+            let q = madd::<FMA>(seg.g, u, 1.0);
+            let base = madd::<FMA>(seg.b, cdf, seg.a);
             let r = p.v - base * q;
-            cost += if UNIT { r * r } else { p.w * r * r };
-            let gu = seg.b * pdf * inv_sig * q + base * seg.g;
+            cost = madd::<FMA>(if UNIT { r } else { p.w * r }, r, cost);
+            let gu = madd::<FMA>(seg.b * pdf * inv_sig, q, base * seg.g);
             // du/dphi = t + kappa t (n . x), du/dd = -1, du/dkappa = -t^2 / 2.
-            let du_dphi = t + self.kappa * t * (c * p.x + s * p.y);
+            let du_dphi = madd::<FMA>(self.kappa * t, c * p.x + s * p.y, t);
             let (ja, jb, js) = (q, cdf * q, -seg.b * pdf * z * q);
-            let mut j = [0.0f64; M];
+            let mut j = [0.0f64; 8];
             j[0] = gu * du_dphi;
             j[1] = -gu;
             if M == 6 {
@@ -210,19 +242,28 @@ impl LineState {
             j[M - 3] = ja;
             j[M - 2] = jb;
             j[M - 1] = js;
-            for a in 0..M {
+            let wr = if UNIT { r } else { p.w * r };
+            for (a, row) in hs.iter_mut().enumerate() {
                 let wa = if UNIT { j[a] } else { p.w * j[a] };
-                gs[a] += wa * r;
-                for b in a..M {
-                    hs[a][b] += wa * j[b];
+                if FMA {
+                    for b in 0..8 {
+                        row[b] = madd::<FMA>(wa, j[b], row[b]);
+                    }
+                } else {
+                    for b in a..M {
+                        row[b] = madd::<FMA>(wa, j[b], row[b]);
+                    }
                 }
+            }
+            for (g, jb) in gs.iter_mut().zip(j) {
+                *g = madd::<FMA>(wr, jb, *g);
             }
         }
         let mut h6 = [[0.0f64; 6]; 6];
         let mut g6 = [0.0f64; 6];
         for a in 0..M {
             g6[a] = gs[a];
-            h6[a][..M].copy_from_slice(&hs[a]);
+            h6[a][a..M].copy_from_slice(&hs[a][a..M]);
         }
         (cost, h6, g6)
     }
@@ -443,8 +484,28 @@ impl LineState {
         Some(LineFit { chi2: c_new, n, p: np, h_inv_line })
     }
 
-    /// The weighted cost alone (one pass over the pixels, no derivatives).
+    /// The weighted cost alone (one pass over the pixels, no derivatives); compiled for AVX2
+    /// and FMA where the CPU has them, as [`Self::segment_sums`].
     fn cost(&self) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if avx2_fma() {
+            // SAFETY: the CPU has the features the function is compiled for (checked above).
+            return unsafe { self.cost_avx2() };
+        }
+        self.cost_with::<false>()
+    }
+
+    /// [`Self::cost_with`] compiled for AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn cost_avx2(&self) -> f64 {
+        self.cost_with::<true>()
+    }
+
+    /// [`Self::cost`]; with `FMA`, fused multiply-adds (only inside a function compiled for
+    /// FMA).
+    #[inline(always)]
+    fn cost_with<const FMA: bool>(&self) -> f64 {
         let table = NormalTable::get();
         let cs = (self.phi.cos(), self.phi.sin());
         let mut cost = 0.0;
@@ -452,8 +513,9 @@ impl LineState {
             let inv_sig = 1.0 / seg.ln_s.exp();
             for p in &seg.samples {
                 let (u, _) = self.u_t(cs, p.x, p.y);
-                let r = p.v - (seg.a + seg.b * table.cdf(u * inv_sig)) * (1.0 + seg.g * u);
-                cost += p.w * r * r;
+                let cdf = table.cdf_pdf_with::<FMA>(u * inv_sig).0;
+                let r = p.v - madd::<FMA>(seg.b, cdf, seg.a) * madd::<FMA>(seg.g, u, 1.0);
+                cost = madd::<FMA>(p.w * r, r, cost);
             }
         }
         cost
@@ -516,170 +578,4 @@ impl Segment {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use std::cell::Cell;
-
-    thread_local! {
-        /// Passes computing the normal equations ([`LineState::evaluate`]) on this thread.
-        pub(super) static EVALUATIONS: Cell<usize> = const { Cell::new(0) };
-    }
-
-    /// Normal-equation passes of `f` on this thread.
-    fn evaluations<T>(f: impl FnOnce() -> T) -> (T, usize) {
-        let before = EVALUATIONS.with(Cell::get);
-        let out = f();
-        (out, EVALUATIONS.with(Cell::get) - before)
-    }
-
-    /// A noiseless synthetic band: the fit recovers the line, the blur and the intensities.
-    #[test]
-    fn recovers_a_synthetic_edge() {
-        let (phi, d, sig, a, b) = (0.3f64, 0.37, 1.3, 40.0, 150.0);
-        let mut samples = Vec::new();
-        for i in -20..=20 {
-            for j in -20..=20 {
-                let (x, y) = (i as f64, j as f64);
-                let u = phi.cos() * x + phi.sin() * y - d;
-                if u.abs() < 5.0 {
-                    samples.push(Sample { x, y, v: a + b * normal_cdf(u / sig), w: 1.0 });
-                }
-            }
-        }
-        let mut line = LineState::straight(0.25, 0.0, vec![Segment { a: 0.0, b: 0.0, ln_s: 0.0, g: 0.0, samples }]);
-        line.init_intensities();
-        let fit = line.solve(50).unwrap();
-        assert!((line.phi - phi).abs() < 1e-7, "{}", line.phi);
-        assert!((line.d - d).abs() < 1e-6, "{}", line.d);
-        assert!((line.segments[0].ln_s.exp() - sig).abs() < 1e-5);
-        assert!((line.segments[0].b - b).abs() < 1e-4);
-        assert!(fit.chi2 < 1e-8);
-    }
-
-    /// An edge bent by `kappa` through the corner at the origin, seen on either side of it (the
-    /// two segments of a chessboard line bent by lens distortion): the straight line passes the
-    /// corner at the mean sagitta, the parabola at the corner.
-    #[test]
-    fn a_bent_edge_is_fitted_at_its_tangent() {
-        let (d, kappa, sig) = (0.2f64, 2e-4, 1.0);
-        let segment = |sign: f64| {
-            let mut samples = Vec::new();
-            for i in 5..=60 {
-                for j in -6..=6 {
-                    let (x, y) = (sign * i as f64, j as f64);
-                    let u = y - d - 0.5 * kappa * x * x;
-                    samples.push(Sample { x, y, v: 30.0 + 150.0 * normal_cdf(u / sig), w: 1.0 });
-                }
-            }
-            Segment { a: 0.0, b: 0.0, ln_s: 0.0, g: 0.0, samples }
-        };
-        let phi = std::f64::consts::FRAC_PI_2;
-        let mut straight = LineState::straight(phi, 0.0, vec![segment(-1.0), segment(1.0)]);
-        straight.init_intensities();
-        straight.solve(60).unwrap();
-        // The mean sagitta over |x| in 5..60 is about kappa (60^3 - 5^3) / (6 * 55) = 0.13 px.
-        assert!(straight.d - d > 0.08, "straight line at {}", straight.d);
-        let mut bent = LineState { curved: true, ..LineState::straight(phi, 0.0, vec![segment(-1.0), segment(1.0)]) };
-        bent.init_intensities();
-        let fit = bent.solve(60).unwrap();
-        assert!((bent.d - d).abs() < 1e-5 && (bent.phi - phi).abs() < 1e-7, "{} {}", bent.d, bent.phi);
-        assert!((bent.kappa - kappa).abs() < 1e-8 && fit.p == 3 + 2 * PS && fit.chi2 < 1e-6, "{}", bent.kappa);
-    }
-
-    /// A noisy edge whose pixels are weighted by a signal-dependent noise model: one
-    /// Gauss-Newton step from the unweighted fit lands on the weighted optimum that
-    /// Levenberg-Marquardt reaches at the tight tolerance (to 1e-4 px, covariance to 1 %); a
-    /// start 3 px off falls back to Levenberg-Marquardt and converges all the same.
-    #[test]
-    fn one_step_from_the_unweighted_fit_is_the_weighted_fit() {
-        let (model, line) = noisy_edge(12345);
-        let mut line = line;
-        line.solve_to(50, LOOSE).unwrap();
-        line.set_weights(Some(&model));
-        let mut exact = line.clone();
-        let fe = exact.solve_to(50, TIGHT).unwrap();
-        let mut near = line.clone();
-        let fnear = near.solve_from_near(50).unwrap();
-        assert!((near.d - exact.d).abs() < 1e-4 && (near.phi - exact.phi).abs() < 1e-6, "{} {}", near.d, exact.d);
-        // The weights did move the line (else the test would show nothing).
-        assert!((line.d - exact.d).abs() > 1e-4, "{} {}", line.d, exact.d);
-        for k in 0..2 {
-            let r = fnear.h_inv_line[(k, k)] / fe.h_inv_line[(k, k)];
-            assert!((r - 1.0).abs() < 0.01, "{r}");
-        }
-        assert!((fnear.chi2 / fe.chi2 - 1.0).abs() < 1e-6);
-        let mut far = line.clone();
-        far.d += 3.0;
-        far.solve_from_near(50).unwrap();
-        assert!((far.d - exact.d).abs() < 1e-5, "{} {}", far.d, exact.d);
-    }
-
-    /// An intermediate fit from a start a fraction of a pixel off ends on the point
-    /// Levenberg-Marquardt at [`LOOSE`] ends on (the same iterates, bit for bit), with one pass
-    /// of normal equations fewer on most of a few noisy edges (never more); its cost is the
-    /// cost at that point.
-    #[test]
-    fn an_intermediate_fit_ends_on_the_same_point_one_pass_earlier() {
-        let mut saved = 0;
-        for seed in [1u64, 7, 12345, 99, 2024] {
-            let (_, mut line) = noisy_edge(seed);
-            // As the line snapped to the strongest gradient starts.
-            (line.phi, line.d) = (1.19, -0.1);
-            line.init_intensities();
-            let mut full = line.clone();
-            let (ff, n_full) = evaluations(|| full.solve_to(50, LOOSE).unwrap());
-            let (fi, n_inter) = evaluations(|| line.solve_intermediate(50).unwrap());
-            assert_eq!((line.d, line.phi), (full.d, full.phi), "seed {seed}");
-            assert_eq!(line.segments[0].ln_s, full.segments[0].ln_s);
-            assert!(n_inter + 1 == n_full || n_inter == n_full, "seed {seed}: {n_inter} against {n_full} passes");
-            saved += n_full - n_inter;
-            assert!((fi.chi2 / ff.chi2 - 1.0).abs() < 1e-12 && (fi.chi2 / line.cost() - 1.0).abs() < 1e-12);
-        }
-        // Where the contraction does not promise it (seed 99), the fit takes every pass.
-        assert!(saved >= 3, "{saved} passes saved of 5 fits");
-    }
-
-    /// The sums over unit weights (multiplications skipped) are those of the weighted path:
-    /// with every weight 2 (an exact scaling) the cost and normal equations double, bit for bit.
-    #[test]
-    fn unit_weights_give_the_weighted_sums() {
-        let (_, line) = noisy_edge(3);
-        let mut doubled = line.clone();
-        doubled.segments[0].samples.iter_mut().for_each(|p| p.w = 2.0);
-        let ((c1, (h1, g1)), (c2, (h2, g2))) = (line.evaluate(), doubled.evaluate());
-        assert!(c1 > 0.0 && c2 == 2.0 * c1 && h2 == 2.0 * &h1 && g2 == 2.0 * &g1, "{c1} {c2}");
-    }
-
-    /// A straight edge (normal angle 1.2 rad, 0.31 px from the origin, blur 1.4 px, levels 25
-    /// and 195 DN) with signal-dependent noise (`seed` of the generator), its pixels within
-    /// 6 px, and the noise model; the line starts at angle 1.15, distance 0, intensities
-    /// fitted.
-    fn noisy_edge(seed: u64) -> (NoiseModel, LineState) {
-        let (phi, d, sig, a, b) = (1.2f64, -0.31, 1.4, 25.0, 170.0);
-        let mut state = seed;
-        let mut noise = move || {
-            // Sum of 4 uniforms (LCG), variance 1.
-            let mut s = 0.0;
-            for _ in 0..4 {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                s += (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
-            }
-            s * 3f64.sqrt()
-        };
-        let model = NoiseModel { offset_dn2: 2.0, slope_dn: 0.08 };
-        let mut samples = Vec::new();
-        for i in -30..=30 {
-            for j in -30..=30 {
-                let (x, y) = (i as f64, j as f64);
-                let u = phi.cos() * x + phi.sin() * y - d;
-                if u.abs() < 6.0 {
-                    let m = a + b * normal_cdf(u / sig);
-                    samples.push(Sample { x, y, v: m + model.variance_dn2(m).sqrt() * noise(), w: 1.0 });
-                }
-            }
-        }
-        let mut line = LineState::straight(1.15, 0.0, vec![Segment { a: 0.0, b: 0.0, ln_s: 0.0, g: 0.0, samples }]);
-        line.init_intensities();
-        (model, line)
-    }
-}
+mod tests;
