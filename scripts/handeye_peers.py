@@ -235,7 +235,8 @@ def ferrocal_row(label, r, data):
 # OpenCV
 
 
-def opencv_rows(data):
+def opencv_fits(data):
+    """OpenCV's hand-eye fits on the training views: (label, X, W, (K, dist), note) per method."""
     train = [v for v in data["views"] if v["split"] == "train"]
     obj = [data["target"][v["ids"]].astype(np.float32) for v in train]
     img = [v["px"].astype(np.float32).reshape(-1, 1, 2) for v in train]
@@ -249,13 +250,11 @@ def opencv_rows(data):
         cam_target.append(T(cv2.Rodrigues(rvec)[0], tvec))
     flange = [v["t_base_flange"] for v in train]
     eih = data["mount"] == "eye-in-hand"
-    rows = []
+    fits = []
     camera_note = f"cv2.calibrateCamera on the training views: RMS {rms:.3f} px, fx {K[0, 0]:.1f}, fy {K[1, 1]:.1f}"
 
     def add(function, method, X, W):
-        tr, held, missing = chain_rms(data, (K, dist), X, W)
-        rows.append({"method": f"OpenCV {function} {method}", "heldout_rms_px": held, "train_rms_px": tr,
-                     "unprojected": missing, "note": camera_note})
+        fits.append((f"OpenCV {function} {method}", X, W, (K, dist), camera_note))
 
     robot = flange if eih else [inv(f) for f in flange]
     for method in ["TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS"]:
@@ -282,6 +281,15 @@ def opencv_rows(data):
         # eye-to-hand: base2world = T_target_flange, gripper2cam = T_camera_base.
         X, W = (inv(gripper2cam), inv(base2world)) if eih else (inv(base2world), inv(gripper2cam))
         add("calibrateRobotWorldHandEye", method, X, W)
+    return fits
+
+
+def opencv_rows(data):
+    rows = []
+    for label, X, W, camera, note in opencv_fits(data):
+        tr, held, missing = chain_rms(data, camera, X, W)
+        rows.append({"method": label, "heldout_rms_px": held, "train_rms_px": tr, "unprojected": missing,
+                     "note": note})
     return rows
 
 
@@ -299,7 +307,12 @@ def vc_T(p):
     return T(xyzw_to_R(p.rotation_xyzw), p.translation_xyz)
 
 
-def vc_rows(data):
+VC_VARIANTS = [(False, True), (True, True), (False, False), (True, False)]  # (refine poses, fix_k3)
+
+
+def vc_single_fits(data, variants=VC_VARIANTS):
+    """vision-calibration's run_single_cam_handeye on the training views, per (refine, fix_k3):
+    (label, X, W, (K, dist), result, refine) or (label, None, None, None, error message, refine)."""
     import vision_calibration as vc
 
     train = [v for v in data["views"] if v["split"] == "train"]
@@ -311,8 +324,8 @@ def vc_rows(data):
         for v in train
     ])
     eih = data["mount"] == "eye-in-hand"
-    rows = []
-    for refine, fix_k3 in [(False, True), (True, True), (False, False), (True, False)]:
+    fits = []
+    for refine, fix_k3 in variants:
         cfg = vc.SingleCamHandeyeCalibrationConfig()
         cfg.handeye_init.handeye_mode = "EyeInHand" if eih else "EyeToHand"
         cfg.robot_poses.refine = refine
@@ -322,20 +335,31 @@ def vc_rows(data):
         try:
             res = vc.run_single_cam_handeye(dataset, cfg)
         except Exception as e:  # noqa: BLE001 - report the peer's failure as a row
-            rows.append({"method": label, "heldout_rms_px": None, "train_rms_px": None, "error": str(e)})
+            fits.append((label, None, None, None, str(e), refine))
             continue
         k, d = res.camera.intrinsics, res.camera.distortion
         K = np.array([[k.fx, k.skew, k.cx], [0, k.fy, k.cy], [0, 0, 1.0]])
         dist = np.array([d.k1, d.k2, d.p1, d.p2, d.k3])
         # gripper_se3_camera is T_gripper_camera (maps camera coordinates to the gripper),
         # base_se3_target T_base_target; camera_se3_base T_camera_base, gripper_se3_target
-        # T_gripper_target. Checked below against vision-calibration's own mean error.
+        # T_gripper_target. Checked in vc_rows against vision-calibration's own mean error.
         if eih:
             X, W = vc_T(res.gripper_se3_camera), vc_T(res.base_se3_target)
         else:
             X, W = vc_T(res.gripper_se3_target), inv(vc_T(res.camera_se3_base))
-        tr, held, missing = chain_rms(data, (K, dist), X, W)
-        mean = mean_error(data, (K, dist), X, W)
+        fits.append((label, X, W, (K, dist), res, refine))
+    return fits
+
+
+def vc_rows(data):
+    rows = []
+    for label, X, W, camera, res, refine in vc_single_fits(data):
+        if X is None:
+            rows.append({"method": label, "heldout_rms_px": None, "train_rms_px": None, "error": res})
+            continue
+        k = res.camera.intrinsics
+        tr, held, missing = chain_rms(data, camera, X, W)
+        mean = mean_error(data, camera, X, W)
         if not refine and abs(mean - res.mean_reproj_error) > 1e-3:
             # With the poses exact, its own figure must be ours: the frames are read right.
             sys.exit(f"{label}: mean error {mean} px here against its own {res.mean_reproj_error} px")
