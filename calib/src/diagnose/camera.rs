@@ -33,10 +33,8 @@ use ferrocal_vision::camera::DistortionKind;
 use nalgebra::{DVector, Isometry3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::engine::{
-    select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection, StepStart, Test,
-};
-use super::report::{best_verdict, Decision, Finding, Unit};
+use super::engine::{select, AllFit, Baseline, Describe, Family, Policy, Screened, StepStart};
+use super::report::{best_verdict, Decision, Finding, StepRows, Unit};
 use super::stats::{bonferroni, paired_test};
 use crate::error::{CalibError, Result};
 
@@ -547,16 +545,7 @@ pub fn diagnose_camera(
         heldout_rms_px: rms(&current_cv.errors),
     };
     let mut family = CameraFamily { views, target, opts, current, current_cv, current_fit: nominal_fit };
-    let policy = Policy {
-        alpha: opts.alpha,
-        min_improvement: opts.min_improvement,
-        max_effects: usize::MAX,
-        min_sin_angle: 0.0,
-        test: Test::SignOrT,
-        correction: Correction::PerCandidate,
-        improvement: Improvement::RmsFraction,
-        selection: Selection::SmallestP,
-    };
+    let policy = Policy::held_out_images(opts.alpha, opts.min_improvement);
     let diagnosis = select(&mut family, &policy)?;
     Ok(CameraDiagnoseReport {
         nominal,
@@ -580,23 +569,33 @@ pub fn diagnose_camera(
         },
         unexplained: unexplained_structure(views, &family.current_cv.residuals, opts),
         declined: None,
-        candidates: diagnosis
-            .steps
-            .iter()
-            .map(|s| {
-                s.rows
-                    .iter()
-                    .map(|r| CameraCandidateScore {
-                        candidate: r.label.clone(),
-                        heldout_rms_px: r.heldout_after,
-                        p_value: r.p_corrected,
-                        verdict: best_verdict(r, opts.alpha, opts.min_improvement, "rejected: implausible size"),
-                        status: r.verdict.status().to_string(),
-                    })
-                    .collect()
-            })
-            .collect(),
+        candidates: candidate_scores(&diagnosis.steps, opts.alpha, opts.min_improvement, "rejected: implausible size"),
         settings: opts.clone(),
         n_views: n,
     })
+}
+
+/// Every candidate of every step of a selection as the image families report it; `vetoed` is
+/// the words of a candidate its family vetoed (see [`best_verdict`]).
+pub fn candidate_scores(
+    steps: &[StepRows],
+    alpha: f64,
+    min_improvement: f64,
+    vetoed: &str,
+) -> Vec<Vec<CameraCandidateScore>> {
+    steps
+        .iter()
+        .map(|s| {
+            s.rows
+                .iter()
+                .map(|r| CameraCandidateScore {
+                    candidate: r.label.clone(),
+                    heldout_rms_px: r.heldout_after,
+                    p_value: r.p_corrected,
+                    verdict: best_verdict(r, alpha, min_improvement, vetoed),
+                    status: r.verdict.status().to_string(),
+                })
+                .collect()
+        })
+        .collect()
 }

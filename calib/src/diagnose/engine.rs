@@ -104,6 +104,25 @@ pub struct Policy {
     pub selection: Selection,
 }
 
+impl Policy {
+    /// The policy of the image families (the camera, the stereo pair, the hand-eye chain's
+    /// physics): every effect the data support, examined by smallest p-value, the sign test or
+    /// the t test per held-out unit, Bonferroni over both and the candidates, the improvement
+    /// as a fraction of the held-out RMS.
+    pub fn held_out_images(alpha: f64, min_improvement: f64) -> Self {
+        Self {
+            alpha,
+            min_improvement,
+            max_effects: usize::MAX,
+            min_sin_angle: 0.0,
+            test: Test::SignOrT,
+            correction: Correction::PerCandidate,
+            improvement: Improvement::RmsFraction,
+            selection: Selection::SmallestP,
+        }
+    }
+}
+
 /// The current model's held-out figures at the start of a step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Baseline {

@@ -33,13 +33,11 @@ use ferrocal_vision::calib::{
 use nalgebra::{DVector, Isometry3};
 
 use super::camera::{
-    board_width_m, centred, print_scale_statement, unexplained_structure, vision_error, CameraCandidateScore,
+    board_width_m, candidate_scores, centred, print_scale_statement, unexplained_structure, vision_error,
     CameraDiagnoseOptions, CameraFinalFit, CameraFit, CameraUnexplained, Lens,
 };
-use super::engine::{
-    select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection, StepStart, Test,
-};
-use super::report::{best_verdict, Decision, Finding, Unit};
+use super::engine::{select, AllFit, Baseline, Describe, Family, Policy, Screened, StepStart};
+use super::report::{Decision, Finding, Unit};
 use crate::error::{CalibError, Result};
 
 mod types;
@@ -514,16 +512,7 @@ pub fn diagnose_stereo(
         all,
         accepted: Vec::new(),
     };
-    let policy = Policy {
-        alpha: opts.alpha,
-        min_improvement: opts.min_improvement,
-        max_effects: usize::MAX,
-        min_sin_angle: 0.0,
-        test: Test::SignOrT,
-        correction: Correction::PerCandidate,
-        improvement: Improvement::RmsFraction,
-        selection: Selection::SmallestP,
-    };
+    let policy = Policy::held_out_images(opts.alpha, opts.min_improvement);
     let diagnosis = select(&mut family, &policy)?;
     report.findings = diagnosis
         .findings
@@ -548,21 +537,7 @@ pub fn diagnose_stereo(
     };
     report.unexplained = unexplained(&rig, &family.current_cv, opts);
     report.baseline_mm = family.current_fit.model.t_cam_cam0[1].inverse().translation.vector.norm() * 1e3;
-    report.candidates = diagnosis
-        .steps
-        .iter()
-        .map(|s| {
-            s.rows
-                .iter()
-                .map(|r| CameraCandidateScore {
-                    candidate: r.label.clone(),
-                    heldout_rms_px: r.heldout_after,
-                    p_value: r.p_corrected,
-                    verdict: best_verdict(r, opts.alpha, opts.min_improvement, "rejected: implausible size"),
-                    status: r.verdict.status().to_string(),
-                })
-                .collect()
-        })
-        .collect();
+    report.candidates =
+        candidate_scores(&diagnosis.steps, opts.alpha, opts.min_improvement, "rejected: implausible size");
     Ok(report)
 }

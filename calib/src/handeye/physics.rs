@@ -34,11 +34,11 @@ use ferrocal_vision::camera::DistortionKind;
 use super::{
     calibrate_hand_eye, HandEyeData, HandEyeOptions, HandEyeResult, IntrinsicsMode, TargetForm, TargetPhysics,
 };
+use crate::diagnose::camera::{candidate_scores, CameraCandidateScore};
 use crate::diagnose::engine::{
-    select as engine_select, AllFit, Baseline, Correction, Describe, Family, Improvement, Policy, Screened, Selection,
-    StepStart, Test,
+    select as engine_select, AllFit, Baseline, Describe, Family, Policy, Screened, StepStart,
 };
-use crate::diagnose::report::{best_verdict, Decision, Finding, Unit};
+use crate::diagnose::report::{Decision, Finding, Unit};
 use crate::error::Result;
 use crate::measurement::Split;
 
@@ -116,20 +116,9 @@ pub struct PhysicsFinding {
     pub statement: String,
 }
 
-/// One candidate of one step.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct PhysicsCandidate {
-    /// Effect and variant.
-    pub candidate: String,
-    /// Cross-validated held-out chain RMS with it, pixels.
-    pub heldout_rms_px: f64,
-    /// Corrected p-value.
-    pub p_value: f64,
-    /// Accepted, or why not.
-    pub verdict: String,
-    /// The outcome in one word.
-    pub status: String,
-}
+/// One candidate of one step: the image families' score (effect and variant, cross-validated
+/// held-out chain RMS with it in pixels, corrected p-value, verdict, status).
+pub type PhysicsCandidate = CameraCandidateScore;
 
 /// What the selection decided (JSON `physics` of `handeye`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -636,16 +625,7 @@ fn select(cameras: &[(&HandEyeData, &HandEyeOptions)], opts: &PhysicsOptions) ->
     let mut family = ChainFamily { chains, opts, current: nominal.clone(), current_cv: Vec::new(), stds: Vec::new() };
     family.current_cv = family.cross_validate(&nominal)?;
     report.nominal_cv_rms_px = rms(&family.current_cv);
-    let policy = Policy {
-        alpha: opts.alpha,
-        min_improvement: opts.min_improvement,
-        max_effects: usize::MAX,
-        min_sin_angle: 0.0,
-        test: Test::SignOrT,
-        correction: Correction::PerCandidate,
-        improvement: Improvement::RmsFraction,
-        selection: Selection::SmallestP,
-    };
+    let policy = Policy::held_out_images(opts.alpha, opts.min_improvement);
     let diagnosis = engine_select(&mut family, &policy)?;
     report.chosen = family.current.chain(0);
     if rig {
@@ -666,21 +646,6 @@ fn select(cameras: &[(&HandEyeData, &HandEyeOptions)], opts: &PhysicsOptions) ->
             statement: f.statement.clone(),
         })
         .collect();
-    report.candidates = diagnosis
-        .steps
-        .iter()
-        .map(|s| {
-            s.rows
-                .iter()
-                .map(|r| PhysicsCandidate {
-                    candidate: r.label.clone(),
-                    heldout_rms_px: r.heldout_after,
-                    p_value: r.p_corrected,
-                    verdict: best_verdict(r, opts.alpha, opts.min_improvement, "rejected"),
-                    status: r.verdict.status().to_string(),
-                })
-                .collect()
-        })
-        .collect();
+    report.candidates = candidate_scores(&diagnosis.steps, opts.alpha, opts.min_improvement, "rejected");
     Ok(report)
 }

@@ -93,7 +93,7 @@ pub struct CameraUnexplained {
 }
 
 /// One candidate tried in a round.
-#[derive(Clone, Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CameraCandidateScore {
     /// Effect name and variant.
     pub candidate: String,
