@@ -10,7 +10,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
+use crate::kinematic::correct::{Coverage, FramesSource, NominalFrames, Uncertainty};
 use crate::kinematic::CalibratedModel;
+use crate::measurement::PoseMeasurement;
 
 /// A frame in the file: translation (mm) and rotation vector (deg), plus the quaternion for
 /// other tools (Hamilton, `w x y z`).
@@ -84,6 +86,31 @@ pub struct CalibrationFile {
     /// one, as in the calibration that identified the effects).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_model: Option<String>,
+    /// The device frame and tool in which the nominal model means a joint command, fitted once
+    /// over the calibration's poses ([`NominalFrames`]): `ferrocal correct` reads a program's
+    /// commands through them, the same for every program.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nominal_frames: Option<NominalFramesJson>,
+    /// The joint ranges and the box of positions the calibration's poses covered.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<Coverage>,
+    /// The covariance of the calibrated parameters and the scatter the model leaves
+    /// unexplained: what a corrected command's landing uncertainty comes from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<Uncertainty>,
+}
+
+/// [`NominalFrames`] in the file's units.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NominalFramesJson {
+    /// `T_device_base` of the nominal model.
+    pub device_frame: FrameJson,
+    /// `T_flange_target` of the nominal model.
+    pub tool: FrameJson,
+    /// Poses the frames were fitted over.
+    pub n_poses: usize,
+    /// RMS distance between the nominal and the calibrated model over those poses, mm.
+    pub rms_mm: f64,
 }
 
 /// An effect and its identified parameters.
@@ -192,6 +219,45 @@ impl CalibrationFile {
                 .map(|(spec, values)| EffectValues { spec: spec.clone(), values: values.clone() })
                 .collect(),
             load_model: None,
+            nominal_frames: None,
+            coverage: None,
+            uncertainty: None,
+        }
+    }
+
+    /// The file of a calibration delivered from `rows` (the poses it was fitted on): with the
+    /// nominal frames fitted over them, the region they cover and the parameters' uncertainty.
+    pub fn delivered(
+        robot_spec: &str,
+        cm: &CalibratedModel,
+        rows: &[&PoseMeasurement],
+        uncertainty: Option<Uncertainty>,
+    ) -> Result<Self> {
+        let mut f = Self::new(robot_spec, cm);
+        let frames = NominalFrames::fit(cm, rows)?;
+        f.nominal_frames = Some(NominalFramesJson {
+            device_frame: FrameJson::from_isometry(&frames.device_frame),
+            tool: FrameJson::from_isometry(&frames.tool),
+            n_poses: frames.n_poses,
+            rms_mm: frames.rms_mm,
+        });
+        f.coverage = Coverage::of_rows(rows);
+        f.uncertainty = uncertainty;
+        Ok(f)
+    }
+
+    /// The nominal frames a program's commands are read through: the file's, or, for a file
+    /// without them, fitted over a fixed sample of the joint space ([`NominalFrames::over_joint_space`]).
+    pub fn nominal_frames(&self, cm: &CalibratedModel) -> Result<NominalFrames> {
+        match &self.nominal_frames {
+            Some(n) => Ok(NominalFrames {
+                device_frame: n.device_frame.to_isometry(),
+                tool: n.tool.to_isometry(),
+                n_poses: n.n_poses,
+                rms_mm: n.rms_mm,
+                source: FramesSource::CalibrationPoses,
+            }),
+            None => NominalFrames::over_joint_space(cm),
         }
     }
 

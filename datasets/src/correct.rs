@@ -4,35 +4,21 @@
 
 use std::path::{Path, PathBuf};
 
-use ferrocal_calib::kinematic::correct::{correct_program, CorrectOptions, CorrectedCommand};
+use ferrocal_calib::kinematic::correct::{
+    command_for_target, correct_program_row, effective_options, radius_68, CorrectOptions, CorrectedCommand,
+    NominalFrames, Outside,
+};
+use ferrocal_calib::kinematic::CalibratedModel;
+use ferrocal_calib::PoseMeasurement;
 use ferrocal_robot::program::{gcode, krl, rapid_module, urscript, PathStep, PlannedPath, ProgramSettings, StepKind};
-use ferrocal_robot::{Kinematics, RobotModel};
+use ferrocal_robot::{JointKind, Kinematics, RobotModel};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use rayon::prelude::*;
 
 use crate::error::{DatasetError, Result};
-use crate::import::{read_joint_program, MeasurementTable};
+use crate::import::{read_joint_program, read_targets, JointUnit, MeasurementTable};
 
-/// A command is corrected when the calibrated model reaches its intended pose within this, m.
-pub const REACHED_M: f64 = 1e-6;
-
-/// A corrected program.
-#[derive(Clone, Debug)]
-pub struct CorrectRun {
-    /// The nominal robot model.
-    pub model: RobotModel,
-    /// The program as read (its joint units, its rows with their conditions).
-    pub program: MeasurementTable,
-    /// Per command, the corrected joints with the error removed and what remains.
-    pub corrected: Vec<CorrectedCommand>,
-    /// The corrected commands as CSV (the program's joint units), with per pose the error the
-    /// correction removes and what remains under the calibrated model, mm.
-    pub csv: String,
-    /// Per command, the error the correction removes, mm.
-    pub removed_mm: Vec<f64>,
-    /// The largest distance left from an intended pose, mm.
-    pub worst_residual_mm: f64,
-    /// Per command, the motion the program asked for (its `motion` column; joint without one).
-    pub motions: Vec<Motion>,
-}
+pub use ferrocal_calib::kinematic::correct::REACHED_M;
 
 /// How a program moves to a command: the optional `motion` column of a joint program.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -83,21 +69,154 @@ fn read_motions(program: &MeasurementTable, path: &Path) -> Result<Vec<Motion>> 
         .collect()
 }
 
-/// Corrects every command of the joint program `program` for the robot `robot` (preset, URDF or
-/// TOML) through the calibration file `calibration`: positions and orientations, or positions
-/// only. A command the calibrated model cannot reach is an error naming its pose id and line.
-pub fn correct_run(robot: &str, calibration: &Path, program_path: &Path, positions_only: bool) -> Result<CorrectRun> {
-    let model = RobotModel::load(robot)?;
-    let cm = crate::calibration::apply_calibration(robot, &model, calibration)?;
-    let program = read_joint_program(program_path)?;
-    // Readings in another unit (degrees under `_rad`) or beyond the limits are refused by row.
-    if program.joint_units.len() == Kinematics::dof(&model) {
-        program.check_joint_values(&Kinematics::joint_limits(&model), model.name())?;
+/// What `ferrocal correct` is asked to reach.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wanted<'a> {
+    /// Nominal joint commands (`--program`): each means the pose the nominal model gives it.
+    Program(&'a Path),
+    /// Wanted poses of the measured point in the calibration's device frame (`--targets`).
+    Targets(&'a Path),
+}
+
+impl Wanted<'_> {
+    /// The file.
+    pub fn path(&self) -> &Path {
+        match self {
+            Wanted::Program(p) | Wanted::Targets(p) => p,
+        }
     }
-    let motions = read_motions(&program, program_path)?;
+}
+
+/// One row of a corrected program.
+#[derive(Clone, Debug)]
+pub struct RowOutcome {
+    /// The row's id.
+    pub pose_id: String,
+    /// Its line in the input file.
+    pub line: Option<u64>,
+    /// The command and what remains under the calibrated model.
+    pub command: CorrectedCommand,
+    /// Whether the row's orientation was matched (else its position only).
+    pub orientation: bool,
+    /// The radius that holds 68 % of the landing error (one standard deviation), mm, from the
+    /// calibration's covariance and unexplained scatter; `None` when the file carries none.
+    pub landing_sigma_mm: Option<f64>,
+    /// How far the row lies outside the region the calibration's poses cover; `None` when the
+    /// file does not say what it covers.
+    pub outside: Option<Outside>,
+    /// Why the row was not written, when it was not.
+    pub unreached: Option<String>,
+}
+
+/// A corrected program.
+#[derive(Clone, Debug)]
+pub struct CorrectRun {
+    /// The nominal robot model.
+    pub model: RobotModel,
+    /// The input as read (its rows with their conditions).
+    pub program: MeasurementTable,
+    /// Whether the input was a program or a list of targets.
+    pub targets: bool,
+    /// Per row, the outcome (in the input's order).
+    pub rows: Vec<RowOutcome>,
+    /// The corrected commands of the reached rows as CSV (`q<i>_deg` for revolute joints,
+    /// `q<i>_mm` for prismatic ones), with per pose the error the correction removes, what
+    /// remains under the calibrated model, the landing uncertainty and the extrapolation.
+    pub csv: String,
+    /// Per reached command, the error the correction removes, mm.
+    pub removed_mm: Vec<f64>,
+    /// The largest distance left from a wanted pose over the reached commands, mm.
+    pub worst_residual_mm: f64,
+    /// Per row, the motion the input asked for (its `motion` column; joint without one).
+    pub motions: Vec<Motion>,
+    /// The frames the nominal model's commands are read in.
+    pub frames: NominalFrames,
+    /// What the user should know about the inputs (a file without frames or covariance, an
+    /// orientation the calibration cannot match).
+    pub notes: Vec<String>,
+}
+
+impl CorrectRun {
+    /// The rows that were written.
+    pub fn reached(&self) -> impl Iterator<Item = (usize, &RowOutcome)> {
+        self.rows.iter().enumerate().filter(|(_, r)| r.unreached.is_none())
+    }
+
+    /// The rows that were not written.
+    pub fn unreached(&self) -> impl Iterator<Item = &RowOutcome> {
+        self.rows.iter().filter(|r| r.unreached.is_some())
+    }
+}
+
+/// Corrects every row of `wanted` for the robot `robot` (preset, URDF or TOML) through the
+/// calibration file `calibration`, each row on its own: positions and orientations, or
+/// positions only. A row that no command within the joint limits brings to its pose is named
+/// and left out; the others are written.
+pub fn correct_run(robot: &str, calibration: &Path, wanted: Wanted, positions_only: bool) -> Result<CorrectRun> {
+    let model = RobotModel::load(robot)?;
+    let file = ferrocal_calib::file::CalibrationFile::read(calibration)?;
+    let cm = crate::calibration::apply_calibration(robot, &model, calibration)?;
+    let path = wanted.path();
+    let program = match wanted {
+        Wanted::Program(p) => read_joint_program(p)?,
+        Wanted::Targets(p) => read_targets(p)?,
+    };
+    let targets = matches!(wanted, Wanted::Targets(_));
+    let dof = Kinematics::dof(&model);
+    if !targets || !program.joint_units.is_empty() {
+        if program.joint_units.len() != dof {
+            return Err(DatasetError::Input(format!(
+                "{}: {} joint columns, but the robot model '{}' has {dof} joints",
+                path.display(),
+                program.joint_units.len(),
+                model.name()
+            )));
+        }
+        program.check_joint_kinds(&model.joint_kinds())?;
+        // Readings in another unit (degrees under `_rad`) or beyond the limits are refused by row.
+        let with_q: Vec<PoseMeasurement> = program.set.rows.iter().filter(|r| r.q.len() == dof).cloned().collect();
+        let mut only = program.clone();
+        only.set.rows = with_q;
+        only.check_joint_values(&Kinematics::joint_limits(&model), model.name())?;
+    }
+    let motions = read_motions(&program, path)?;
+    let mut notes = Vec::new();
+    let frames = file.nominal_frames(&cm).map_err(|e| DatasetError::from(e).context("the nominal frames"))?;
+    if file.nominal_frames.is_none() && !targets {
+        notes.push(format!(
+            "{} predates stored nominal frames: the program is read through frames fitted over a fixed sample of the joint space; recalibrate with this version to read it through the calibration's own poses",
+            calibration.display()
+        ));
+    }
+    if file.uncertainty.is_none() {
+        notes.push(format!(
+            "{} carries no covariance: the commands have no landing uncertainty; recalibrate with this version to get one",
+            calibration.display()
+        ));
+    }
+    if targets && !cm.orientation_calibrated && program.set.rows.iter().any(|r| r.orientation.is_some()) {
+        notes.push(format!(
+            "{} was calibrated from positions only: the targets' orientations are not matched, only their positions",
+            calibration.display()
+        ));
+    }
+    let base = CorrectOptions { use_orientation: !positions_only, ..CorrectOptions::default() };
+    let rows: Vec<RowOutcome> = program
+        .set
+        .rows
+        .par_iter()
+        .map(|r| correct_row(&cm, &file, &frames, r, &base, targets))
+        .collect::<Result<_>>()
+        .map_err(|e| e.context(format!("correcting {}", path.display())))?;
+    let units: Vec<JointUnit> = model
+        .joint_kinds()
+        .iter()
+        .map(|k| match k {
+            JointKind::Revolute => JointUnit::Deg,
+            JointKind::Prismatic => JointUnit::Mm,
+        })
+        .collect();
     let has_motion = program.set.rows.iter().any(|r| r.meta.contains_key("motion"));
-    let opts = CorrectOptions { use_orientation: !positions_only, ..CorrectOptions::default() };
-    let units = &program.joint_units;
     let mut csv = format!("# corrected by ferrocal {} with {}\n", env!("CARGO_PKG_VERSION"), calibration.display());
     csv.push_str("pose_id");
     for (i, u) in units.iter().enumerate() {
@@ -106,33 +225,92 @@ pub fn correct_run(robot: &str, calibration: &Path, program_path: &Path, positio
     if has_motion {
         csv.push_str(",motion");
     }
-    csv.push_str(",removed_error_mm,residual_mm\n");
+    csv.push_str(
+        ",removed_error_mm,residual_mm,landing_sigma_mm,outside_joint,outside_joint_by,outside_box_mm,sigma_min_m\n",
+    );
     let mut removed_mm = Vec::new();
     let mut worst_residual_mm = 0.0f64;
-    let corrected = correct_program(&cm, &program.set.rows, &opts)
-        .map_err(|e| DatasetError::from(e).context(format!("correcting {}", program_path.display())))?;
-    for (k, (row, c)) in program.set.rows.iter().zip(&corrected).enumerate() {
-        if c.residual_m > REACHED_M {
-            return Err(DatasetError::Input(format!(
-                "{}: pose {} (line {}): the calibrated model cannot reach the intended pose ({:.4} mm remain)",
-                program_path.display(),
-                row.pose_id,
-                row.source_line.unwrap_or(0),
-                c.residual_m * 1e3
-            )));
-        }
-        csv.push_str(&row.pose_id);
-        for (v, u) in c.q.iter().zip(units) {
+    for (k, o) in rows.iter().enumerate().filter(|(_, o)| o.unreached.is_none()) {
+        let c = &o.command;
+        csv.push_str(&o.pose_id);
+        for (v, u) in c.q.iter().zip(&units) {
             csv.push_str(&format!(",{}", u.from_si(*v)));
         }
         if has_motion {
             csv.push_str(&format!(",{}", motions[k].word()));
         }
-        csv.push_str(&format!(",{:.6},{:.6}\n", c.nominal_error_m * 1e3, c.residual_m * 1e3));
+        let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6}"));
+        let (joint, by) = match o.outside.and_then(|x| x.joint) {
+            Some((j, v)) => (j.to_string(), format!("{:.4}", units[j - 1].from_si(v))),
+            None => ("0".into(), "0".into()),
+        };
+        csv.push_str(&format!(
+            ",{},{:.6},{},{joint},{by},{},{:.6}\n",
+            opt(c.nominal_error_m.is_finite().then_some(c.nominal_error_m * 1e3)),
+            c.residual_m * 1e3,
+            opt(o.landing_sigma_mm),
+            opt(o.outside.map(|x| x.position_m * 1e3)),
+            c.sigma_min
+        ));
         removed_mm.push(c.nominal_error_m * 1e3);
         worst_residual_mm = worst_residual_mm.max(c.residual_m * 1e3);
     }
-    Ok(CorrectRun { model, program, corrected, csv, removed_mm, worst_residual_mm, motions })
+    Ok(CorrectRun { model, program, targets, rows, csv, removed_mm, worst_residual_mm, motions, frames, notes })
+}
+
+/// One row corrected: its wanted pose (the nominal model's for a program row, the row's own
+/// for a target), its command, landing uncertainty and extrapolation.
+fn correct_row(
+    cm: &CalibratedModel,
+    file: &ferrocal_calib::file::CalibrationFile,
+    frames: &NominalFrames,
+    r: &PoseMeasurement,
+    base: &CorrectOptions,
+    targets: bool,
+) -> Result<RowOutcome> {
+    let (command, orientation) = if targets {
+        let opts = CorrectOptions {
+            use_orientation: base.use_orientation && cm.orientation_calibrated && r.orientation.is_some(),
+            ..*base
+        };
+        let want = Isometry3::from_parts(
+            Translation3::from(r.position_m),
+            r.orientation.unwrap_or_else(UnitQuaternion::identity),
+        );
+        (command_for_target(cm, frames, r, &want, &opts)?, opts.use_orientation)
+    } else {
+        let opts = effective_options(cm, base);
+        (correct_program_row(cm, frames, r, &opts)?, opts.use_orientation)
+    };
+    let mut at = r.clone();
+    at.q = command.q.clone();
+    let landing_sigma_mm = match &file.uncertainty {
+        Some(u) => Some(radius_68(&u.landing_covariance(cm, &at)?) * 1e3),
+        None => None,
+    };
+    let outside = file.coverage.as_ref().map(|c| c.outside(&command.q, &command.intended.translation.vector));
+    let unreached = (!command.reached()).then(|| {
+        let limits = if command.at_limit.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " with joint{} {} held at {} limit",
+                if command.at_limit.len() > 1 { "s" } else { "" },
+                command.at_limit.iter().map(|j| j.to_string()).collect::<Vec<_>>().join(", "),
+                if command.at_limit.len() > 1 { "their" } else { "its" }
+            )
+        };
+        format!("no command within the joint limits reaches it ({:.4} mm remain{limits})", command.residual_m * 1e3)
+    });
+    Ok(RowOutcome {
+        pose_id: r.pose_id.clone(),
+        line: r.source_line,
+        command,
+        orientation,
+        landing_sigma_mm,
+        outside,
+        unreached,
+    })
 }
 
 /// A robot program format the corrected commands can be written in.
@@ -178,27 +356,25 @@ impl CorrectRun {
         header: &[String],
     ) -> Result<Vec<(PathBuf, String)>> {
         let rows = &self.program.set.rows;
-        let steps: Vec<PathStep> = rows
-            .iter()
-            .zip(&self.corrected)
-            .zip(&self.motions)
-            .enumerate()
-            .map(|(k, ((r, c), m))| PathStep {
-                q: c.q.clone(),
-                kind: match m {
+        let steps: Vec<PathStep> = self
+            .reached()
+            .map(|(k, o)| PathStep {
+                q: o.command.q.clone(),
+                kind: match self.motions[k] {
                     Motion::Joint => StepKind::Move,
                     Motion::Linear => StepKind::MoveLinear,
                 },
                 pose: Some(k),
-                dir: r.dir.clone().unwrap_or_else(|| vec![0; c.q.len()]),
-                label: Some(r.pose_id.clone()),
+                dir: rows[k].dir.clone().unwrap_or_else(|| vec![0; o.command.q.len()]),
+                label: Some(o.pose_id.clone()),
             })
             .collect();
+        let steps_len = steps.len();
         let path = PlannedPath {
             order: (0..steps.len()).collect(),
             steps,
             travel_s: 0.0,
-            dwell_s: dwell_s * rows.len() as f64,
+            dwell_s: dwell_s * steps_len as f64,
             nearest_neighbour_s: 0.0,
             ordered_s: 0.0,
             detours: 0,
@@ -265,6 +441,7 @@ impl CorrectRun {
 
     /// The mean of the errors the correction removes, mm (0 without commands).
     pub fn mean_removed_mm(&self) -> f64 {
-        self.removed_mm.iter().sum::<f64>() / self.removed_mm.len().max(1) as f64
+        let finite: Vec<f64> = self.removed_mm.iter().copied().filter(|v| v.is_finite()).collect();
+        finite.iter().sum::<f64>() / finite.len().max(1) as f64
     }
 }

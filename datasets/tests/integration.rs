@@ -5,7 +5,7 @@
 mod calib_support;
 mod calibration_study;
 mod camera_print_scale;
-mod corrected_commands;
+mod closed_loop;
 mod demo_checks;
 mod diagnose_real_like;
 mod diagnose_sim;

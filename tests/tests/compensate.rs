@@ -244,7 +244,7 @@ fn exported_urdf_reproduces_evaluate_on_the_ur5_table() {
 /// own joints. Under the calibrated model each corrected command reaches the pose the nominal
 /// model meant (to 1 nm), and the error it removes is what the calibration found (0.01-5 mm); the
 /// corrected commands run on the real robot are checked in simulation
-/// (`datasets/tests/corrected_commands.rs`). A program without joint columns is refused with
+/// (`datasets/tests/closed_loop.rs`). A program without joint columns is refused with
 /// its file named, and nothing is written.
 #[test]
 fn correct_writes_commands_that_the_calibrated_model_puts_on_the_nominal_poses() {
@@ -262,7 +262,8 @@ fn correct_writes_commands_that_the_calibrated_model_puts_on_the_nominal_poses()
     let text = std::fs::read_to_string(&out).unwrap();
     let rows: Vec<Vec<&str>> = text.lines().filter(|l| !l.starts_with('#')).map(|l| l.split(',').collect()).collect();
     let program_header: Vec<&str> = lines[0].split(',').collect();
-    assert_eq!(rows[0][..2], ["pose_id", program_header[1]], "the program's joint units are kept");
+    assert!(program_header[1].starts_with("q1_"));
+    assert_eq!(rows[0][..2], ["pose_id", "q1_deg"], "revolute joints are written in degrees (spec/cli.md)");
     assert_eq!(rows.len(), 41);
     let col = |name: &str| rows[0].iter().position(|h| *h == name).unwrap();
     let (removed, residual) = (col("removed_error_mm"), col("residual_mm"));

@@ -3,6 +3,7 @@
 
 mod cli;
 mod compensate;
+mod correct;
 mod coupled;
 mod handeye;
 mod handeye_checks;

@@ -61,6 +61,7 @@ use crate::error::{CalibError, Result};
 use crate::file::CalibrationFile;
 #[cfg(test)]
 use crate::frames::exp6;
+use crate::kinematic::correct::Uncertainty;
 use crate::kinematic::{identifiable_candidates, CalibratedModel, KinematicOptions, ParamResult, StateLayout};
 use crate::measurement::{PoseMeasurement, Split};
 use corner::{RigCorner, RobotCorner};
@@ -147,12 +148,24 @@ pub struct JointCalibration {
     pub termination: String,
     /// Corners the Huber loss down-weighted.
     pub n_downweighted: usize,
+    /// The covariance of the device frame, the tool and the robot parameters together (with
+    /// their cross terms; the camera marginalised), by the kinematic calibration's names: what a
+    /// corrected command's landing uncertainty comes from.
+    #[serde(skip)]
+    pub uncertainty: Uncertainty,
+    /// The training views as rows of the device frame: joint readings and the calibrated model's
+    /// target position (the region the calibration covers, the poses its nominal frames are
+    /// fitted over).
+    #[serde(skip)]
+    pub train_rows: Vec<PoseMeasurement>,
 }
 
 impl JointCalibration {
     /// The calibration file `ferrocal evaluate` reads (`robot_spec`: the model as given).
     pub fn file(&self, robot_spec: &str) -> CalibrationFile {
-        CalibrationFile::new(robot_spec, &self.calibrated)
+        let rows: Vec<&PoseMeasurement> = self.train_rows.iter().collect();
+        CalibrationFile::delivered(robot_spec, &self.calibrated, &rows, Some(self.uncertainty.clone()))
+            .unwrap_or_else(|_| CalibrationFile::new(robot_spec, &self.calibrated))
     }
 
     /// Standard deviation of the free robot parameter `name`, when it is free.
@@ -493,6 +506,29 @@ pub(super) fn adjust(
     let (m_w, m_x) = setup.frames.jacobians(&state.frame, &state.tool);
     let world_cov = chart_covariance(&m_w, &setup.frames.frame_free, cov.block(b.frame));
     let hand_eye_cov = chart_covariance(&m_x, &setup.frames.tool_free, cov.block(b.tool));
+    let uncertainty = {
+        const AXES: [&str; 6] = ["x_m", "y_m", "z_m", "rx_rad", "ry_rad", "rz_rad"];
+        let mut names = Vec::new();
+        let mut idx = Vec::new();
+        for (id, free, prefix) in
+            [(b.frame, &setup.frames.frame_free, "frame."), (b.tool, &setup.frames.tool_free, "target_tool.")]
+        {
+            if let Some(o) = cov.index.offset(id) {
+                for (k, &c) in free.iter().enumerate() {
+                    names.push(format!("{prefix}{}", AXES[c]));
+                    idx.push(o + k);
+                }
+            }
+        }
+        if let Some(o) = cov.index.offset(b.robot) {
+            for (k, &i) in robot_idx.iter().enumerate() {
+                names.push(layout.names[i].clone());
+                idx.push(o + k);
+            }
+        }
+        let covariance = idx.iter().map(|&i| idx.iter().map(|&j| cov.matrix[(i, j)]).collect()).collect();
+        Uncertainty { names, covariance, unmodelled_sigma_m: 0.0 }
+    };
     let camera = state.camera;
     // 5. The calibrated model and the figures.
     let (m, _) = map.apply(&robot, &vec![0.0; model.dof()]).map_err(lsq_error)?;
@@ -578,7 +614,21 @@ pub(super) fn adjust(
         iterations,
         termination: summary.termination.clone(),
         n_downweighted: summary.downweighted_blocks,
+        uncertainty,
+        train_rows: Vec::new(),
     };
+    let mut joint = joint;
+    for cam in cams.iter() {
+        for (v, q) in cam.data.views.iter().zip(cam.joints) {
+            if v.split == Split::Test {
+                continue;
+            }
+            let p = joint.calibrated.predict(q)?.translation.vector;
+            let mut row = PoseMeasurement::new(v.name.clone(), q.clone(), p);
+            row.split = Some(Split::Train);
+            joint.train_rows.push(row);
+        }
+    }
     Ok((joint, others))
 }
 

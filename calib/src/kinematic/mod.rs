@@ -227,6 +227,8 @@ pub struct KinematicCalibration {
     /// The residual test's statistic at its last round: the largest normalised residual of the
     /// rows kept over their robust scale (compared with the threshold); `None` without the test.
     pub largest_residual_ratio: Option<f64>,
+    /// The position standard deviation of rows that carry none (the options'), m.
+    pub sigma_position_m: f64,
 }
 
 impl KinematicCalibration {
@@ -408,6 +410,7 @@ pub fn calibrate(
         dropped_rows: Vec::new(),
         outlier_note: None,
         largest_residual_ratio: None,
+        sigma_position_m: opts.sigma_position_m,
     })
 }
 
@@ -685,7 +688,11 @@ pub(crate) fn device_and_tool(
 }
 
 /// RMS of the position residuals of a start `(device frame, tool frame)` over the rows, metres.
-fn start_rms(nominal: &[Isometry3<f64>], measured: &[Point3<f64>], start: &(Isometry3<f64>, Isometry3<f64>)) -> f64 {
+pub(crate) fn start_rms(
+    nominal: &[Isometry3<f64>],
+    measured: &[Point3<f64>],
+    start: &(Isometry3<f64>, Isometry3<f64>),
+) -> f64 {
     let sum: f64 = nominal
         .iter()
         .zip(measured)

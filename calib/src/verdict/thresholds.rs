@@ -384,6 +384,30 @@ pub struct ExportLimits {
     /// `correct`: largest correction: failure above (default 50 mm: the calibration most likely
     /// belongs to another robot or frame).
     pub correction_mm_fail: f64,
+    /// `correct`: a row counts as outside the calibrated region when a revolute joint lies more
+    /// than this beyond the range the calibration's poses covered, degrees (default 5); a
+    /// warning names how many and by how much.
+    pub outside_deg_warn: f64,
+    /// `correct`: ... or a prismatic joint more than this beyond its covered range, or the wanted
+    /// position more than this outside the box of the calibration's positions, mm (default 25).
+    pub outside_mm_warn: f64,
+    /// `correct`: a row counts as near a singularity when the smallest singular value of its
+    /// task Jacobian (metres per radian of joint motion; orientation rows at 0.1 m per radian)
+    /// is below this (default 0.005 m: a 1 mm error of the pose needs 0.2 rad of some joint
+    /// combination); a warning names the rows.
+    pub singular_m_warn: f64,
+}
+
+fn default_outside_deg() -> f64 {
+    5.0
+}
+
+fn default_outside_mm() -> f64 {
+    25.0
+}
+
+fn default_singular_m() -> f64 {
+    0.005
 }
 
 impl Default for ExportLimits {
@@ -397,6 +421,9 @@ impl Default for ExportLimits {
             residual_mm_fail: 1e-3,
             correction_mm_warn: 10.0,
             correction_mm_fail: 50.0,
+            outside_deg_warn: default_outside_deg(),
+            outside_mm_warn: default_outside_mm(),
+            singular_m_warn: default_singular_m(),
         }
     }
 }

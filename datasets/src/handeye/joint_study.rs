@@ -246,7 +246,12 @@ pub(crate) fn random_joints(rng: &mut ChaCha8Rng) -> Vec<f64> {
 }
 
 /// Random joint readings (UR5-like ranges) whose plate the camera sees, for the nominal model.
-fn draw_poses(config: &JointStudyConfig, model: &RobotModel, n: usize, rng: &mut ChaCha8Rng) -> Result<Vec<Vec<f64>>> {
+pub(crate) fn draw_poses(
+    config: &JointStudyConfig,
+    model: &RobotModel,
+    n: usize,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<Vec<f64>>> {
     let points = config.points();
     let mut out = Vec::with_capacity(n);
     let mut tries = 0;

@@ -146,7 +146,21 @@ pub fn read_joint_program(path: impl AsRef<Path>) -> Result<MeasurementTable> {
     parse_table(&text, path, false)
 }
 
+/// Reads a table of wanted poses (`ferrocal correct --targets`): `pose_id`, `x_<u>`, `y_<u>`,
+/// `z_<u>`, optionally `qw, qx, qy, qz`, joint columns `q1_<u>` ... as the start of the search
+/// (a row whose joint cells are all empty has none; without joint columns the rows' `q` are
+/// empty), and the conditions the effects see. Errors name the file, line and column.
+pub fn read_targets(path: impl AsRef<Path>) -> Result<MeasurementTable> {
+    let path = path.as_ref();
+    let text = super::table::read_text(path)?;
+    parse_with(&text, path, true, false)
+}
+
 fn parse_table(text: &str, source: &Path, require_positions: bool) -> Result<MeasurementTable> {
+    parse_with(text, source, require_positions, true)
+}
+
+fn parse_with(text: &str, source: &Path, require_positions: bool, require_joints: bool) -> Result<MeasurementTable> {
     let table = Table::parse(text, source, TableFormat::CSV, &|name| {
         matches!(
             classify(name),
@@ -159,7 +173,8 @@ fn parse_table(text: &str, source: &Path, require_positions: bool) -> Result<Mea
                 | Column::PayloadKg)
         )
     })?;
-    let layout = Layout::from_table(&table, require_positions)?;
+    let mut layout = Layout::from_table(&table, require_positions, require_joints)?;
+    layout.joints_optional = !require_joints;
     let warnings = super::plausible::check_not_cut(text, &table)?;
     let mut rows = Vec::with_capacity(table.rows.len());
     let mut seen: HashMap<String, u64> = HashMap::new();
@@ -332,10 +347,12 @@ struct Layout {
     /// (row, column, factor to SI, table column) of every covariance entry given.
     cov: Vec<(usize, usize, f64, usize)>,
     meta: Vec<usize>,
+    /// A row whose joint cells are all empty has no joints (a table of wanted poses).
+    joints_optional: bool,
 }
 
 impl Layout {
-    fn from_table(t: &Table, require_positions: bool) -> Result<Layout> {
+    fn from_table(t: &Table, require_positions: bool, require_joints: bool) -> Result<Layout> {
         let mut pose_id = None;
         let mut joints: HashMap<usize, (usize, JointUnit)> = HashMap::new();
         let mut xyz: [Option<(usize, LengthUnit)>; 3] = [None; 3];
@@ -388,7 +405,7 @@ impl Layout {
         }
         let pose_id = pose_id.ok_or_else(|| t.missing_column("pose_id"))?;
         let n = joints.keys().copied().max().unwrap_or(0);
-        if n == 0 {
+        if n == 0 && require_joints {
             let mut e = t.missing_column("q1_rad");
             if let DatasetError::MissingColumn { hint, .. } = &mut e {
                 if hint.is_empty() {
@@ -475,6 +492,7 @@ impl Layout {
             split,
             cov,
             meta,
+            joints_optional: false,
         })
     }
 
@@ -519,7 +537,8 @@ impl Layout {
     fn read_row(&self, t: &Table, row: &Row) -> Result<PoseMeasurement> {
         let pose_id = t.text(row, self.pose_id)?.to_string();
         let mut q = Vec::with_capacity(self.joints.len());
-        for (col, unit) in &self.joints {
+        let no_joints = self.joints_optional && self.joints.iter().all(|(c, _)| row.cells[*c].trim().is_empty());
+        for (col, unit) in self.joints.iter().filter(|_| !no_joints) {
             let v = unit.to_si(t.number(row, *col)?);
             if v.abs() > MAX_JOINT_SI {
                 return Err(DatasetError::Invalid {

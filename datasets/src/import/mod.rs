@@ -35,8 +35,8 @@ pub use images::{
     JointsRow, JointsTable, SkippedImage,
 };
 pub use measurements::{
-    measurements_to_string, parse_measurements, read_joint_program, read_measurements, write_measurements,
-    MeasurementTable, WriteOptions,
+    measurements_to_string, parse_measurements, read_joint_program, read_measurements, read_targets,
+    write_measurements, MeasurementTable, WriteOptions,
 };
 pub use units::{JointUnit, LengthUnit};
 pub use ur10::{

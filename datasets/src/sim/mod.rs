@@ -8,7 +8,7 @@
 //! robot in it). The tracker and the cameras are placed in `world`; the target is fixed in the
 //! tool frame by `t_tool_target`.
 
-pub mod corrected;
+pub mod closed_loop;
 pub mod effects;
 pub mod humanoid;
 pub mod plan;
@@ -30,7 +30,6 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-pub use corrected::{corrected_commands_study, CorrectedCommandsStudy};
 pub use effects::{Conditions, Effect, GeometricErrors, TrueRobot};
 pub use plan::{make_plan, Plan, PlanConfig};
 pub use planning::{random_subsets, DatasetsSimulator};

@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use ferrocal_calib::file::CalibrationFile;
+use ferrocal_calib::kinematic::correct::Uncertainty;
 use ferrocal_calib::kinematic::{CalibratedModel, ErrorStats, KinematicCalibration};
 use ferrocal_calib::verdict::Verdict;
 use ferrocal_calib::PoseMeasurement;
@@ -293,7 +294,8 @@ pub fn calibrate_outputs(
     files: &CalibrateFiles,
 ) -> Result<Outputs> {
     let (cal, mut out) = (&run.cal, Outputs::default());
-    out.json(files.out, &CalibrationFile::new(robot, &cal.calibrated))?;
+    let uncertainty = Uncertainty::from_kinematic(cal, &run.final_rows)?;
+    out.json(files.out, &CalibrationFile::delivered(robot, &cal.calibrated, &run.final_rows, Some(uncertainty))?)?;
     let mut summary = report_json(cal, &run.validation, run.final_rows.len(), run.fixed_split);
     if let Some(spatial) = &run.heldout_spatial {
         summary["heldout_spatial"] = spatial_json(spatial);

@@ -133,7 +133,7 @@ pub fn robot_outputs(
     t: &Thresholds,
     rep: &DiagnoseReport,
     model: &str,
-    compensated: Option<&KinematicCalibration>,
+    compensated: Option<(&KinematicCalibration, &[&ferrocal_calib::PoseMeasurement])>,
     opts: &DiagnoseOptions,
     files: &DiagnoseFiles,
 ) -> Result<(Outputs, Verdict)> {
@@ -146,8 +146,9 @@ pub fn robot_outputs(
     let (rep_json, verdict) = diagnose_json(t, rep, "mm", &rerun)?;
     let mut out = Outputs::default();
     out.json(files.json, &rep_json)?;
-    if let (Some(path), Some(cal)) = (files.out, compensated) {
-        out.json(path, &CalibrationFile::new(robot, &cal.calibrated))?;
+    if let (Some(path), Some((cal, rows))) = (files.out, compensated) {
+        let uncertainty = ferrocal_calib::kinematic::correct::Uncertainty::from_kinematic(cal, rows)?;
+        out.json(path, &CalibrationFile::delivered(robot, &cal.calibrated, rows, Some(uncertainty))?)?;
     }
     if let Some(h) = files.report {
         let mut prov = Provenance::new(json!({"robot": robot, "options": opts}));

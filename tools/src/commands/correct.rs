@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use ferrocal_datasets::correct::{correct_run, program_header, ProgramFormat};
+use ferrocal_datasets::correct::{correct_run, program_header, ProgramFormat, Wanted};
 use ferrocal_report::verdict::VerdictSettings;
 
 /// `ferrocal correct`.
@@ -19,15 +19,29 @@ pub struct CorrectArgs {
     /// The calibration (`ferrocal calibrate --out`, `diagnose --out`).
     #[arg(long)]
     pub calibration: std::path::PathBuf,
-    /// The program's joint commands: `pose_id`, `q1_<u>` ... (rad, deg, m, mm), optionally the
-    /// conditions the effects see (`dir<i>`, `temp_c`, `payload_kg`, `t_s`) and `motion` (`joint`
-    /// or `linear` per command; joint without the column).
+    /// The program's nominal joint commands: `pose_id`, `q1_<u>` ... (rad, deg, m, mm), each
+    /// meaning the pose the nominal model gives it (read through the nominal frames stored in
+    /// the calibration, the same for every program); optionally the conditions the effects see
+    /// (`dir<i>`, `temp_c`, `payload_kg`, `t_s`) and `motion` (`joint` or `linear` per command;
+    /// joint without the column).
+    #[arg(long, required_unless_present = "targets", conflicts_with = "targets")]
+    pub program: Option<std::path::PathBuf>,
+    /// Wanted poses of the calibration's measured point in its device frame: `pose_id`, `x_<u>`,
+    /// `y_<u>`, `z_<u>` (m or mm), optionally `qw, qx, qy, qz` (matched when the calibration
+    /// measured orientations), joint columns `q1_<u>` ... as the start of the search (the
+    /// solution branch), the conditions the effects see and `motion`.
     #[arg(long)]
-    pub program: std::path::PathBuf,
-    /// The corrected commands (CSV, the program's joint units), with per pose the error the
-    /// correction removes and what remains under the calibrated model.
+    pub targets: Option<std::path::PathBuf>,
+    /// The corrected commands (CSV: `pose_id`, `q<i>_deg` or `q<i>_mm`, the program's `motion`,
+    /// the error the correction removes, what remains under the calibrated model, the landing
+    /// uncertainty and how far the row lies outside the calibrated region). Rows that cannot be
+    /// reached are left out and named.
     #[arg(long)]
     pub out: std::path::PathBuf,
+    /// Also write a JSON report: every row with its command, landing uncertainty, extrapolation
+    /// and singularity measure, the frames used and the verdict.
+    #[arg(long)]
+    pub json: Option<std::path::PathBuf>,
     /// Match positions only (the smallest joint change that does), not orientations.
     #[arg(long)]
     pub positions_only: bool,
@@ -51,26 +65,41 @@ pub struct CorrectArgs {
     pub dwell_s: f64,
 }
 
-/// Runs `ferrocal correct`: every command is corrected through the calibrated model so that it
-/// reaches the pose the nominal model meant; a command that cannot be corrected is an error
-/// naming its pose id and line, and nothing is written.
+/// Runs `ferrocal correct`: every row is corrected on its own through the calibrated model so
+/// that it reaches its wanted pose; a row that cannot be reached is named and left out, the
+/// others are written.
 pub fn run(a: &CorrectArgs, vs: &VerdictSettings) -> Result<ExitCode> {
+    let wanted = match (&a.program, &a.targets) {
+        (Some(p), None) => Wanted::Program(p),
+        (None, Some(t)) => Wanted::Targets(t),
+        _ => anyhow::bail!("give either --program (nominal joint commands) or --targets (wanted poses)"),
+    };
     // The robot programs asked for; every output is checked before any work (two outputs on
     // one path, or an output that names an input, are refused), all are composed, then written
     // together.
     let outputs = ProgramFormat::asked(a.rapid.as_deref(), a.gcode.as_deref(), a.urscript.as_deref(), a.krl.as_deref());
-    let all_outputs: Vec<&Path> = std::iter::once(a.out.as_path()).chain(outputs.iter().map(|(_, p)| *p)).collect();
-    ferrocal_report::check_outputs(&all_outputs, &[a.program.as_path(), a.calibration.as_path(), Path::new(&a.robot)])?;
-    let run = correct_run(&a.robot, &a.calibration, &a.program, a.positions_only)?;
-    let header = program_header(&a.program, &a.calibration, &a.robot, &ferrocal_report::report::now_rfc3339());
+    let all_outputs: Vec<&Path> =
+        std::iter::once(a.out.as_path()).chain(a.json.as_deref()).chain(outputs.iter().map(|(_, p)| *p)).collect();
+    ferrocal_report::check_outputs(&all_outputs, &[wanted.path(), a.calibration.as_path(), Path::new(&a.robot)])?;
+    let run = correct_run(&a.robot, &a.calibration, wanted, a.positions_only)?;
+    let header = program_header(wanted.path(), &a.calibration, &a.robot, &ferrocal_report::report::now_rfc3339());
     let programs = run.programs(&outputs, a.dwell_s, &header)?;
-    let mut files = ferrocal_report::Outputs::default();
-    files.text(&a.out, run.csv.as_str());
-    programs.iter().for_each(|(p, t)| files.text(p, t.as_str()));
-    say!("{}", run.summary_line(&a.out));
-    files.write()?;
     let linear_as_joint = run.linear_as_joint(&outputs);
     let verdict =
         ferrocal_report::compensate::correct_verdict(&vs.thresholds, &run, &a.out, &a.calibration, &linear_as_joint);
+    let mut files = ferrocal_report::Outputs::default();
+    files.text(&a.out, run.csv.as_str());
+    programs.iter().for_each(|(p, t)| files.text(p, t.as_str()));
+    if let Some(j) = &a.json {
+        files.json_with_verdict(
+            j,
+            ferrocal_report::compensate::correct_json(&run, &a.calibration, wanted.path()),
+            &verdict,
+        )?;
+    }
+    for line in ferrocal_report::compensate::correct_lines(&run, &a.out) {
+        say!("{line}");
+    }
+    files.write()?;
     Ok(vs.conclude(&verdict))
 }

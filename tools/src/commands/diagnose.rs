@@ -100,7 +100,10 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (rep, compensated) = diagnose_rows(&model, &rows, &opts, args.out.is_some())?;
     progress.finish_and_clear();
     // Composed first, then written together (no half-set outputs).
-    let (out, verdict) = robot_outputs(&vs.thresholds, &rep, model.name(), compensated.as_ref(), &opts, &files)?;
+    let train: Vec<&ferrocal_calib::PoseMeasurement> =
+        rows.iter().filter(|r| r.split != Some(ferrocal_calib::Split::Test)).collect();
+    let delivered = compensated.as_ref().map(|c| (c, train.as_slice()));
+    let (out, verdict) = robot_outputs(&vs.thresholds, &rep, model.name(), delivered, &opts, &files)?;
     if let (Some(path), Some(cal)) = (&args.out, &compensated) {
         say!("{}", compensated_line(path, cal));
     }

@@ -65,7 +65,7 @@ pub fn demo_report(d: &DemoSettings, mut prov: Provenance, tick: Tick, run: RunC
     s.push(plan_section(d, run)?);
     s.extend(diagnose_sections(d, tick)?);
     s.push(crate::compensate::demo_section(&ur5_csv, UR5_ATTRIBUTION, tick)?);
-    s.push(crate::compensate::corrected_section(d.seed)?);
+    s.push(crate::compensate::corrected_section(d.seed, &d.out.join("closed-loop"))?);
     s.push(crate::handeye::demo::demo_section(d.data, &d.out.join("handeye"), tick)?);
     s.push(crate::handeye::demo::positioner_section(d.data)?);
     s.push(crate::handeye::joint_demo::joint_section(d.seed, d.quick)?);
