@@ -38,6 +38,7 @@ pub fn present_run(
     joint: Option<&JointCalibration>,
     motion: ferrocal_calib::verdict::Check,
     joint_out: Option<&Path>,
+    flags: verdict::RunFlags,
 ) -> Verdict {
     use ferrocal_calib::handeye::opencv::best_baseline;
     print_summary(&fit.result, best_baseline(&fit.baselines), input.table.source.as_deref());
@@ -50,7 +51,7 @@ pub fn present_run(
         checks.extend(verdict::joint_checks(t, joint));
         crate::say!("{}", joint_line(joint, out));
     }
-    verdict::run_verdict(checks, &fit.result, joint_out)
+    verdict::run_verdict(checks, &fit.result, joint_out, flags)
 }
 
 /// Prints the hand-eye calibration's summary on stdout (its warnings on stderr).
@@ -149,7 +150,12 @@ pub fn import_ic_summary(
     let verdict = ferrocal_calib::verdict::Verdict::with_next(checks, |c| {
         match c {
         None => format!(
-            "calibrate ({n_test} rows marked test are held out): ferrocal handeye --images {}/images --poses {} --pattern {pattern} --mount {mount_name} --json <result.json>",
+            "calibrate ({}): ferrocal handeye --images {}/images --poses {} --pattern {pattern} --mount {mount_name} --json <result.json>",
+            if n_test == 0 {
+                "no row marked test: handeye fits every image and scores the training images".to_string()
+            } else {
+                format!("handeye holds out the {n_test} rows marked test and scores them")
+            },
             input.display(),
             out.display()
         ),
