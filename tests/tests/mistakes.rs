@@ -297,7 +297,8 @@ fn hand_eye_advice_never_suggests_what_the_run_already_did_and_following_it_help
 }
 
 /// Ceres' own log lines (the 10x10 set's fit logs "Linear solver failure" through glog on a
-/// passing run) are off by default and shown under `--verbose`.
+/// passing run) are off by default and shown under `--verbose`, which also adds the hand-eye
+/// fit's internals.
 #[test]
 fn third_party_log_lines_only_under_verbose() {
     let tmp = tempfile::tempdir().unwrap();
@@ -323,14 +324,22 @@ fn third_party_log_lines_only_under_verbose() {
             .arg(tmp.path().join("r.json"));
         let out = c.output().unwrap();
         assert!(out.status.success(), "{}", text(&out));
-        String::from_utf8_lossy(&out.stderr).into_owned()
+        (String::from_utf8_lossy(&out.stderr).into_owned(), String::from_utf8_lossy(&out.stdout).into_owned())
     };
-    let quiet = run(false);
+    let (quiet, stdout) = run(false);
     for words in ["Linear solver failure", "Terminating:", "InitGoogleLogging"] {
         assert!(!quiet.contains(words), "{words} without --verbose:\n{quiet}");
     }
-    let verbose = run(true);
+    assert!(!stdout.contains("closed-form starts"), "{stdout}");
+    let (verbose, stdout) = run(true);
     assert!(verbose.contains("Linear solver failure"), "--verbose hides Ceres' lines:\n{verbose}");
+    // `handeye --verbose` adds its internals: the closed-form starts, the noise levels, each image.
+    assert!(
+        stdout.contains("closed-form starts (training chain RMS): ")
+            && stdout.contains("noise: corner variance factor"),
+        "{stdout}"
+    );
+    assert!(stdout.contains(" (Train): chain RMS ") && stdout.contains(" (Test): chain RMS "), "{stdout}");
 }
 
 /// `import ur5` says what `calibrate` then holds out of the table, and `calibrate` holds out
