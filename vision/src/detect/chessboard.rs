@@ -385,3 +385,19 @@ pub(crate) fn refine_chessboard(
         })
         .collect())
 }
+
+#[cfg(test)]
+mod squares_tests {
+    use super::squares_hint;
+
+    #[test]
+    fn a_board_given_by_its_squares_is_named_only_at_the_inner_corner_count() {
+        let h = squares_hint(10, 7, 25.0, 54);
+        assert!(h.starts_with(super::SQUARES_HINT_WORDS), "{h}");
+        assert!(h.ends_with("a board of 10x7 squares has 9x6 inner corners; try chessboard:9x6:25mm"), "{h}");
+        assert_eq!(squares_hint(10, 7, 25.0, 53), "");
+        assert_eq!(squares_hint(10, 7, 25.0, 70), "");
+        assert_eq!(squares_hint(2, 7, 25.0, 6), "");
+        assert!(squares_hint(8, 6, 30.5, 35).contains("try chessboard:7x5:30.5mm"));
+    }
+}
