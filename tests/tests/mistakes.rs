@@ -70,6 +70,8 @@ fn stereo_lists_swapped_or_shifted_are_named() {
     assert_eq!((lw["status"].as_str(), dis["status"].as_str()), (Some("pass"), Some("pass")), "{}", clean["verdict"]);
     assert!(lw["value"].as_f64().unwrap() < -0.95, "{lw}");
     assert_eq!(dis["value"].as_f64(), Some(0.0), "{dis}");
+    assert_eq!(clean["pairing"]["n_pairs"], 13, "{}", clean["pairing"]);
+    assert!(clean["pairing"]["best_shift"].is_null(), "{}", clean["pairing"]);
 
     // Swapped: the right camera sits to the left of the left one.
     let j = tmp.path().join("swapped.json");
