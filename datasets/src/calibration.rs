@@ -304,7 +304,18 @@ impl CalibrationRun<'_> {
     /// did not converge (unless `accept_unconverged`, then with a warning). The lines name
     /// `measurements` where a row is meant: the solver's noise note, the rows the outlier screen
     /// dropped, its note.
-    pub fn deliverable(&self, measurements: &Path, accept_unconverged: bool) -> Result<Vec<String>> {
+    ///
+    /// A fit that did not converge while changing a length or an angle of the model beyond
+    /// `model_change_fail` (mm, degrees: `calibrate.model_change_*_fail`) is refused naming the
+    /// parameter and `--robot`, not with the advice to raise `--max-iterations` (a UR5 table
+    /// calibrated as a UR10 stops at the limit; with more iterations it converges with 180 mm
+    /// link corrections).
+    pub fn deliverable(
+        &self,
+        measurements: &Path,
+        accept_unconverged: bool,
+        model_change_fail: (f64, f64),
+    ) -> Result<Vec<String>> {
         let (cal, rows) = (&self.cal, &self.final_rows);
         let distinct = crate::import::plausible::distinct_poses(rows.iter().copied());
         let block = if cal.used_orientation { 6 } else { 3 };
@@ -322,6 +333,18 @@ impl CalibrationRun<'_> {
             std::iter::once(("calibration", cal)).chain(self.validation.iter().map(|(v, _, _)| ("validation fit", v)));
         for (what, fit) in fits {
             if let Some(problem) = fit.convergence_problem() {
+                let (mm, deg) = fit.largest_model_changes();
+                let beyond = [(mm, "mm", model_change_fail.0), (deg, "deg", model_change_fail.1)]
+                    .into_iter()
+                    .find_map(|(m, unit, limit)| m.filter(|m| m.change.abs() > limit).map(|m| (m, unit, limit)));
+                if let (Some((m, unit, limit)), false) = (beyond, accept_unconverged) {
+                    return Err(DatasetError::Input(format!(
+                        "{what}: {problem}, changing {} by {:+.1} {unit} (more than the {limit} {unit} of calibrate.model_change_{unit}_fail): the table does not fit this robot model: wrong --robot? check that {} was recorded on this robot and in the units its headers name; nothing was written",
+                        m.name,
+                        m.change,
+                        measurements.display()
+                    )));
+                }
                 if !accept_unconverged {
                     return Err(DatasetError::Input(format!("{what}: {problem}; nothing was written (raise --max-iterations, check the data, or accept it with --accept-unconverged)")));
                 }

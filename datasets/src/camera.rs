@@ -12,11 +12,12 @@
 use std::collections::HashMap;
 use std::path::PathBuf;
 
+use ferrocal_calib::verdict::StereoLimits;
 use ferrocal_vision::calib::corners::{detect_pattern_views, CornerMethod, PatternViews, SkippedImage};
 use ferrocal_vision::calib::heldout::{held_out_reprojection, HeldOut};
 use ferrocal_vision::calib::{
-    calibrate_pattern, calibrate_stereo, rectified_row_rms_px, CalibrationOptions, CalibrationPattern,
-    PatternCalibration, PlanarTarget, RectifiedCorner, StereoCalibration, View, MIN_VIEWS,
+    calibrate_pattern, calibrate_stereo, check_pairing, rectified_row_rms_px, CalibrationOptions, CalibrationPattern,
+    PairingCheck, PatternCalibration, PlanarTarget, RectifiedCorner, StereoCalibration, View, MIN_VIEWS,
 };
 use ferrocal_vision::camera::io::StereoPair;
 use ferrocal_vision::camera::ImageSize;
@@ -27,11 +28,27 @@ use crate::error::{DatasetError, Result};
 
 /// The error of too few usable views: how many were usable of how many images, and why the
 /// others were skipped.
+///
+/// When at least half the skipped images found exactly `(cols - 1) x (rows - 1)` corners of a
+/// chessboard, the error says first that the pattern looks given by its squares, with the
+/// pattern string to try (`vision::detect::chessboard::squares_hint`).
 pub fn too_few_views(what: &str, usable: usize, total: usize, skipped: &[SkippedImage]) -> DatasetError {
+    use ferrocal_vision::detect::chessboard::SQUARES_HINT_WORDS;
     let reasons: Vec<String> = skipped.iter().map(ToString::to_string).collect();
+    let hinted: Vec<&String> = reasons.iter().filter(|r| r.contains(SQUARES_HINT_WORDS)).collect();
+    let squares = match hinted.first() {
+        Some(r) if 2 * hinted.len() >= reasons.len() => {
+            let hint = &r[r.find(SQUARES_HINT_WORDS).unwrap_or(0) + 2..];
+            format!("; {hint} (each of {} image(s) shows exactly that many corners)", hinted.len())
+        }
+        _ => String::new(),
+    };
+    let short: Vec<String> =
+        reasons.iter().map(|r| r.split(SQUARES_HINT_WORDS).next().unwrap_or(r).to_string()).collect();
     DatasetError::Input(format!(
-        "{what}: {usable} usable view(s) of {total} image(s), at least {MIN_VIEWS} needed{}",
-        if reasons.is_empty() { String::new() } else { format!("; skipped: {}", reasons.join("; ")) }
+        "{what}: {usable} usable view(s) of {total} image(s), at least {MIN_VIEWS} needed{}{}",
+        squares,
+        if reasons.is_empty() { String::new() } else { format!("; skipped: {}", short.join("; ")) }
     ))
 }
 
@@ -178,8 +195,16 @@ impl StereoViews {
     }
 
     /// Calibrates the pair; refused with fewer than [`MIN_VIEWS`] usable views of a camera or
-    /// without a pair in which both images show the pattern.
-    pub fn calibrate(self, pattern: &CalibrationPattern, options: &CalibrationOptions) -> Result<StereoRun> {
+    /// without a pair in which both images show the pattern, and when more than
+    /// `limits.pairs_disagree_fraction_fail` of the pairs disagree on the cameras' relative pose
+    /// ([`check_pairing`]; the refusal names the shift of the right list that pairs the images
+    /// when one makes at least 4 in 5 pairs agree).
+    pub fn calibrate(
+        self,
+        pattern: &CalibrationPattern,
+        options: &CalibrationOptions,
+        limits: &StereoLimits,
+    ) -> Result<StereoRun> {
         let n_left = self.left.iter().flatten().count();
         let n_right = self.right.iter().flatten().count();
         if n_left < MIN_VIEWS || n_right < MIN_VIEWS {
@@ -197,9 +222,61 @@ impl StereoViews {
             ));
         }
         let target = pattern.target();
+        let pairing = check_pairing(&self.left, &self.right, &target, options, limits.pair_distance)
+            .map_err(|e| DatasetError::Input(format!("camera stereo: {e}")))?;
+        if pairing.disagree_fraction() > limits.pairs_disagree_fraction_fail {
+            return Err(DatasetError::Input(pairing_refusal(&pairing, limits)));
+        }
         let calibration = calibrate_stereo(&self.left, &self.right, &target, options)
             .map_err(|e| DatasetError::Input(format!("camera stereo: {e}")))?;
-        Ok(StereoRun { views: self, pattern: *pattern, target, options: options.clone(), n_pairs, calibration })
+        Ok(StereoRun {
+            views: self,
+            pattern: *pattern,
+            target,
+            options: options.clone(),
+            n_pairs,
+            calibration,
+            pairing,
+        })
+    }
+}
+
+/// A file name of a view's name (its image path), for messages.
+fn file_name(name: &str) -> String {
+    std::path::Path::new(name).file_name().map_or_else(|| name.to_string(), |f| f.to_string_lossy().into_owned())
+}
+
+/// Share of the pairs at a shift of the right list that must agree before the refusal names
+/// the shift.
+pub const SHIFT_AGREE_SHARE: f64 = 0.8;
+
+/// The refusal of a recording whose pairs disagree on the cameras' relative pose: the pairs,
+/// and the shift of the right list that pairs the images, when one does.
+fn pairing_refusal(p: &PairingCheck, limits: &StereoLimits) -> String {
+    let names: Vec<String> = p.disagreeing.iter().take(4).map(|n| file_name(n)).collect();
+    let more = if p.disagreeing.len() > 4 { format!(" and {} more", p.disagreeing.len() - 4) } else { String::new() };
+    let intro = format!(
+        "camera stereo: the pairs disagree on the cameras' relative pose: {} of {} pairs ({}{more}) are far from the others' (more than {} of the pairs, stereo.pairs_disagree_fraction_fail)",
+        p.disagreeing.len(),
+        p.n_pairs,
+        names.join(", "),
+        limits.pairs_disagree_fraction_fail
+    );
+    match &p.best_shift {
+        Some(s) if s.agreeing as f64 >= SHIFT_AGREE_SHARE * s.compared as f64 => {
+            let (l, r) = (file_name(&s.example.0), file_name(&s.example.1));
+            let side = if s.shift > 0 { "right" } else { "left" };
+            format!(
+                "{intro}: the {side} list looks shifted by {} image(s): left image k pairs with right image k{:+} ({l} with {r}); so paired, {} of {} pairs agree. Remove the extra image(s) or fix the lists' order, then calibrate again",
+                s.shift.abs(),
+                s.shift,
+                s.agreeing,
+                s.compared
+            )
+        }
+        _ => format!(
+            "{intro}: the left and right images do not look taken at the same instants (no shift of the lists by up to 2 images pairs them); check that left image k and right image k show the same board pose"
+        ),
     }
 }
 
@@ -218,6 +295,8 @@ pub struct StereoRun {
     pub n_pairs: usize,
     /// The calibration.
     pub calibration: StereoCalibration,
+    /// The pairs' agreement on the cameras' relative pose, before the joint fit.
+    pub pairing: PairingCheck,
 }
 
 /// A pair's rectification with the corners seen in both images of a pair, rectified, and the

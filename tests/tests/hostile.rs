@@ -173,6 +173,40 @@ const CASES: &[Case] = &[
         absent: &[],
     },
     Case {
+        what: "metres under _mm headers given to calibrate (issue #44)",
+        edit: nothing,
+        args: &["calibrate", "--robot", "ur5", "--measurements", "{d}/metres.csv", "--out", "{d}/c.json"],
+        exit: 1,
+        says: &[
+            "error: the table's units look wrong (the values look like metres; if so, name the columns x_m, y_m, z_m)",
+        ],
+        absent: &["c.json"],
+    },
+    Case {
+        what: "metres under _mm headers given to diagnose (issue #44)",
+        edit: nothing,
+        args: &["diagnose", "--robot", "ur5", "--measurements", "{d}/metres.csv", "--json", "{d}/dg.json"],
+        exit: 1,
+        says: &["error: the table's units look wrong (the values look like metres"],
+        absent: &["dg.json"],
+    },
+    Case {
+        what: "UR5 rows calibrated as a UR10 (issue #44)",
+        edit: nothing,
+        args: &["calibrate", "--robot", "ur10", "--measurements", "{d}/small.csv", "--out", "{d}/c.json"],
+        exit: 1,
+        says: &["the solver did not converge", "changing joint2.corr_x_m by +18", "wrong --robot?"],
+        absent: &["c.json"],
+    },
+    Case {
+        what: "import says what calibrate will hold out (issue #44)",
+        edit: nothing,
+        args: &["import", "table", "--input", "{d}/small.csv", "--out", "{d}/held.csv"],
+        exit: 0,
+        says: &["imported 40 rows (0 marked test; no split column: calibrate holds out every second row, 20 of 40)"],
+        absent: &[],
+    },
+    Case {
         what: "200 rows of one repeated pose",
         edit: |d| {
             let text = std::fs::read_to_string(d.join("small.csv")).unwrap();

@@ -12,6 +12,7 @@ mod handeye_rig_in_hand;
 mod hostile;
 mod kill;
 mod measure;
+mod mistakes;
 mod motion;
 mod positioner;
 mod reliability;

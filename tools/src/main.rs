@@ -22,6 +22,8 @@ fn main() -> ExitCode {
         (false, true) => Verbosity::Verbose,
         (false, false) => Verbosity::Normal,
     });
+    // OpenCV's and Ceres' own log lines only under --verbose (docs/verdicts.md).
+    ferrocal_vision::backends::show_library_logs(args.verbose);
     match commands::run(args) {
         Ok(code) => code,
         Err(e) => {

@@ -3,6 +3,18 @@
 
 use serde::Serialize;
 
+/// Whether the third-party libraries' own log lines (OpenCV's `[ WARN:0@...]`, Ceres' glog
+/// warnings such as "Linear solver failure") reach stderr: off by default, a command's
+/// `--verbose` shows them. What they report is in the results (a solver's termination, a
+/// detection's failure); on their own they alarm on runs that are fine. Set once at start.
+pub fn show_library_logs(shown: bool) {
+    use opencv::core::LogLevel;
+    ferrocal_lsq::show_ceres_log(shown);
+    let level = if shown { LogLevel::LOG_LEVEL_INFO } else { LogLevel::LOG_LEVEL_ERROR };
+    // Setting a level cannot fail in a build with logging; a build without it has nothing to hide.
+    let _ = opencv::core::set_log_level(level);
+}
+
 /// What one backend answered.
 #[derive(Clone, Debug, Serialize)]
 pub struct BackendStatus {

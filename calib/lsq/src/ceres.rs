@@ -14,6 +14,29 @@ use crate::dense::{Summary, Termination};
 use crate::problem::{CeresLinearSolver, SolverOptions, StateIndex};
 use crate::{LsqError, Problem, Result};
 
+/// Whether Ceres' own log lines reach stderr. Ceres logs through its bundled glog, unconditionally
+/// for some messages ("Linear solver failure. Failed to compute a step", "Terminating: Initial
+/// residual and Jacobian evaluation failed"), also on runs whose result is fine: the solver's
+/// outcome is in the [`Summary`] this crate returns, so by default only glog's fatal messages
+/// are shown; `shown` (a command's `--verbose`) lets every level through. Set it once, before
+/// solving (it writes glog's process-wide `minloglevel` flag).
+pub fn show_ceres_log(shown: bool) {
+    extern "C" {
+        // glog's `int32 FLAGS_minloglevel` (namespace fLI), statically linked from the bundled
+        // glog that ceres-solver-src builds (without gflags, so the flag is a plain global).
+        #[link_name = "_ZN3fLI17FLAGS_minloglevelE"]
+        static mut GLOG_MINLOGLEVEL: i32;
+    }
+    // glog's severities: INFO 0, WARNING 1, ERROR 2, FATAL 3.
+    let level = if shown { 0 } else { 3 };
+    // SAFETY: the symbol is glog's 32-bit integer flag, defined and initialised by the linked
+    // glog before main; it is written through a raw pointer (no reference to the mutable
+    // static), and the callers set it before any solver thread runs.
+    unsafe {
+        std::ptr::addr_of_mut!(GLOG_MINLOGLEVEL).write(level);
+    }
+}
+
 fn failed(detail: impl std::fmt::Display) -> LsqError {
     LsqError::Diverged(format!("Ceres: {detail}"))
 }

@@ -40,6 +40,7 @@ mod problem;
 mod residual;
 pub mod so3;
 
+pub use ceres::show_ceres_log;
 pub use covariance::{covariance, schur_covariance};
 pub use dense::{DenseProblem, LmOptions, LmResult, LmSummary, Summary, Termination};
 pub use error::{LsqError, Result};

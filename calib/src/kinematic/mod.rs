@@ -231,7 +231,41 @@ pub struct KinematicCalibration {
     pub sigma_position_m: f64,
 }
 
+/// The largest change a calibration makes to the robot model in one unit
+/// ([`KinematicCalibration::largest_model_changes`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ModelChange {
+    /// The parameter (`joint2.corr_a_m`, `offset.q3_rad`).
+    pub name: String,
+    /// Its identified value minus its start (nominal) value, in millimetres for a length and
+    /// degrees for an angle.
+    pub change: f64,
+}
+
 impl KinematicCalibration {
+    /// The largest changes the calibration makes to the robot model itself: its lengths (mm)
+    /// and its angles (degrees), over the identified joint zero offsets and model parameters
+    /// (not the device frame, the tool or the effects, whose size is the cell's, not the
+    /// robot's). A robot differs from its model by tenths of a millimetre and hundredths of a
+    /// degree; a change of centimetres says the table is of another robot (`--robot`) or in
+    /// another unit.
+    pub fn largest_model_changes(&self) -> (Option<ModelChange>, Option<ModelChange>) {
+        let mut mm: Option<ModelChange> = None;
+        let mut deg: Option<ModelChange> = None;
+        for i in self.layout.offsets.clone().chain(self.layout.model.clone()) {
+            let Some(p) = self.params.get(i).filter(|p| p.free) else { continue };
+            let (slot, change) = match p.unit {
+                Unit::Metre => (&mut mm, (p.value - p.start) * 1e3),
+                Unit::Radian => (&mut deg, (p.value - p.start).to_degrees()),
+                _ => continue,
+            };
+            if change.is_finite() && slot.as_ref().is_none_or(|m| change.abs() > m.change.abs()) {
+                *slot = Some(ModelChange { name: p.name.clone(), change });
+            }
+        }
+        (mm, deg)
+    }
+
     /// Why this calibration should not be delivered as converged, if it should not: the solver
     /// stopped at its iteration limit or without a convergence test passing.
     pub fn convergence_problem(&self) -> Option<String> {
@@ -243,16 +277,27 @@ impl KinematicCalibration {
         })
     }
 
-    /// A warning when the a-posteriori standard deviation of unit weight `s0` is far from 1
+    /// A note when the a-posteriori standard deviation of unit weight `s0` is far from 1
     /// (outside 1/3 to 3): the standard deviations the rows were weighted with do not describe
     /// their scatter, so the reported parameter standard deviations (scaled by `s0`) rest on
     /// the residuals alone. Not an error: the fit itself is unaffected by a common scale of the
-    /// weights.
+    /// weights. Above 3 the residuals are larger than the stated noise: most often the model
+    /// leaves errors of that size out (a laser tracker's stated 0.02 mm is right; the 0.5 mm
+    /// left over the UR10 series B is the arm's, not the tracker's), so the note points to
+    /// `diagnose` first and to the sigma second; below 1/3 the stated sigma is too large.
     pub fn noise_warning(&self) -> Option<String> {
         let s0 = self.s0;
-        (s0.is_finite() && !(1.0 / 3.0..=3.0).contains(&s0)).then(|| {
+        if !s0.is_finite() || (1.0 / 3.0..=3.0).contains(&s0) {
+            return None;
+        }
+        let rms = self.train_after.rms_mm;
+        Some(if s0 > 3.0 {
             format!(
-                "the residuals are {s0:.2} times the assumed measurement noise (s0 = {s0:.2}); set the rows' sigma (or --sigma-mm / --sigma-deg) to the device's real noise; standard deviations are scaled by s0"
+                "the residuals (training RMS {rms:.3} mm) are {s0:.1} times the stated measurement noise (s0 = {s0:.2}): the model leaves errors of this size unexplained (ferrocal diagnose looks for what), unless the device is noisier than its stated sigma; standard deviations are scaled by s0"
+            )
+        } else {
+            format!(
+                "the residuals (training RMS {rms:.3} mm) are {s0:.2} times the stated measurement noise (s0 = {s0:.2}): the stated sigma (the rows' sigma, or --sigma-mm / --sigma-deg) is larger than the device's noise; standard deviations are scaled by s0"
             )
         })
     }

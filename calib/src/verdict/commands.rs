@@ -24,6 +24,26 @@ pub fn calibrate(
 ) -> Verdict {
     let l = &t.calibrate;
     let mut checks = Vec::new();
+    // The model's own changes first: a table of another robot (or in another unit) can fit well
+    // with centimetre link corrections, and then every held-out figure passes.
+    let (mm, deg) = cal.largest_model_changes();
+    let mut changes = Vec::new();
+    for (m, unit, key, warn, fail) in [
+        (&mm, "mm", "calibrate.model_change_mm", l.model_change_mm_warn, l.model_change_mm_fail),
+        (&deg, "deg", "calibrate.model_change_deg", l.model_change_deg_warn, l.model_change_deg_fail),
+    ] {
+        let Some(m) = m else { continue };
+        let kind = if unit == "mm" { "length" } else { "angle" };
+        checks.push(Check::at_most(
+            key,
+            &format!("largest change of a model {kind} ({} {:+.4} {unit})", m.name, m.change),
+            unit,
+            m.change.abs(),
+            warn,
+            fail,
+        ));
+        changes.push((key, format!("{} by {} {unit}", m.name, fmt_num(m.change))));
+    }
     match validation {
         Some((v, before, after)) => {
             checks.push(Check::at_most(
@@ -95,6 +115,12 @@ pub fn calibrate(
     let advice = cal.advice.first().cloned().unwrap_or_default();
     Verdict::with_next(checks, |c| {
         match c.map(|c| c.name.as_str()) {
+        Some(n @ ("calibrate.model_change_mm" | "calibrate.model_change_deg")) => {
+            let which = changes.iter().find(|(k, _)| *k == n).map(|(_, w)| w.as_str()).unwrap_or_default();
+            format!(
+                "the calibration changes {which}, more than a {robot} is ever off its model: wrong --robot? check that the table was recorded on a {robot} (and its units); do not use this calibration (--keep delivers it anyway)"
+            )
+        }
         Some("calibrate.rows_beyond") => format!(
             "check the table's units (the column headers), --robot and --sigma-mm, and run ferrocal diagnose --robot {robot} --measurements <the table> for what the model leaves out; --keep delivers this calibration anyway"
         ),
@@ -260,18 +286,29 @@ pub fn diagnose(t: &Thresholds, report: &Value, unit: &str, rerun: &str) -> Verd
     })
 }
 
-/// `import`: the rows written.
-pub fn import(t: &Thresholds, rows: usize, test_rows: usize, out: &std::path::Path) -> Verdict {
+/// What `calibrate` will hold out of a table of `rows` rows, `test_rows` of them marked `test`
+/// (`has_split`: the table has a `split` column), in the words of [`crate::kinematic::split_rows`]:
+/// the rows marked `test`; none when the column marks none; every second row without the column.
+pub fn held_out_words(rows: usize, test_rows: usize, has_split: bool) -> String {
+    match (has_split, test_rows) {
+        (true, 0) => "its split column marks no row test: calibrate holds none out".into(),
+        (true, n) => format!("calibrate holds out the {n} rows marked test"),
+        (false, _) => format!("no split column: calibrate holds out every second row, {} of {rows}", rows / 2),
+    }
+}
+
+/// `import`: the rows written; `test_rows` of them marked `test`, `has_split` when the table
+/// has a `split` column (the next step says what `calibrate` will hold out).
+pub fn import(t: &Thresholds, rows: usize, test_rows: usize, has_split: bool, out: &std::path::Path) -> Verdict {
     let l = &t.import;
     let checks = vec![Check::at_least("import.rows", "rows written", "", rows as f64, l.rows_warn, l.rows_fail)];
-    Verdict::with_next(checks, |c| {
-        match c {
+    Verdict::with_next(checks, |c| match c {
         None => format!(
-            "calibrate from the table ({test_rows} rows marked test are held out): ferrocal calibrate --robot <model> --measurements {} --out <cal.json>",
+            "calibrate from the table ({}): ferrocal calibrate --robot <model> --measurements {} --out <cal.json>",
+            held_out_words(rows, test_rows, has_split),
             out.display()
         ),
         Some(_) => "the recording holds too few rows for a calibration: record more poses".into(),
-    }
     })
 }
 
@@ -319,11 +356,13 @@ pub fn camera(l: &CameraLimits, rms_px: f64, views: usize, heldout_px: Option<f6
     )
 }
 
-/// `camera stereo`: the pair's RMS, the pairs used, the rectified row difference.
-pub fn stereo(t: &Thresholds, rms_px: f64, pairs: usize, row_rms_px: Option<f64>) -> Verdict {
+/// `camera stereo`: the lists first (the right camera's side of the left one: swapped lists;
+/// pairs that disagree on the cameras' relative pose: shifted lists), then the pair's RMS, the
+/// pairs used, the rectified row difference.
+pub fn stereo(t: &Thresholds, rms_px: f64, pairs: usize, row_rms_px: Option<f64>, pairing: &StereoPairing) -> Verdict {
     let (l, c) = (&t.stereo, &t.camera);
     let third = "stereo.row_rms_px";
-    camera_fit(
+    let mut v = camera_fit(
         Check::at_most("stereo.rms_px", "reprojection RMS", "px", rms_px, l.rms_px_warn, l.rms_px_fail),
         Check::at_least("camera.views", "pairs used", "", pairs as f64, c.views_warn, c.views_fail),
         row_rms_px.map(|r| {
@@ -336,7 +375,71 @@ pub fn stereo(t: &Thresholds, rms_px: f64, pairs: usize, row_rms_px: Option<f64>
             third: "the pair does not rectify well: check that the images are synchronous and the rig rigid, then calibrate again",
             other: "look at the per-view RMS of both cameras in the JSON and retake or drop the worst pairs",
         },
-    )
+    );
+    // The lists themselves, first: swapped lists fit as well as right ones, with a negative
+    // baseline; pairs that disagree on the rig are not simultaneous.
+    let c_right = pairing.right_in_left_mm;
+    let baseline = c_right.norm();
+    let leftward = if baseline > 0.0 { -c_right.x / baseline } else { 0.0 };
+    let mut swap = Check::at_most(
+        "stereo.baseline_leftward",
+        &format!("right camera's leftward share of the {} mm baseline", fmt_num(baseline)),
+        "",
+        leftward,
+        l.baseline_leftward_warn,
+        l.baseline_leftward_fail,
+    );
+    if swap.status != Status::Pass {
+        swap.what = format!(
+            "{}: the right camera sits {} mm to the left of the left camera, so the --left and --right images look swapped",
+            swap.what,
+            fmt_num(-c_right.x)
+        );
+    }
+    let mut disagree = Check::at_most(
+        "stereo.pairs_disagree_fraction",
+        &format!(
+            "pairs disagreeing on the cameras' relative pose ({} of {})",
+            pairing.disagreeing.len(),
+            pairing.n_pairs
+        ),
+        "",
+        if pairing.n_pairs == 0 { 0.0 } else { pairing.disagreeing.len() as f64 / pairing.n_pairs as f64 },
+        l.pairs_disagree_fraction_warn,
+        l.pairs_disagree_fraction_fail,
+    );
+    if disagree.status != Status::Pass {
+        disagree.what = format!("{}: {}", disagree.what, pairing.disagreeing.join(", "));
+    }
+    let disagreeing = pairing.disagreeing.join(", ");
+    v.checks.insert(0, disagree);
+    v.checks.insert(0, swap);
+    v.status = super::worst(&v.checks);
+    match super::first_problem(&v.checks).map(|c| c.name.as_str()) {
+        Some("stereo.baseline_leftward") => {
+            v.next = "give the left camera's images to --left and the right camera's to --right (the lists look swapped), then calibrate again".into();
+        }
+        Some("stereo.pairs_disagree_fraction") => {
+            v.next = format!(
+                "check that left and right image k show the same board pose (the pairs of {disagreeing} disagree with the others; a missing or extra image shifts the lists), drop them and calibrate again"
+            );
+        }
+        _ => {}
+    }
+    v
+}
+
+/// What `camera stereo` knows of its lists before the verdict: where the right camera sits in
+/// the left camera's frame, and the pairs that disagree on the cameras' relative pose
+/// (`ferrocal_vision::calib::check_pairing`).
+#[derive(Clone, Debug, Default)]
+pub struct StereoPairing {
+    /// The right camera's position in the left camera's frame, mm (`-R^T T` of OpenCV's R, T).
+    pub right_in_left_mm: nalgebra::Vector3<f64>,
+    /// Pairs compared.
+    pub n_pairs: usize,
+    /// The images (file names) of the pairs that disagree.
+    pub disagreeing: Vec<String>,
 }
 
 /// `detect`: the fraction of the `n` images in which the pattern was found (`failed` were not).

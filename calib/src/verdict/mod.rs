@@ -199,6 +199,33 @@ impl Verdict {
     }
 }
 
+/// `v` with the unit doubts its input table raised (`advice`: each doubt's likely unit and the
+/// header that would say it, e.g. `the values look like metres; if so, name the columns x_m,
+/// y_m, z_m`) as its first check, `input.units` (a warning; not a key of the thresholds file),
+/// and its next step: fix the units first, since every figure of the result rests on them.
+/// Unchanged without doubts.
+pub fn with_unit_doubts(mut v: Verdict, advice: &[&str]) -> Verdict {
+    if advice.is_empty() {
+        return v;
+    }
+    let words = advice.join("; ");
+    v.checks.insert(
+        0,
+        Check::flag(
+            "input.units",
+            &format!("the table's units look wrong: {words}"),
+            "units as the headers name",
+            true,
+        ),
+    );
+    v.status = worst(&v.checks);
+    v.next = format!(
+        "fix the table's units first ({words}) and run again: every figure above rests on them (then: {})",
+        v.next.trim()
+    );
+    v
+}
+
 /// The worst status of `checks` ([`Status::Pass`] when empty).
 pub fn worst(checks: &[Check]) -> Status {
     checks.iter().map(|c| c.status).max().unwrap_or(Status::Pass)

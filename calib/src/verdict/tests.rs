@@ -220,3 +220,74 @@ fn study_and_simulator_verdicts() {
         assert!(list.iter().any(|(k, _)| k == key), "{key}");
     }
 }
+
+#[test]
+fn unit_doubts_come_first_and_lead_the_next_step() {
+    let v = Verdict::new(vec![Check::at_most("a", "a", "mm", 0.1, 1.0, 2.0)], "use it");
+    assert_eq!(with_unit_doubts(v.clone(), &[]), v);
+    let advice = "the values look like metres; if so, name the columns x_m, y_m, z_m";
+    let d = with_unit_doubts(v, &[advice]);
+    assert_eq!(d.status, Status::Warning);
+    assert_eq!(d.checks[0].name, "input.units");
+    assert!(d
+        .line()
+        .starts_with(&format!("verdict: warning: the table's units look wrong: {advice} (warning), a 0.1 mm")));
+    assert!(
+        d.next.starts_with(&format!("fix the table's units first ({advice})")) && d.next.ends_with("(then: use it)")
+    );
+    assert!(line_matches_spec(&d.line()));
+}
+
+#[test]
+fn import_says_what_calibrate_holds_out() {
+    use commands::held_out_words;
+    assert_eq!(held_out_words(1000, 0, false), "no split column: calibrate holds out every second row, 500 of 1000");
+    assert_eq!(held_out_words(205, 51, true), "calibrate holds out the 51 rows marked test");
+    assert_eq!(held_out_words(40, 0, true), "its split column marks no row test: calibrate holds none out");
+    // The count is split_rows' own.
+    let rows: Vec<crate::PoseMeasurement> = (0..7)
+        .map(|k| {
+            crate::PoseMeasurement::new(
+                format!("{k}"),
+                vec![0.1 * k as f64],
+                nalgebra::Vector3::new(0.0, 0.0, k as f64),
+            )
+        })
+        .collect();
+    assert_eq!(crate::kinematic::split_rows(&rows, true).1.len(), 3);
+    assert!(held_out_words(7, 0, false).ends_with("3 of 7"));
+}
+
+#[test]
+fn stereo_lists_swapped_or_disagreeing_lead_the_verdict() {
+    let t = Thresholds::default();
+    let right_of_left = commands::StereoPairing {
+        right_in_left_mm: nalgebra::Vector3::new(83.2, -0.9, 0.3),
+        n_pairs: 13,
+        disagreeing: Vec::new(),
+    };
+    let ok = commands::stereo(&t, 0.18, 13, Some(0.11), &right_of_left);
+    assert_eq!(ok.status, Status::Pass, "{}", ok.line());
+    // Swapped: the right camera to the left of the left one.
+    let swapped =
+        commands::StereoPairing { right_in_left_mm: -right_of_left.right_in_left_mm, ..right_of_left.clone() };
+    let v = commands::stereo(&t, 0.18, 13, Some(0.11), &swapped);
+    assert_eq!((v.status, v.checks[0].name.as_str()), (Status::Fail, "stereo.baseline_leftward"));
+    assert!(v.checks[0].what.contains("look swapped") && v.next.contains("--left"), "{}", v.line());
+    // A vertical rig (right camera below the left one) is not a swap.
+    let vertical =
+        commands::StereoPairing { right_in_left_mm: nalgebra::Vector3::new(0.5, 83.0, 0.0), ..right_of_left.clone() };
+    assert_eq!(commands::stereo(&t, 0.18, 13, Some(0.11), &vertical).status, Status::Pass);
+    // Three of 13 pairs disagree: a warning naming them.
+    let some = commands::StereoPairing {
+        disagreeing: vec!["l1.jpg".into(), "l2.jpg".into(), "l3.jpg".into()],
+        ..right_of_left
+    };
+    let v = commands::stereo(&t, 0.18, 13, Some(0.11), &some);
+    assert_eq!(v.status, Status::Warning);
+    assert!(
+        v.line().contains("(3 of 13) 0.2308 > 0.2 (warning): l1.jpg, l2.jpg, l3.jpg") && v.next.contains("l1.jpg"),
+        "{}",
+        v.line()
+    );
+}

@@ -144,11 +144,41 @@ pub struct StereoLimits {
     pub row_rms_px_warn: f64,
     /// Rectified row difference: failure above (default 2.0).
     pub row_rms_px_fail: f64,
+    /// Where the right camera sits: its position along the left camera's -x axis (image left)
+    /// over the baseline; warning above (default 0.5). A side-by-side pair named as its cameras
+    /// sit gives -1 (OpenCV's sample: the right camera 83 mm along +x), a vertical rig about 0,
+    /// swapped `--left` and `--right` lists +1.
+    pub baseline_leftward_warn: f64,
+    /// The right camera's leftward share of the baseline: failure above (default 0.7: the left
+    /// and right lists are swapped).
+    pub baseline_leftward_fail: f64,
+    /// Two pairs agree on the cameras' relative pose when their relative poses (each camera
+    /// calibrated alone) differ by less than this: the rotation difference in radians plus the
+    /// translation difference over the baseline (default 0.1, the rig calibration's own
+    /// consensus limit).
+    pub pair_distance: f64,
+    /// The share of pairs whose relative pose disagrees with the consensus: warning above
+    /// (default 0.2).
+    pub pairs_disagree_fraction_warn: f64,
+    /// The share of disagreeing pairs: refused above (default 0.5; the lists are shifted, or
+    /// not taken at the same instants), naming the shift of the right list that pairs them
+    /// when one does.
+    pub pairs_disagree_fraction_fail: f64,
 }
 
 impl Default for StereoLimits {
     fn default() -> Self {
-        Self { rms_px_warn: 0.5, rms_px_fail: 2.0, row_rms_px_warn: 0.5, row_rms_px_fail: 2.0 }
+        Self {
+            rms_px_warn: 0.5,
+            rms_px_fail: 2.0,
+            row_rms_px_warn: 0.5,
+            row_rms_px_fail: 2.0,
+            baseline_leftward_warn: 0.5,
+            baseline_leftward_fail: 0.7,
+            pair_distance: 0.1,
+            pairs_disagree_fraction_warn: 0.2,
+            pairs_disagree_fraction_fail: 0.5,
+        }
     }
 }
 
@@ -186,6 +216,15 @@ pub struct HandeyeLimits {
     /// coordinates): warning above (default 3). A warning only: the file's own uncertainty is not
     /// known, and a camera knocked since the file was made shows exactly so.
     pub rig_file_sigma_warn: f64,
+    /// Length of the flange-side transform (`T_flange_camera` eye-in-hand, `T_flange_target`
+    /// eye-to-hand), mm: warning above (default 500). A camera or target on a robot's flange sits
+    /// within a few hundred millimetres of it (the real sets: 10x10 135 mm, charuco 120 mm); a
+    /// pose table written inverted (`T_flange_base`) fits with the world transform in its
+    /// place, metres long (the charuco set inverted: 1297 mm).
+    pub tool_offset_mm_warn: f64,
+    /// Flange-side transform length: failure above (default 1000 mm: no tool; the poses look
+    /// inverted).
+    pub tool_offset_mm_fail: f64,
 }
 
 impl Default for HandeyeLimits {
@@ -201,6 +240,8 @@ impl Default for HandeyeLimits {
             pnp_rotation_deg_warn: 1.5,
             pnp_rotation_deg_fail: 3.0,
             rig_file_sigma_warn: 3.0,
+            tool_offset_mm_warn: 500.0,
+            tool_offset_mm_fail: 1000.0,
         }
     }
 }
@@ -228,6 +269,20 @@ pub struct CalibrateLimits {
     pub heldout_over_train_fail: f64,
     /// Joints the data cannot identify (advice given): warning above (default 0).
     pub unidentified_warn: f64,
+    /// The largest change the calibration makes to a length of the robot model (a link length
+    /// or offset correction, a prismatic joint's zero offset; not the device frame or the
+    /// tool), mm: warning above (default 10 mm). A robot of the model is built within a few
+    /// tenths of a millimetre of it (the real UR5, UR10 and positioner tables change no length
+    /// by more than 1.3 mm); a UR5's table calibrated as a UR10 changes links by about 180 mm.
+    pub model_change_mm_warn: f64,
+    /// The largest length change: failure above (default 50 mm: the table is of another robot,
+    /// `--robot` is wrong).
+    pub model_change_mm_fail: f64,
+    /// The largest change the calibration makes to an angle of the robot model (a joint's zero
+    /// offset, a twist or axis correction), degrees: warning above (default 5 deg).
+    pub model_change_deg_warn: f64,
+    /// The largest angle change: failure above (default 20 deg).
+    pub model_change_deg_fail: f64,
 }
 
 impl Default for CalibrateLimits {
@@ -240,6 +295,10 @@ impl Default for CalibrateLimits {
             heldout_over_train_warn: 2.0,
             heldout_over_train_fail: 5.0,
             unidentified_warn: 0.0,
+            model_change_mm_warn: 10.0,
+            model_change_mm_fail: 50.0,
+            model_change_deg_warn: 5.0,
+            model_change_deg_fail: 20.0,
         }
     }
 }

@@ -49,6 +49,12 @@ pub const VIEW_FLOOR_DEG_MM: (f64, f64) = (0.1, 1.0);
 /// The other mount is named when its closed-form residuals are smaller than the given mount's
 /// by these factors (translation, rotation).
 pub const MOUNT_RATIO: (f64, f64) = (3.0, 2.0);
+/// A flange-side transform (`T_flange_camera`, `T_flange_target`) longer than this, metres, is
+/// no tool: when the other mount fits the motions with such a transform, the refusal names
+/// inverted poses (`T_flange_base` written for `T_base_flange`) rather than the mount. The
+/// inverted table of the charuco set fits as eye-in-hand with a camera 1.26 m from the flange.
+/// The same length as `handeye.tool_offset_mm_fail` (1000 mm).
+pub const INVERTED_TOOL_M: f64 = 1.0;
 /// At most this share of the images is left out; more disagreeing images is a warning.
 pub const MAX_DROPPED_SHARE: f64 = 0.2;
 
@@ -263,10 +269,23 @@ pub fn check_motion(
         if b.residual_translation_mm * MOUNT_RATIO.0 <= a.residual_translation_mm
             && b.residual_rotation_deg * MOUNT_RATIO.1 <= a.residual_rotation_deg
         {
+            let residuals = format!(
+                "the closed form's residuals at the median pair are {:.2} deg and {:.1} mm with --mount {}, {:.2} deg and {:.1} mm with --mount {}",
+                b.residual_rotation_deg, b.residual_translation_mm, other.name(),
+                a.residual_rotation_deg, a.residual_translation_mm, mount.name()
+            );
+            // Inverted poses fit as the other mount, with the world transform in the flange's
+            // place: a "tool" of metres.
+            let tool_m = b.closed_form_x.translation.vector.norm();
+            if tool_m > INVERTED_TOOL_M {
+                return Err(DatasetError::Input(format!(
+                    "{file}: the robot poses look inverted (T_flange_base written where T_base_flange is meant): the motions fit the camera's only as {} ({residuals}), and then with a {} {:.0} mm from the flange, which is no tool; invert every pose of the table (or its convention) and keep --mount {}",
+                    other.name(), if other == Mount::EyeInHand { "camera" } else { "target" }, tool_m * 1e3, mount.name()
+                )));
+            }
             return Err(DatasetError::Input(format!(
-                "{file}: the robot's motions fit the camera's as {}, not {}: the closed form's residuals at the median pair are {:.2} deg and {:.1} mm with --mount {}, {:.2} deg and {:.1} mm with --mount {}; re-run with --mount {}",
-                other.name(), mount.name(), b.residual_rotation_deg, b.residual_translation_mm, other.name(),
-                a.residual_rotation_deg, a.residual_translation_mm, mount.name(), other.name()
+                "{file}: the robot's motions fit the camera's as {}, not {}: {residuals}; re-run with --mount {} (if the camera is mounted as --mount {} says, the poses are inverted instead: T_flange_base written for T_base_flange)",
+                other.name(), mount.name(), other.name(), mount.name()
             )));
         }
     }

@@ -194,6 +194,16 @@ pub const MIN_POSES_FOR_UNIT_CHECK: usize = 5;
 /// 6.3 degrees cannot calibrate anything; one in radians always does.
 const RADIANS_UNDER_DEG: f64 = std::f64::consts::TAU + 1e-3;
 
+/// The words every [`unit_warnings`] warning holds before the likely unit; the commands find a
+/// table's unit warnings among its other warnings by them ([`unit_advice`]).
+pub const UNIT_WARNING_WORDS: &str = "the values look like ";
+
+/// The advice of a unit warning (`the values look like metres; if so, name the columns x_m,
+/// y_m, z_m`), `None` for a warning of another kind: what a command's verdict repeats.
+pub fn unit_advice(warning: &str) -> Option<&str> {
+    warning.find(UNIT_WARNING_WORDS).map(|k| &warning[k..])
+}
+
 /// Warnings when a table's values do not fit the units its header names, in the direction the
 /// joint-limit check (degrees under `_rad`) does not catch: radians under `_deg` (every joint
 /// within 2 pi), metres under `_mm` (every position, and the joints of `_mm` prismatic axes,

@@ -294,6 +294,8 @@ pub fn stereo_outputs(
         add_verdict(&mut v, verdict);
         v["rectification"] =
             rectified.map_or(Value::Null, |r| rectification_json(&r.pair, r.row_rms_px, r.corners.len()));
+        // The pairs' agreement on the cameras' relative pose before the joint fit (issue #44).
+        v["pairing"] = serde_json::to_value(&run.pairing)?;
         out.json(p, &v)?;
     }
     for (cal, path) in [(st.left(), files.left_opencv_yaml), (st.right(), files.right_opencv_yaml)] {

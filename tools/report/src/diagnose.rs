@@ -124,6 +124,9 @@ pub struct DiagnoseFiles<'a> {
     pub out: Option<&'a Path>,
     /// Data attribution printed in the HTML report.
     pub attribution: Option<&'a str>,
+    /// The advice of the table's unit doubts, put first in the verdict
+    /// ([`ferrocal_calib::verdict::with_unit_doubts`]).
+    pub unit_doubts: &'a [String],
 }
 
 /// The files of the robot variant, composed (not written), and its verdict: the JSON with the
@@ -143,7 +146,10 @@ pub fn robot_outputs(
         meas.display(),
         files.json.display()
     );
-    let (rep_json, verdict) = diagnose_json(t, rep, "mm", &rerun)?;
+    let (mut rep_json, verdict) = diagnose_json(t, rep, "mm", &rerun)?;
+    let doubts: Vec<&str> = files.unit_doubts.iter().map(String::as_str).collect();
+    let verdict = ferrocal_calib::verdict::with_unit_doubts(verdict, &doubts);
+    add_verdict(&mut rep_json, &verdict);
     let mut out = Outputs::default();
     out.json(files.json, &rep_json)?;
     if let (Some(path), Some((cal, rows))) = (files.out, compensated) {

@@ -15,6 +15,7 @@ use serde_json::json;
 use ferrocal_datasets::calibration::{
     apply_calibration, calibrate_table, companion_path, evaluate_rows, export_calibration, CalibrateFlags,
 };
+use ferrocal_datasets::import::plausible::unit_advice;
 use ferrocal_report::calibrate::{
     calibrate_outputs, detail_lines, evaluate_line, evaluate_run_json, export_lines, summary_lines, CalibrateFiles,
 };
@@ -114,6 +115,39 @@ pub fn warn(w: &str) {
     eprintln!("warning: {w}");
 }
 
+/// [`load_model_and_rows`] with the table's warnings on stderr, and the advice of its unit
+/// doubts for the verdict (`plausible::unit_advice`).
+pub fn load_with_unit_doubts(
+    robot: &str,
+    measurements: &Path,
+) -> Result<(RobotModel, Vec<ferrocal_calib::PoseMeasurement>, Vec<String>)> {
+    let seen = std::cell::RefCell::new(Vec::new());
+    let (model, rows) = load_model_and_rows(robot, measurements, &|w| {
+        warn(w);
+        seen.borrow_mut().push(w.to_string());
+    })?;
+    let doubts = seen.into_inner().iter().filter_map(|w| unit_advice(w).map(str::to_string)).collect();
+    Ok((model, rows, doubts))
+}
+
+/// An error of a command whose table raised unit doubts (`doubts`, their advice): the doubt
+/// first, since it most likely caused the error (a table in metres under `_mm` leaves the fit
+/// rank-deficient), then the error. Unchanged without doubts.
+pub fn blame_units(e: anyhow::Error, doubts: &[String]) -> anyhow::Error {
+    if doubts.is_empty() {
+        return e;
+    }
+    e.context(format!(
+        "the table's units look wrong ({}); fix them first, since they most likely caused",
+        doubts.join("; ")
+    ))
+}
+
+/// `v` with the unit doubts `doubts` first ([`ferrocal_calib::verdict::with_unit_doubts`]).
+pub fn with_doubts(v: ferrocal_calib::verdict::Verdict, doubts: &[String]) -> ferrocal_calib::verdict::Verdict {
+    ferrocal_calib::verdict::with_unit_doubts(v, &doubts.iter().map(String::as_str).collect::<Vec<_>>())
+}
+
 pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let opts = CalibrateFlags {
         params: &args.params,
@@ -130,13 +164,19 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
     let files = CalibrateFiles { out: &args.out, json: args.json.as_deref(), report: args.report.as_deref() };
     let outputs: Vec<&Path> = [Some(files.out), files.json, files.report].into_iter().flatten().collect();
     check_outputs(&outputs, &[args.measurements.as_path(), Path::new(&args.robot)])?;
-    let (model, rows) = load_model_and_rows(&args.robot, &args.measurements, &warn)?;
+    let (model, rows, doubts) = load_with_unit_doubts(&args.robot, &args.measurements)?;
     check_params(&opts.model_params, &model)?;
     check_distinct_poses(&rows, &args.measurements)?;
     let progress = crate::progress::bar(2, "calibrating");
-    let run = calibrate_table(&model, &rows, &opts, !args.no_validation, &|| progress.inc(1))?;
+    let run = calibrate_table(&model, &rows, &opts, !args.no_validation, &|| progress.inc(1))
+        .map_err(|e| blame_units(e.into(), &doubts))?;
     progress.finish_and_clear();
-    for line in run.deliverable(&args.measurements, args.accept_unconverged)? {
+    let limits = &vs.thresholds.calibrate;
+    let change_fail = (limits.model_change_mm_fail, limits.model_change_deg_fail);
+    let lines = run
+        .deliverable(&args.measurements, args.accept_unconverged, change_fail)
+        .map_err(|e| blame_units(e.into(), &doubts))?;
+    for line in lines {
         match line.starts_with("note: ") {
             true => tell!("{line}"),
             false => eprintln!("{line}"),
@@ -145,7 +185,8 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
     // Everything is composed first, then written together: a failing report leaves no
     // calibration file behind, and no output is half-set.
     let validation = run.validation.as_ref().map(|(v, b, a)| (v, b, a));
-    let verdict = verdict::calibrate(&vs.thresholds, &run.cal, validation, &args.robot, &args.out);
+    let verdict =
+        with_doubts(verdict::calibrate(&vs.thresholds, &run.cal, validation, &args.robot, &args.out), &doubts);
     let settings = json!({"robot": args.robot, "options": opts});
     let outputs = calibrate_outputs(&run, &args.robot, model.name(), &args.measurements, settings, &verdict, &files)?;
     say_lines(&summary_lines(&run, model.name()));
@@ -157,7 +198,7 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
 pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let outputs: Vec<&Path> = args.json.as_deref().into_iter().collect();
     check_outputs(&outputs, &[&args.measurements, &args.calibration, Path::new(&args.robot)])?;
-    let (model, rows) = load_model_and_rows(&args.robot, &args.measurements, &warn)?;
+    let (model, rows, doubts) = load_with_unit_doubts(&args.robot, &args.measurements)?;
     let cm = apply_calibration(&args.robot, &model, &args.calibration)?;
     // A table with a split column is scored on its test rows only (shared/spec/cli.md); the
     // frame refit uses the whole table, as the spec says.
@@ -168,7 +209,7 @@ pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCod
     run.check_scored(&args.measurements)?;
     let (mut out, stats) = evaluate_run_json(&run)?;
     let scored_words = run.scored_words(stats.n);
-    let verdict = verdict::evaluate(&vs.thresholds, &stats, &scored_words);
+    let verdict = with_doubts(verdict::evaluate(&vs.thresholds, &stats, &scored_words), &doubts);
     add_verdict(&mut out, &verdict);
     say!("{}", evaluate_line(&scored_words, &stats));
     if let Some(json) = &args.json {

@@ -173,6 +173,11 @@ pub fn run(cmd: CameraCommand, vs: &VerdictSettings) -> Result<ExitCode> {
     }
 }
 
+/// The file name of a view's name (its image path).
+fn file_name(name: &str) -> String {
+    Path::new(name).file_name().map_or_else(|| name.to_string(), |f| f.to_string_lossy().into_owned())
+}
+
 fn report_skipped(skipped: &[SkippedImage]) {
     for s in skipped {
         eprintln!("ferrocal: skipped {s}");
@@ -230,14 +235,19 @@ fn stereo(a: &StereoArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     check_outputs(&files.all(), &inputs)?;
     let found = StereoViews::detect(left_paths, right_paths, skipped, &pattern, corners);
     report_skipped(&found.skipped);
-    let run = found.calibrate(&pattern, &options)?;
+    let run = found.calibrate(&pattern, &options, &vs.thresholds.stereo)?;
     let st = &run.calibration;
     ferrocal_report::camera::print_camera("left", st.left());
     ferrocal_report::camera::print_camera("right", st.right());
     say!("{}", stereo_line(st, run.n_pairs));
     let rectified = rectification(&run, files.need_rectification())?;
     let row_rms = rectified.as_ref().map(|r| r.row_rms_px);
-    let verdict = verdict::stereo(&vs.thresholds, st.calibration.rms_px, run.n_pairs, row_rms);
+    let pairing = verdict::StereoPairing {
+        right_in_left_mm: st.t_right_left.inverse().translation.vector * 1e3,
+        n_pairs: run.pairing.n_pairs,
+        disagreeing: run.pairing.disagreeing.iter().map(|n| file_name(n)).collect(),
+    };
+    let verdict = verdict::stereo(&vs.thresholds, st.calibration.rms_px, run.n_pairs, row_rms, &pairing);
     stereo_outputs(&run, rectified.as_ref(), &verdict, &files)?.write()?;
     Ok(vs.conclude(&verdict))
 }

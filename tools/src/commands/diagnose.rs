@@ -89,15 +89,18 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         report: args.report.as_deref(),
         out: args.out.as_deref(),
         attribution: args.attribution.as_deref(),
+        unit_doubts: &[],
     };
     let outputs: Vec<&Path> = [Some(files.json), files.out, files.report].into_iter().flatten().collect();
     ferrocal_report::check_outputs(&outputs, &[meas.as_path(), Path::new(robot)])?;
-    let (model, rows) = super::calibrate::load_model_and_rows(robot, meas, &super::calibrate::warn)?;
+    let (model, rows, doubts) = super::calibrate::load_with_unit_doubts(robot, meas)?;
+    let files = DiagnoseFiles { unit_doubts: &doubts, ..files };
     super::calibrate::check_distinct_poses(&rows, meas)?;
     // The diagnosis reports no steps; a spinner with the elapsed time shows it is alive (on
     // 11,911 UR10 rows it runs for minutes).
     let progress = crate::progress::spinner(&format!("diagnosing {} rows", rows.len()));
-    let (rep, compensated) = diagnose_rows(&model, &rows, &opts, args.out.is_some())?;
+    let (rep, compensated) = diagnose_rows(&model, &rows, &opts, args.out.is_some())
+        .map_err(|e| super::calibrate::blame_units(e.into(), &doubts))?;
     progress.finish_and_clear();
     // Composed first, then written together (no half-set outputs).
     let train: Vec<&ferrocal_calib::PoseMeasurement> =

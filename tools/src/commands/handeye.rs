@@ -245,7 +245,8 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     }
     let fit = input.fit_with_physics(options, start, physics.as_ref())?;
     let joint = (a.out.is_some() && a.robot.is_some()).then(|| input.joint_adjustment(&fit)).transpose()?;
-    let verdict = present_run(&vs.thresholds, &input, &fit, joint.as_ref(), motion_check, a.out.as_deref());
+    let flags = verdict::RunFlags::of(&run);
+    let verdict = present_run(&vs.thresholds, &input, &fit, joint.as_ref(), motion_check, a.out.as_deref(), flags);
     // Every output is composed first and all are written together at the end: a failing joint
     // adjustment leaves no summary or report of half a run.
     handeye_outputs(&run, &input, &fit, joint.as_ref(), &verdict, &files)?.write()?;

@@ -104,9 +104,14 @@ pub fn run_import(args: &ImportArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     if let (Some(p), Some(urdf)) = (&args.robot_out, &t.urdf) {
         out.text(p, urdf.as_str());
     }
-    say!("imported {} rows ({} marked test)", t.set.rows.len(), t.n_test());
+    let (n, n_test) = (t.set.rows.len(), t.n_test());
+    let has_split = t.set.rows.iter().any(|r| r.split.is_some());
+    say!("imported {n} rows ({n_test} marked test; {})", verdict::held_out_words(n, n_test, has_split));
     out.write()?;
-    Ok(vs.conclude(&verdict::import(&vs.thresholds, t.set.rows.len(), t.n_test(), &args.out)))
+    let doubts: Vec<&str> =
+        t.warnings.iter().filter_map(|w| ferrocal_datasets::import::plausible::unit_advice(w)).collect();
+    let v = verdict::import(&vs.thresholds, n, n_test, has_split, &args.out);
+    Ok(vs.conclude(&ferrocal_calib::verdict::with_unit_doubts(v, &doubts)))
 }
 
 /// `ferrocal measure`.

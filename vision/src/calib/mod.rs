@@ -57,7 +57,8 @@ pub use covariance::{CovarianceMethod, MIN_JACKKNIFE_VIEWS};
 pub use deform::{Deformed, TargetDeformation};
 pub use pattern::CalibrationPattern;
 pub use stereo::{
-    calibrate_rig, calibrate_stereo, rectified_row_rms_px, RectifiedCorner, RigCalibration, StereoCalibration,
+    calibrate_rig, calibrate_stereo, check_pairing, rectified_row_rms_px, PairingCheck, RectifiedCorner,
+    RigCalibration, ShiftFit, StereoCalibration,
 };
 
 use crate::camera::{CameraModel, Distortion, DistortionKind, ImageSize};

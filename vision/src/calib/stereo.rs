@@ -199,6 +199,144 @@ pub fn calibrate_stereo(
     })
 }
 
+/// How well the pairs of a stereo recording agree on the cameras' relative pose, each camera
+/// calibrated alone ([`check_pairing`]): left image `i` and right image `i` must show one target
+/// pose, so `T_right_target(i) T_left_target(i)^-1` is the same rigid transform for every pair.
+/// Swapped lists keep that (the baseline's sign tells them, `camera stereo`'s verdict); lists
+/// shifted by an image do not.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PairingCheck {
+    /// Pairs compared (both images posed by their camera's own calibration).
+    pub n_pairs: usize,
+    /// The left images of the pairs whose relative pose is farther than the limit from the
+    /// consensus of all pairs.
+    pub disagreeing: Vec<String>,
+    /// When the lists as given disagree: the shift `s` of the right list (left image `i` with
+    /// right image `i + s`, `s` in -2..=2) that makes the largest share of pairs agree, with the
+    /// pairs that agree and the pairs compared at that shift, and the first such pair's images.
+    pub best_shift: Option<ShiftFit>,
+}
+
+/// A shift of the right image list and how well it pairs the images ([`PairingCheck`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShiftFit {
+    /// Left image `i` pairs with right image `i + shift`.
+    pub shift: i64,
+    /// Pairs that agree at this shift.
+    pub agreeing: usize,
+    /// Pairs compared at this shift.
+    pub compared: usize,
+    /// An example pair at this shift: the left and the right image.
+    pub example: (String, String),
+}
+
+impl PairingCheck {
+    /// The share of the pairs that disagree (0 without pairs).
+    pub fn disagree_fraction(&self) -> f64 {
+        if self.n_pairs == 0 {
+            0.0
+        } else {
+            self.disagreeing.len() as f64 / self.n_pairs as f64
+        }
+    }
+}
+
+/// Per image slot of one camera: the image's name and its pose `T_cam_target` from the camera's
+/// own calibration (`None`: no usable view).
+type PosedSlots = Vec<Option<(String, Isometry3<f64>)>>;
+
+/// The relative poses `T_right_target(i + shift) T_left_target(i)^-1` of the pairs at `shift`
+/// (with the target's reversal when it has one), and per pair whether it lies within `limit`
+/// ([`pose_distance`]) of the consensus (the relative pose with the most others within the
+/// limit); with the pairs' left and right image names.
+fn pairs_at_shift(
+    poses: [&PosedSlots; 2],
+    flip: Option<Isometry3<f64>>,
+    shift: i64,
+    limit: f64,
+) -> Vec<(bool, String, String)> {
+    let [left, right] = poses;
+    let mut pairs: Vec<(Vec<Isometry3<f64>>, String, String)> = Vec::new();
+    for (i, l) in left.iter().enumerate() {
+        let j = i as i64 + shift;
+        if j < 0 || j as usize >= right.len() {
+            continue;
+        }
+        let (Some((ln, tl)), Some((rn, tr))) = (l, &right[j as usize]) else { continue };
+        let mut cands = vec![tr * tl.inverse()];
+        if let Some(f) = flip {
+            cands.push(tr * f * tl.inverse());
+        }
+        pairs.push((cands, ln.clone(), rn.clone()));
+    }
+    let all: Vec<&Isometry3<f64>> = pairs.iter().flat_map(|p| p.0.iter()).collect();
+    let Some(reference) =
+        all.iter().max_by_key(|a| all.iter().filter(|b| pose_distance(a, b) < limit).count()).map(|a| **a)
+    else {
+        return Vec::new();
+    };
+    pairs.into_iter().map(|(cands, l, r)| (cands.iter().any(|c| pose_distance(c, &reference) < limit), l, r)).collect()
+}
+
+/// Checks that `left[i]` and `right[i]` show the same target pose: each camera is calibrated
+/// alone, every pair's relative pose is compared with the consensus of all pairs (`limit`: the
+/// rotation difference in radians plus the translation difference relative to the baseline,
+/// 0.1 in `camera stereo`'s thresholds, `stereo.pair_distance`), and when some disagree, the
+/// right list shifted by -2 to 2 images is tried. Errors as [`calibrate_camera`] on either
+/// camera's views.
+pub fn check_pairing(
+    left: &[Option<View>],
+    right: &[Option<View>],
+    target: &PlanarTarget,
+    options: &CalibrationOptions,
+    limit: f64,
+) -> Result<PairingCheck> {
+    let mono_options = CalibrationOptions { covariance: CovarianceMethod::Independent, ..options.clone() };
+    let mut poses: Vec<PosedSlots> = Vec::with_capacity(2);
+    for (k, cam_views) in [left, right].into_iter().enumerate() {
+        let present: Vec<View> = cam_views.iter().flatten().cloned().collect();
+        let cal = calibrate_camera(&present, target, &mono_options).map_err(|e| match e {
+            VisionError::TooFewViews { usable, needed, detail } => {
+                VisionError::TooFewViews { usable, needed, detail: format!("camera {k}: {detail}") }
+            }
+            other => other,
+        })?;
+        let mut idx = 0;
+        let mut slot = Vec::with_capacity(cam_views.len());
+        for v in cam_views {
+            match v {
+                Some(v) => {
+                    let r = &cal.views[idx];
+                    slot.push(r.used.then(|| (v.name.clone(), r.t_cam_target)));
+                    idx += 1;
+                }
+                None => slot.push(None),
+            }
+        }
+        poses.push(slot);
+    }
+    let flip = reversal(target);
+    let given = pairs_at_shift([&poses[0], &poses[1]], flip, 0, limit);
+    let disagreeing: Vec<String> = given.iter().filter(|p| !p.0).map(|p| p.1.clone()).collect();
+    let share = |p: &[(bool, String, String)]| p.iter().filter(|x| x.0).count() as f64 / p.len().max(1) as f64;
+    let mut best_shift: Option<ShiftFit> = None;
+    if !disagreeing.is_empty() {
+        let mut best_share = share(&given);
+        for shift in [-1i64, 1, -2, 2] {
+            let at = pairs_at_shift([&poses[0], &poses[1]], flip, shift, limit);
+            // A shift must pair at least 3 images, and more of them than the lists as given.
+            if at.len() < 3 || share(&at) <= best_share {
+                continue;
+            }
+            best_share = share(&at);
+            let example = at.iter().find(|p| p.0).map(|p| (p.1.clone(), p.2.clone())).unwrap_or_default();
+            best_shift =
+                Some(ShiftFit { shift, agreeing: at.iter().filter(|p| p.0).count(), compared: at.len(), example });
+        }
+    }
+    Ok(PairingCheck { n_pairs: given.len(), disagreeing, best_shift })
+}
+
 /// The flip of a reversible target: the point of reversed index, `X_{n-1-j} = 2 c - X_j`,
 /// as a rotation by pi about the plane normal through the centroid `c` (target frame).
 fn reversal(target: &PlanarTarget) -> Option<Isometry3<f64>> {

@@ -240,6 +240,26 @@ pub(crate) fn label(img: &GrayF32, cands: &[XCorner], grid: &Grid, cols: u32, ro
     best.map(|b| b.2)
 }
 
+/// The words [`squares_hint`] starts with; `camera calibrate` finds the hint among the reasons
+/// of its skipped images by them.
+pub const SQUARES_HINT_WORDS: &str = "; the pattern looks given by its squares";
+
+/// The hint that a chessboard was given by its squares, not its inner corners, when the grid
+/// found holds exactly `(cols - 1) x (rows - 1)` corners (a board of 10 x 7 squares has 9 x 6
+/// inner corners; `chessboard:10x7` finds 54 of 70): empty otherwise.
+pub fn squares_hint(cols: u32, rows: u32, square_mm: f64, found: usize) -> String {
+    if cols < 3 || rows < 3 || found != ((cols - 1) * (rows - 1)) as usize {
+        return String::new();
+    }
+    format!(
+        "{SQUARES_HINT_WORDS} ({cols}x{rows}), not its inner corners: a board of {cols}x{rows} squares has {}x{} inner corners; try chessboard:{}x{}:{square_mm}mm",
+        cols - 1,
+        rows - 1,
+        cols - 1,
+        rows - 1
+    )
+}
+
 /// Finds a chessboard of `cols x rows` inner corners.
 pub(crate) fn detect_chessboard(
     img: &GrayF32,
@@ -282,14 +302,18 @@ pub(crate) fn detect_chessboard(
         return Err(not_found(if grids.is_empty() {
             format!("no grid of X-corners ({} candidates)", cands.len())
         } else {
-            format!("the largest grid of X-corners ({largest} corners) does not fit a {cols}x{rows} board")
+            format!(
+                "the largest grid of X-corners ({largest} corners) does not fit a {cols}x{rows} board{}",
+                squares_hint(cols, rows, square_mm, largest)
+            )
         }));
     };
     if !lab.complete && !options.partial {
         return Err(not_found(format!(
-            "only {} of {} corners visible (partial views are off)",
+            "only {} of {} corners visible (partial views are off){}",
             lab.corners.len(),
-            rows * cols
+            rows * cols,
+            squares_hint(cols, rows, square_mm, lab.corners.len())
         )));
     }
     let refined = if options.refine {
@@ -360,4 +384,20 @@ pub(crate) fn refine_chessboard(
             (d.norm() <= 3.0).then_some((rc.position_px, rc.covariance_px2, rc.crb_px2))
         })
         .collect())
+}
+
+#[cfg(test)]
+mod squares_tests {
+    use super::squares_hint;
+
+    #[test]
+    fn a_board_given_by_its_squares_is_named_only_at_the_inner_corner_count() {
+        let h = squares_hint(10, 7, 25.0, 54);
+        assert!(h.starts_with(super::SQUARES_HINT_WORDS), "{h}");
+        assert!(h.ends_with("a board of 10x7 squares has 9x6 inner corners; try chessboard:9x6:25mm"), "{h}");
+        assert_eq!(squares_hint(10, 7, 25.0, 53), "");
+        assert_eq!(squares_hint(10, 7, 25.0, 70), "");
+        assert_eq!(squares_hint(2, 7, 25.0, 6), "");
+        assert!(squares_hint(8, 6, 30.5, 35).contains("try chessboard:7x5:30.5mm"));
+    }
 }

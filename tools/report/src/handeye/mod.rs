@@ -38,6 +38,7 @@ pub fn present_run(
     joint: Option<&JointCalibration>,
     motion: ferrocal_calib::verdict::Check,
     joint_out: Option<&Path>,
+    flags: verdict::RunFlags,
 ) -> Verdict {
     use ferrocal_calib::handeye::opencv::best_baseline;
     print_summary(&fit.result, best_baseline(&fit.baselines), input.table.source.as_deref());
@@ -50,7 +51,7 @@ pub fn present_run(
         checks.extend(verdict::joint_checks(t, joint));
         crate::say!("{}", joint_line(joint, out));
     }
-    verdict::run_verdict(checks, &fit.result, joint_out)
+    verdict::run_verdict(checks, &fit.result, joint_out, flags)
 }
 
 /// Prints the hand-eye calibration's summary on stdout (its warnings on stderr).
@@ -96,9 +97,48 @@ pub fn print_summary(
     if let Some(src) = source {
         crate::say!("data: {src}");
     }
+    detail_lines(r).iter().for_each(|l| crate::detail!("{l}"));
     for w in &r.warnings {
         eprintln!("ferrocal handeye: warning: {w}");
     }
+}
+
+/// The internals `--verbose` adds to a hand-eye run: the closed-form starts with their training
+/// RMS, the noise levels the fit weighted with, the solver's end, and every image's chain RMS.
+pub fn detail_lines(r: &ferrocal_calib::handeye::HandEyeResult) -> Vec<String> {
+    let starts: Vec<String> = r
+        .starts
+        .iter()
+        .map(|s| {
+            let what = match (&s.train_rms_px, &s.error) {
+                (Some(rms), _) => format!("{rms:.4} px"),
+                (None, Some(e)) => format!("failed: {e}"),
+                (None, None) => "-".into(),
+            };
+            format!("{} {what}{}", s.method.name(), if s.chosen { " (chosen)" } else { "" })
+        })
+        .collect();
+    let n = &r.noise;
+    let mut out = vec![
+        format!("closed-form starts (training chain RMS): {}", starts.join(", ")),
+        format!(
+            "noise: corner variance factor {:.4}, robot poses {:.4} mm / {:.5} deg ({}); s0 {:.4}; solver: {} after {} iterations, {} residual blocks down-weighted",
+            n.corner_variance_factor,
+            n.robot_sigma_m * 1e3,
+            n.robot_sigma_rad.to_degrees(),
+            if n.estimated { "estimated" } else { "as given" },
+            r.s0,
+            r.termination,
+            r.iterations,
+            r.n_downweighted
+        ),
+    ];
+    out.extend(
+        r.figures.views.iter().map(|v| {
+            format!("  {} ({:?}): chain RMS {:.4} px over {} corners", v.name, v.split, v.rms_px, v.n_corners)
+        }),
+    );
+    out
 }
 
 /// One line of `ferrocal handeye study`: a mount's coverage and errors.
@@ -149,7 +189,12 @@ pub fn import_ic_summary(
     let verdict = ferrocal_calib::verdict::Verdict::with_next(checks, |c| {
         match c {
         None => format!(
-            "calibrate ({n_test} rows marked test are held out): ferrocal handeye --images {}/images --poses {} --pattern {pattern} --mount {mount_name} --json <result.json>",
+            "calibrate ({}): ferrocal handeye --images {}/images --poses {} --pattern {pattern} --mount {mount_name} --json <result.json>",
+            if n_test == 0 {
+                "no row marked test: handeye fits every image and scores the training images".to_string()
+            } else {
+                format!("handeye holds out the {n_test} rows marked test and scores them")
+            },
             input.display(),
             out.display()
         ),

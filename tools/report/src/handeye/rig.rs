@@ -429,5 +429,6 @@ pub fn present_rig(
             ));
         }
     }
-    super::verdict::run_verdict(checks, &fit.fits[0].result, joint_out)
+    let flags = rig.cameras.first().map(|c| super::verdict::RunFlags::of(&c.run)).unwrap_or_default();
+    super::verdict::run_verdict(checks, &fit.fits[0].result, joint_out, flags)
 }

@@ -83,13 +83,52 @@ pub fn chain_checks(t: &Thresholds, f: &ChainFigures, pnp_px: Option<f64>, prefi
     out
 }
 
+/// What a hand-eye run was given, for advice that does not suggest what the run already did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RunFlags {
+    /// `--intrinsics` was given (the camera held fixed).
+    pub intrinsics: bool,
+    /// The camera given by `--intrinsics` has no lens distortion (every coefficient zero, as
+    /// industrial_calibration's `cal_data.yaml` intrinsics).
+    pub intrinsics_without_distortion: bool,
+    /// `--robot-poses-as-measurements` was given.
+    pub robot_poses_as_measurements: bool,
+}
+
+impl RunFlags {
+    /// The flags of a run's options (the given camera file read again: a file that cannot be
+    /// read counts as distorted; the run itself refused it before).
+    pub fn of(run: &ferrocal_datasets::handeye::HandEyeRunOptions) -> Self {
+        let undistorted = run
+            .intrinsics
+            .as_deref()
+            .and_then(|p| ferrocal_datasets::handeye::recording::read_camera_file(p).ok())
+            .is_some_and(|c| c.distortion.coefficients().iter().all(|k| *k == 0.0));
+        Self {
+            intrinsics: run.intrinsics.is_some(),
+            intrinsics_without_distortion: undistorted,
+            robot_poses_as_measurements: run.robot_poses_as_measurements,
+        }
+    }
+}
+
 /// The verdict of a hand-eye run from its checks; `has_heldout` says whether test images were
-/// scored, `joint_out` is the calibration file of `--out`.
-pub fn handeye_verdict(checks: Vec<Check>, mount: Mount, has_heldout: bool, joint_out: Option<&str>) -> Verdict {
+/// scored, `joint_out` is the calibration file of `--out`, `flags` what the run was given (the
+/// next step never suggests what the run already did).
+pub fn handeye_verdict(
+    checks: Vec<Check>,
+    mount: Mount,
+    has_heldout: bool,
+    joint_out: Option<&str>,
+    flags: RunFlags,
+) -> Verdict {
     let other = match mount {
         Mount::EyeInHand => "eye-to-hand",
         Mount::EyeToHand => "eye-in-hand",
     };
+    // Whether the chain stays near the PnP floor: then the corners do not fit the camera
+    // itself, and the robot's poses are not what lifts the chain.
+    let near_floor = checks.iter().any(|c| c.name.ends_with(".chain_over_pnp") && c.status == Status::Pass);
     Verdict::with_next(checks, |c| {
         let Some(c) = c else {
             return match joint_out {
@@ -100,27 +139,68 @@ pub fn handeye_verdict(checks: Vec<Check>, mount: Mount, has_heldout: bool, join
         };
         let name = c.name.rsplit('.').next().unwrap_or("");
         match (name, c.status) {
+            ("tool_offset_mm", _) => format!(
+                "the poses look inverted: write T_base_flange (the flange in the robot's base frame) in the poses table, not its inverse, and run again with the --mount the camera really has (the motions fit --mount {} only because of the inversion)",
+                mount.name()
+            ),
             ("chain_over_pnp" | "chain_rms_px", Status::Fail) => format!(
                 "the chain does not explain the images: re-run with --mount {other}, and check the poses' convention (T_base_flange, quaternion scalar first, mm)"
             ),
-            ("chain_over_pnp" | "chain_rms_px", _) => "the robot's poses scatter more than the corners: give --robot-poses-as-measurements, or calibrate the robot with --robot and --out".into(),
+            ("chain_over_pnp" | "chain_rms_px", _) if flags.intrinsics_without_distortion => "the camera given by --intrinsics has no lens distortion, and the corners do not fit it: drop --intrinsics so that the camera (with its distortion) is calibrated from the images, or give intrinsics with the lens distortion".into(),
+            ("chain_rms_px", _) if near_floor && flags.intrinsics => "the chain stays near the single-image poses' floor but above the limit: the corners fit the given camera poorly; drop --intrinsics so that the camera is calibrated from the images, or check that the file is this camera's at this resolution".into(),
+            ("chain_over_pnp" | "chain_rms_px", _) if !flags.robot_poses_as_measurements => "the robot's poses scatter more than the corners: give --robot-poses-as-measurements, or calibrate the robot with --robot and --out".into(),
+            ("chain_over_pnp" | "chain_rms_px", _) if flags.intrinsics => "the chain stays above the corners' noise with the robot's poses as measurements: drop --intrinsics (the camera calibrated from the images), or calibrate the robot with --robot and --out".into(),
+            ("chain_over_pnp" | "chain_rms_px", _) => "the chain stays above the corners' noise with the robot's poses as measurements: calibrate the robot with joint readings, --robot and --out, or check the poses table's precision (digits, units)".into(),
             _ => "the chain and the single-image poses disagree: check the camera (--intrinsics, or more varied views) and the target's size in --pattern".into(),
         }
     })
 }
 
 /// The verdict of a hand-eye run: `checks` ([`fit_checks`], and [`joint_checks`] with a joint
-/// adjustment written to `joint_out`) on the chain of `result`.
-pub fn run_verdict(checks: Vec<Check>, result: &HandEyeResult, joint_out: Option<&std::path::Path>) -> Verdict {
+/// adjustment written to `joint_out`) on the chain of `result`, with what the run was given.
+pub fn run_verdict(
+    checks: Vec<Check>,
+    result: &HandEyeResult,
+    joint_out: Option<&std::path::Path>,
+    flags: RunFlags,
+) -> Verdict {
     let out = joint_out.map(|p| p.display().to_string());
-    handeye_verdict(checks, result.mount, result.figures.heldout_rms_px.is_some(), out.as_deref())
+    handeye_verdict(checks, result.mount, result.figures.heldout_rms_px.is_some(), out.as_deref(), flags)
 }
 
 /// The checks of a hand-eye fit: its chain figures against the PnP floor, on the held-out
 /// images when there are any, else on the training ones.
 pub fn fit_checks(t: &Thresholds, data: &HandEyeData, result: &HandEyeResult) -> Vec<Check> {
     let split = if result.figures.heldout_rms_px.is_some() { Split::Test } else { Split::Train };
-    chain_checks(t, &result.figures, pnp_rms_px(data, result, split), "handeye")
+    let mut checks = vec![tool_offset_check(t, result)];
+    checks.extend(chain_checks(t, &result.figures, pnp_rms_px(data, result, split), "handeye"));
+    checks
+}
+
+/// The length of the flange-side transform (`T_flange_camera`, `T_flange_target`) against
+/// `handeye.tool_offset_mm_*`: beyond, no tool is that long and the poses look inverted (an
+/// inverted table fits the other mount with the world transform in the flange's place).
+pub fn tool_offset_check(t: &Thresholds, result: &HandEyeResult) -> Check {
+    let l = &t.handeye;
+    let tool = result.hand_eye.transform.translation.vector.norm() * 1e3;
+    let world = result.world.transform.translation.vector.norm() * 1e3;
+    let mut c = Check::at_most(
+        "handeye.tool_offset_mm",
+        &format!("{} length", result.mount.hand_eye_name()),
+        "mm",
+        tool,
+        l.tool_offset_mm_warn,
+        l.tool_offset_mm_fail,
+    );
+    if c.status != Status::Pass {
+        c.what = format!(
+            "{}: no tool is this long ({} is {} mm): the robot poses look inverted (T_flange_base written for T_base_flange)",
+            c.what,
+            result.mount.world_name(),
+            fmt_num(world)
+        );
+    }
+    c
 }
 
 /// The checks of the joint adjustment's chain, scored as the hand-eye fit's (no PnP floor: its
