@@ -107,6 +107,18 @@ fn short_programs_with_the_tool_pointing_down_correct_with_their_landing_uncerta
         }
         let stdout = String::from_utf8_lossy(&o.stdout);
         assert!(stdout.contains("predicted landing error"), "{stdout}");
+        // The recording's joint 5 stayed within 47-147 deg: at -90 deg every row is outside the
+        // calibrated region, and the verdict says so, by how much.
+        let verdict = stdout.lines().last().unwrap();
+        assert!(
+            verdict.starts_with("verdict: warning")
+                && verdict.contains(&format!("{n} of {n} rows lie outside the region"))
+                && verdict.contains("joint 5 136.8 deg beyond"),
+            "{verdict}"
+        );
+        for r in j["rows"].as_array().unwrap() {
+            assert_eq!(r["outside_joint"], 5, "{r}");
+        }
     }
 }
 
