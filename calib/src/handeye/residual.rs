@@ -47,6 +47,10 @@ pub fn whitening(cov_px2: &Matrix2<f64>) -> Option<Matrix2<f64>> {
     l.try_inverse()
 }
 
+/// The Jacobians a residual block is asked for (`Residual::evaluate`'s), with the corner's
+/// `d r / d p_cam` (2 x 3).
+pub(crate) type CornerJacobians<'a> = (&'a mut [Option<DMatrix<f64>>], Matrix2x3<f64>);
+
 /// The reprojection residual of a corner: the camera-frame point `p_cam` projected by `camera`
 /// minus the detected pixel, whitened (`corner`: the detected pixel and `L^-1`), written to
 /// `residuals`. With Jacobians wanted, the camera block's (the fourth, `jacobians[3]`) is
@@ -57,7 +61,7 @@ pub(crate) fn reproject<'a>(
     (detected_px, whiten): (&Point2<f64>, &Matrix2<f64>),
     residuals: &mut [f64],
     jacobians: Option<&'a mut [Option<DMatrix<f64>>]>,
-) -> ferrocal_lsq::Result<Option<(&'a mut [Option<DMatrix<f64>>], Matrix2x3<f64>)>> {
+) -> ferrocal_lsq::Result<Option<CornerJacobians<'a>>> {
     let proj = camera.project_with_jacobians(&Point3::from(*p_cam)).map_err(LsqError::model)?;
     let r = whiten * (proj.pixel - detected_px);
     residuals[0] = r.x;

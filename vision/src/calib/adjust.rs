@@ -252,12 +252,8 @@ pub fn adjust_bundle(
         camera.distortion = camera.distortion.converted(kind);
     }
     let full = spec.mode == BundleMode::Full;
-    let deform = target_deformation(
-        target,
-        (model.shape, model.print_scale),
-        (spec.estimate_shape, spec.estimate_print_scale),
-        full,
-    )?;
+    let estimate = (spec.estimate_shape, spec.estimate_print_scale);
+    let deform = target_deformation(target, (model.shape, model.print_scale), estimate, full)?;
     let aspect = if spec.fix_aspect { camera.intrinsics.fy_px / camera.intrinsics.fx_px } else { 1.0 };
     let layout = CameraLayout { kind: camera.distortion.kind(), fix_aspect: spec.fix_aspect, aspect, image_size: size };
     let starts: Vec<Isometry3<f64>> = match poses {

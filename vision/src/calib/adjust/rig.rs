@@ -134,12 +134,8 @@ pub fn adjust_rig(
         }
     }
     let full = spec.mode == BundleMode::Full;
-    let deform = target_deformation(
-        target,
-        (model.shape, model.print_scale),
-        (spec.estimate_shape, spec.estimate_print_scale),
-        full,
-    )?;
+    let estimate = (spec.estimate_shape, spec.estimate_print_scale);
+    let deform = target_deformation(target, (model.shape, model.print_scale), estimate, full)?;
     let layouts: Vec<CameraLayout> = cameras
         .iter()
         .map(|c| CameraLayout { kind: c.distortion.kind(), fix_aspect: false, aspect: 1.0, image_size: c.image_size })
