@@ -39,6 +39,20 @@ pub enum CalibError {
         /// What went wrong.
         message: String,
     },
+    /// A linear fit does not determine every parameter and its rank policy refuses it (the
+    /// layer's [`ferrocal_lsq::LsqError::RankDeficient`], kept so that a caller can name or
+    /// drop the parameters); the message is the layer's.
+    #[error("{message}")]
+    RankDeficient {
+        /// Parameters without any effect on the measurements.
+        no_effect: Vec<String>,
+        /// Groups of parameters that trade against each other (only combinations are seen).
+        coupled: Vec<Vec<String>>,
+        /// Numerical rank.
+        rank: usize,
+        /// The whole explanation.
+        message: String,
+    },
 }
 
 /// Result alias of the calib crate.

@@ -43,7 +43,9 @@ impl From<ferrocal_lsq::LsqError> for CalibError {
             Ok(own) => own,
             Err(L::Setup(m)) => CalibError::Data(m),
             Err(L::TooFew(m)) => CalibError::TooFew(m),
-            Err(L::RankDeficient { message, .. }) => CalibError::TooFew(message),
+            Err(L::RankDeficient { rank, no_effect, coupled, message, .. }) => {
+                CalibError::RankDeficient { no_effect, coupled, rank, message }
+            }
             Err(L::Diverged(m)) => CalibError::Diverged(m),
             Err(other) => CalibError::Numeric(other.to_string().trim_start_matches("linear algebra: ").to_string()),
         }
@@ -94,4 +96,29 @@ pub fn covariance(jacobian: &DMatrix<f64>, residuals: &DVector<f64>) -> Result<(
 /// ([`ferrocal_lsq::check::check_dense_problem`]).
 pub fn check_jacobian(problem: &dyn Problem, x: &[f64], step: f64) -> Result<ferrocal_lsq::check::CheckReport> {
     Ok(ferrocal_lsq::check::check_dense_problem(&Bridge(problem), x, step)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A refused rank deficiency reaches calib's callers as a kind they can match, with the
+    /// parameters named, and says what the layer said.
+    #[test]
+    fn a_rank_deficiency_keeps_its_kind_and_its_parameters() {
+        // Two offsets that only their sum is seen of.
+        let names = ["slope", "offset_a", "offset_b"].map(String::from);
+        let a = DMatrix::from_fn(30, 3, |i, j| if j == 0 { i as f64 } else { 1.0 });
+        let y = DVector::from_fn(30, |i, _| i as f64);
+        let options = ferrocal_lsq::linear::LinearOptions::default();
+        let layer = ferrocal_lsq::linear::fit(&a, &y, &names, &ferrocal_lsq::linear::Weighting::Unit, &options)
+            .expect_err("rank 2 of 3 is refused");
+        let text = layer.to_string();
+        let e = CalibError::from(layer);
+        let CalibError::RankDeficient { rank, no_effect, coupled, .. } = &e else { panic!("{e:?}") };
+        assert_eq!(*rank, 2);
+        assert!(no_effect.is_empty());
+        assert_eq!(coupled, &vec![vec!["offset_a".to_string(), "offset_b".to_string()]]);
+        assert_eq!(e.to_string(), text);
+    }
 }

@@ -21,7 +21,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{DMatrix, Isometry3, Matrix3, Matrix6};
+use nalgebra::{DMatrix, Isometry3, Matrix6};
 use serde::Serialize;
 
 use ferrocal_calib::handeye::{HandEyeData, Mount};
@@ -134,10 +134,9 @@ fn stem(name: &str) -> String {
 pub fn inverse_covariance(t: &Isometry3<f64>, cov_mm_rad: &Matrix6<f64>) -> Matrix6<f64> {
     let rt = t.rotation.to_rotation_matrix().matrix().transpose();
     let p = t.translation.vector * 1e3;
-    let skew = Matrix3::new(0.0, -p.z, p.y, p.z, 0.0, -p.x, -p.y, p.x, 0.0);
     let mut j = Matrix6::zeros();
     j.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-rt));
-    j.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-rt * skew));
+    j.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-rt * p.cross_matrix()));
     j.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-rt));
     j * cov_mm_rad * j.transpose()
 }
@@ -206,20 +205,11 @@ pub fn pose_row(pose: &ImagePose, q: &[f64]) -> PoseMeasurement {
     let sigma_mm = ((cov[(0, 0)] + cov[(1, 1)] + cov[(2, 2)]) / 3.0).sqrt();
     let sigma_rad = ((cov[(3, 3)] + cov[(4, 4)] + cov[(5, 5)]) / 3.0).sqrt();
     PoseMeasurement {
-        pose_id: pose.image.clone(),
-        q: q.to_vec(),
-        position_m: pose.measured.translation.vector,
         orientation: Some(pose.measured.rotation),
         sigma_m: Some(sigma_mm * 1e-3),
         sigma_rad: Some(sigma_rad),
         covariance: Some(PoseCovariance::from_mm_rad(cov)),
-        t_s: None,
-        temp_c: None,
-        payload_kg: None,
-        dir: None,
-        split: None,
-        source_line: None,
-        meta: Default::default(),
+        ..PoseMeasurement::new(pose.image.clone(), q.to_vec(), pose.measured.translation.vector)
     }
 }
 

@@ -112,9 +112,10 @@ pub fn wrap_angle(angle_rad: f64) -> f64 {
     a
 }
 
-/// Skew-symmetric (cross-product) matrix of `v`.
+/// Skew-symmetric (cross-product) matrix of `v` (nalgebra's `cross_matrix`; the robot crate
+/// depends on nothing of ours, so it does not take `ferrocal_lsq::so3::skew`).
 pub fn skew(v: &Vector3<f64>) -> nalgebra::Matrix3<f64> {
-    nalgebra::Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+    v.cross_matrix()
 }
 
 #[cfg(test)]

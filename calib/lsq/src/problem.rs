@@ -370,16 +370,6 @@ impl Problem {
         &self.blocks
     }
 
-    /// Overwrites a block's values (which must lie on its manifold).
-    pub fn set_values(&mut self, id: BlockId, values: &[f64]) -> Result<()> {
-        let b = self.check_id(id)?;
-        if !b.manifold.contains(values) {
-            return Err(LsqError::Setup(format!("parameter block '{}': values off the manifold", b.name)));
-        }
-        self.blocks[id.0].values.copy_from_slice(values);
-        Ok(())
-    }
-
     /// The state index over the free blocks.
     pub fn state_index(&self) -> StateIndex {
         let mut entries = Vec::new();

@@ -13,9 +13,10 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-/// The cross-product matrix `[v]x`, `[v]x u = v x u`.
+/// The cross-product matrix `[v]x`, `[v]x u = v x u` (nalgebra's `cross_matrix`), the one of
+/// every crate above the robot crate.
 pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+    v.cross_matrix()
 }
 
 /// The left Jacobian `J_l(w)`: `exp(w + d) = exp(J_l(w) d) exp(w)` to first order.
@@ -52,6 +53,19 @@ pub fn right_jacobian_inverse(e: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::identity() + 0.5 * k + c * k * k
 }
 
+/// `J_l(w)^-1`: `log(exp(d) exp(w)) = w + J_l(w)^-1 d` to first order (closed form, valid for
+/// `|w| < 2 pi`; below `|w|^2 = 1e-10` its series to second order).
+pub fn left_jacobian_inverse(w: &Vector3<f64>) -> Matrix3<f64> {
+    let t2 = w.norm_squared();
+    let k = w.cross_matrix();
+    if t2 < 1e-10 {
+        return Matrix3::identity() - 0.5 * k + k * k / 12.0;
+    }
+    let t = t2.sqrt();
+    let c = 1.0 / t2 - (1.0 + t.cos()) / (2.0 * t * t.sin());
+    Matrix3::identity() - 0.5 * k + c * k * k
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -84,8 +98,13 @@ mod tests {
                 // log(exp(w) exp(d)) - w = J_r^-1 d.
                 let inv = ((rot(&w) * rot(&d)).scaled_axis() - w) / d_step;
                 assert!((inv - jri.column(a)).norm() < 1e-5, "J_r^-1 at {w:?}: {inv:?} vs {:?}", jri.column(a));
+                // log(exp(d) exp(w)) - w = J_l^-1 d.
+                let inv_l = ((rot(&d) * rot(&w)).scaled_axis() - w) / d_step;
+                let jli = left_jacobian_inverse(&w);
+                assert!((inv_l - jli.column(a)).norm() < 1e-5, "J_l^-1 at {w:?}: {inv_l:?} vs {:?}", jli.column(a));
             }
             assert!((jr * jri - Matrix3::identity()).norm() < 1e-9);
+            assert!((jl * left_jacobian_inverse(&w) - Matrix3::identity()).norm() < 1e-9);
         }
     }
 }

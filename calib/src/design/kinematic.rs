@@ -27,7 +27,7 @@
 
 use std::collections::BTreeMap;
 
-use ferrocal_robot::{Kinematics, Parameterized, RobotModel, Unit};
+use ferrocal_robot::{Parameterized, RobotModel, Unit};
 use nalgebra::{Cholesky, DMatrix, Isometry3, Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -494,16 +494,4 @@ pub fn monte_carlo(
         worst_ratio_deviation: worst,
         median_ratio,
     })
-}
-
-/// The model's position of the measured point for joint values `q` in the device frame
-/// (`t_device_base * FK(q) * point_in_tool`).
-pub fn device_position(
-    model: &RobotModel,
-    t_device_base: &Isometry3<f64>,
-    point_in_tool_m: &Vector3<f64>,
-    q: &[f64],
-) -> Result<Vector3<f64>> {
-    let t = model.forward(q)?;
-    Ok((t_device_base * t * nalgebra::Point3::from(*point_in_tool_m)).coords)
 }

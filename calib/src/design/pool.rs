@@ -130,11 +130,6 @@ impl InformationPool {
         &self.rows[self.starts[k] * self.n_params..self.starts[k + 1] * self.n_params]
     }
 
-    /// The rows of candidate `k` as a matrix.
-    pub fn block_matrix(&self, k: usize) -> DMatrix<f64> {
-        DMatrix::from_row_slice(self.block_len(k), self.n_params, self.block(k))
-    }
-
     /// Adds `sign * R_k^T R_k` to `f`.
     pub fn accumulate(&self, k: usize, sign: f64, f: &mut DMatrix<f64>) {
         let p = self.n_params;

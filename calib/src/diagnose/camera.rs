@@ -29,7 +29,6 @@ use ferrocal_vision::calib::{
     adjust_bundle, calibrate_camera, BundleMode, BundleModel, BundleSpec, CalibrationOptions, PlanarTarget, PrintScale,
     TargetShape, View,
 };
-use ferrocal_vision::camera::DistortionKind;
 use nalgebra::{DVector, Isometry3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -39,36 +38,15 @@ use super::stats::{bonferroni, paired_test};
 use crate::error::{CalibError, Result};
 
 mod types;
+pub(super) mod variant;
 pub use types::*;
+pub(super) use variant::{effect_parameters, plausible_size, screened, Added, Lens};
 
-/// A model variant: lens model, whether the target may bend, whether its print may be scaled.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Variant {
-    lens: Lens,
-    bent: bool,
-    scaled: bool,
-}
+/// A model variant of the one camera.
+type Variant = variant::Variant<1>;
 
 /// The default model: 5-coefficient Brown, a flat and nominally printed target.
-const NOMINAL: Variant = Variant { lens: Lens::Brown5, bent: false, scaled: false };
-
-/// Lens model of a variant.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) enum Lens {
-    Brown5,
-    Rational8,
-    KannalaBrandt,
-}
-
-impl Lens {
-    pub(super) fn kind(self) -> DistortionKind {
-        match self {
-            Lens::Brown5 => DistortionKind::Brown5,
-            Lens::Rational8 => DistortionKind::Rational8,
-            Lens::KannalaBrandt => DistortionKind::KannalaBrandt,
-        }
-    }
-}
+const NOMINAL: Variant = Variant::NOMINAL;
 
 /// A fitted variant.
 #[derive(Clone, Debug)]
@@ -120,7 +98,7 @@ fn fit_variant(
         model.print_scale = PrintScale::default();
     }
     let spec = BundleSpec {
-        lens: Some(variant.lens.kind()),
+        lens: Some(variant.lens[0].kind()),
         estimate_shape: variant.bent,
         estimate_print_scale: variant.scaled,
         mode: BundleMode::Full,
@@ -298,25 +276,7 @@ fn rms(sq: &[(f64, usize)]) -> f64 {
 }
 
 /// A candidate: its label and the model variant it leads to.
-type CameraCandidate = (&'static str, Variant);
-
-/// Which effect a variant adds to the current one.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Added {
-    Lens,
-    Shape,
-    PrintScale,
-}
-
-fn added(current: Variant, variant: Variant) -> Added {
-    if variant.bent && !current.bent {
-        Added::Shape
-    } else if variant.scaled && !current.scaled {
-        Added::PrintScale
-    } else {
-        Added::Lens
-    }
-}
+type CameraCandidate = (String, Variant);
 
 /// The camera's model variants as a candidate family of the diagnose engine.
 struct CameraFamily<'a> {
@@ -344,55 +304,20 @@ impl Family for CameraFamily<'_> {
     }
 
     fn candidates(&self, _accepted: &[Variant], _retired: &[Variant]) -> Vec<CameraCandidate> {
-        let current = self.current;
-        let mut cands = Vec::new();
-        if current.lens == Lens::Brown5 {
-            cands.push(("lens_distortion (rational radial k4..k6)", Variant { lens: Lens::Rational8, ..current }));
-            cands.push(("lens_distortion (Kannala-Brandt fisheye)", Variant { lens: Lens::KannalaBrandt, ..current }));
-        }
-        if !current.bent {
-            cands.push(("target_nonflatness (bowl, saddle, twist)", Variant { bent: true, ..current }));
-        }
-        if !current.scaled {
-            cands.push(("target_print_scale (x spacing against y)", Variant { scaled: true, ..current }));
-        }
-        cands
+        self.current.candidates(|_, what| format!("lens_distortion ({what})"), "")
     }
 
     fn describe(&self, (label, variant): &CameraCandidate) -> Describe {
-        let (effect, n_params) = match (added(self.current, *variant), variant.lens) {
-            (Added::Shape, _) => ("target_nonflatness", 3),
-            (Added::PrintScale, _) => ("target_print_scale", 1),
-            (Added::Lens, Lens::KannalaBrandt) => ("lens_distortion", 4),
-            (Added::Lens, _) => ("lens_distortion", 3),
-        };
-        Describe { label: label.to_string(), effect: effect.into(), joints: Vec::new(), n_params }
+        variant.describe(self.current, label)
     }
 
     fn screen(&mut self, (_, variant): &CameraCandidate) -> Result<Screened<CrossValidation>> {
-        let cv = match cross_validate(self.views, self.target, *variant, self.opts.folds) {
-            Ok(cv) => cv,
-            Err(e) => return Ok(Screened::Unscored { heldout: f64::NAN, why: format!("could not be fitted: {e}") }),
-        };
-        // Per-view differences of mean squared error (before - after).
-        let d: Vec<f64> = self
-            .current_cv
-            .errors
-            .iter()
-            .zip(&cv.errors)
-            .map(|((a, na), (b, _))| (a - b) / (*na).max(1) as f64)
-            .collect();
-        if d.iter().any(|v| !v.is_finite()) {
-            return Ok(Screened::Unscored {
-                heldout: f64::INFINITY,
-                why: "fails to predict some held-out views (their corners leave the fitted lens model's valid field)"
-                    .into(),
-            });
-        }
-        // Views differ widely in how much a lens or target effect shows (the image border against
-        // the centre), so the heavy-tailed per-view differences are tested with the sign test and
-        // with the t test (the engine's `Test::SignOrT`).
-        Ok(Screened::Scored { d, heldout: rms(&cv.errors), data: cv })
+        // Per-view differences of mean squared error (before - after). Views differ widely in
+        // how much a lens or target effect shows (the image border against the centre), so the
+        // heavy-tailed per-view differences are tested with the sign test and with the t test
+        // (the engine's `Test::SignOrT`).
+        let cv = cross_validate(self.views, self.target, *variant, self.opts.folds);
+        Ok(screened(cv, |cv| &cv.errors, &self.current_cv.errors, "views"))
     }
 
     fn fit_all(
@@ -401,43 +326,25 @@ impl Family for CameraFamily<'_> {
         _cv: &CrossValidation,
     ) -> Result<Option<AllFit<Variant, Fit>>> {
         let fit = fit_variant(self.views, self.target, *variant, Some(&self.current_fit), true)?;
-        let mut parameters = std::collections::BTreeMap::new();
-        match added(self.current, *variant) {
-            Added::Shape => {
-                let s = fit.model.shape;
-                for (name, v) in
-                    ["bowl_sag_m", "saddle_sag_m", "twist_sag_m"].iter().zip([s.bowl_m, s.saddle_m, s.twist_m])
-                {
-                    parameters.insert(name.to_string(), v);
-                }
-            }
-            Added::PrintScale => {
-                parameters.insert("scale_x_minus_y".to_string(), fit.model.print_scale.x);
-            }
-            Added::Lens => {
-                let d = fit.model.camera.distortion;
-                for (name, v) in d.kind().coefficient_names().iter().zip(&d.coefficients()) {
-                    parameters.insert(name.to_string(), *v);
-                }
-            }
-        }
+        let m = &fit.model;
+        let (parameters, _) = effect_parameters(
+            variant.added_to(self.current),
+            (m.shape, m.print_scale.x),
+            |_| m.camera.distortion,
+            &Default::default(),
+            |_| String::new(),
+        );
         Ok(Some(AllFit { effect: *variant, parameters, overlap_sine: None, data: fit }))
     }
 
     fn plausible(&self, fit: &AllFit<Variant, Fit>) -> std::result::Result<(), String> {
         let m = &fit.data.model;
-        let ok = match added(self.current, fit.effect) {
-            Added::Shape => {
-                [m.shape.bowl_m, m.shape.saddle_m, m.shape.twist_m].iter().all(|b| b.abs() <= self.opts.max_sag_m)
-            }
-            Added::PrintScale => m.print_scale.x.abs() <= self.opts.max_print_scale,
-            Added::Lens => m.camera.distortion.coefficients().iter().all(|c| c.abs() <= self.opts.max_rational),
-        };
-        if ok {
-            Ok(())
-        } else {
-            Err("implausible size".into())
-        }
+        plausible_size(
+            fit.effect.added_to(self.current),
+            (m.shape, m.print_scale.x),
+            |_| m.camera.distortion,
+            self.opts,
+        )
     }
 
     fn accept(
@@ -449,7 +356,7 @@ impl Family for CameraFamily<'_> {
         let (variant, parameters, fit) = (fit.effect, fit.parameters, fit.data);
         let (before, after, p, m) =
             (decision.heldout_before, decision.heldout_after, decision.p_corrected, decision.candidates_tried);
-        let kind = added(self.current, variant);
+        let kind = variant.added_to(self.current);
         let mut main_std = None;
         let (effect, statement) = match kind {
             Added::Shape => {
@@ -465,9 +372,9 @@ impl Family for CameraFamily<'_> {
                 main_std = Some(std);
                 ("target_print_scale", print_scale_statement(e, std, board_width_m(self.target), (before, after, p, m)))
             }
-            Added::Lens => {
+            Added::Lens(_) => {
                 let c = fit.model.camera.distortion.coefficients();
-                let model = match variant.lens {
+                let model = match variant.lens[0] {
                     Lens::KannalaBrandt => "the Kannala-Brandt (fisheye) model".to_string(),
                     _ => format!("the rational radial terms (k4 = {:.3}, k5 = {:.3}, k6 = {:.3})", c[5], c[6], c[7]),
                 };

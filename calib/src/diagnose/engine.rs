@@ -518,19 +518,7 @@ fn smallest_p<F: Family>(
     }
     match fit {
         Some(fit) if accepted => {
-            let row = &entries[b].row;
-            let decision = Decision {
-                label: row.label.clone(),
-                p_corrected: row.p_corrected,
-                p_uncorrected: row.p_value,
-                candidates_tried: 0,
-                heldout_before: row.heldout_before,
-                heldout_after: row.heldout_after,
-                relative_std: 0.0,
-                overlap_sine: fit.overlap_sine,
-                alternatives: Vec::new(),
-                caution,
-            };
+            let decision = Decision::of_row(&entries[b].row, 0.0, fit.overlap_sine, caution);
             Ok(Some((b, fit, decision)))
         }
         _ => Ok(None),

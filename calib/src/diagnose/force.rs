@@ -170,11 +170,7 @@ impl ForceFamily<'_> {
     }
 
     fn cv(&self, m: SensorModel, crosstalk: bool) -> Result<(Vec<f64>, DMatrix<f64>)> {
-        if crosstalk {
-            cross_validate_crosstalk(self.reg, m, self.poses, &self.y, self.folds)
-        } else {
-            cross_validate(self.reg, m, self.poses, &self.y, self.folds)
-        }
+        cross_validate(self.reg, m, self.poses, &self.y, self.folds, crosstalk)
     }
 }
 
@@ -537,7 +533,7 @@ pub fn diagnose_force_sensor(
         &LinearOptions::default(),
     )?);
     let (m0, c0) = mass_cog(&nominal_fit);
-    let (current_sse, current_res) = cross_validate(reg, model0, poses, &y, opts.folds)?;
+    let (current_sse, current_res) = cross_validate(reg, model0, poses, &y, opts.folds, false)?;
     let k = opts.folds.clamp(2, n);
     let nominal = ForceFit {
         n_train: n - n.div_ceil(k),

@@ -185,6 +185,30 @@ pub struct Decision {
     pub caution: Option<String>,
 }
 
+impl Decision {
+    /// The decision to accept the candidate of `row` (its label, p-values and held-out figures),
+    /// before the engine counts the candidates tried and lists the alternatives.
+    pub(crate) fn of_row(
+        row: &CandidateRow,
+        relative_std: f64,
+        overlap_sine: Option<f64>,
+        caution: Option<String>,
+    ) -> Self {
+        Decision {
+            label: row.label.clone(),
+            p_corrected: row.p_corrected,
+            p_uncorrected: row.p_value,
+            candidates_tried: 0,
+            heldout_before: row.heldout_before,
+            heldout_after: row.heldout_after,
+            relative_std,
+            overlap_sine,
+            alternatives: Vec::new(),
+            caution,
+        }
+    }
+}
+
 /// Residuals against the telling input before and after an accepted effect (for plots).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Evidence {

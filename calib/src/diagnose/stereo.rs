@@ -33,8 +33,9 @@ use ferrocal_vision::calib::{
 use nalgebra::{DVector, Isometry3};
 
 use super::camera::{
-    board_width_m, candidate_scores, centred, print_scale_statement, unexplained_structure, vision_error,
-    CameraDiagnoseOptions, CameraFinalFit, CameraFit, CameraUnexplained, Lens,
+    board_width_m, candidate_scores, centred, effect_parameters, plausible_size, print_scale_statement, screened,
+    unexplained_structure, vision_error, Added, CameraDiagnoseOptions, CameraFinalFit, CameraFit, CameraUnexplained,
+    Lens,
 };
 use super::engine::{select, AllFit, Baseline, Describe, Family, Policy, Screened, StepStart};
 use super::report::{Decision, Finding, Unit};
@@ -48,34 +49,9 @@ const CAMERA_NAMES: [&str; 2] = ["camera 0 (left)", "camera 1 (right)"];
 
 /// A model variant: each camera's lens model, whether the target bends, whether its print is
 /// scaled.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Variant {
-    lens: [Lens; 2],
-    bent: bool,
-    scaled: bool,
-}
+type Variant = super::camera::variant::Variant<2>;
 
-const NOMINAL: Variant = Variant { lens: [Lens::Brown5, Lens::Brown5], bent: false, scaled: false };
-
-/// What a variant adds to the current one.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Added {
-    Lens(usize),
-    Shape,
-    PrintScale,
-}
-
-fn added(current: Variant, variant: Variant) -> Added {
-    if variant.bent && !current.bent {
-        Added::Shape
-    } else if variant.scaled && !current.scaled {
-        Added::PrintScale
-    } else if variant.lens[1] != current.lens[1] {
-        Added::Lens(1)
-    } else {
-        Added::Lens(0)
-    }
-}
+const NOMINAL: Variant = Variant::NOMINAL;
 
 /// The views of a pair: `views[k][i]` is camera `k`'s view of target pose `i`; `pairs` the
 /// poses both cameras saw (the held-out units), in order.
@@ -196,39 +172,12 @@ struct StereoFamily<'a> {
     accepted: Vec<(Option<usize>, BTreeMap<String, f64>)>,
 }
 
-/// The standard deviations of a fit's parameters by name.
-fn std_by_name(fit: &RigBundleFit) -> BTreeMap<String, f64> {
-    fit.parameter_names.iter().cloned().zip(fit.std.iter().copied()).filter(|(_, s)| s.is_finite()).collect()
-}
-
 /// The effect's parameters (and their standard deviations) in the fit of all poses.
-fn effect_parameters(fit: &RigBundleFit, kind: Added) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
-    let std = std_by_name(fit);
-    let mut values = BTreeMap::new();
-    let mut stds = BTreeMap::new();
-    let mut put = |name: &str, std_name: &str, v: f64| {
-        values.insert(name.to_string(), v);
-        if let Some(s) = std.get(std_name) {
-            stds.insert(name.to_string(), *s);
-        }
-    };
-    match kind {
-        Added::Shape => {
-            let s = fit.model.shape;
-            for (name, v) in ["bowl_sag_m", "saddle_sag_m", "twist_sag_m"].iter().zip([s.bowl_m, s.saddle_m, s.twist_m])
-            {
-                put(name, name, v);
-            }
-        }
-        Added::PrintScale => put("scale_x_minus_y", "print_scale_x", fit.model.print_scale.x),
-        Added::Lens(c) => {
-            let d = fit.model.cameras[c].distortion;
-            for (name, v) in d.kind().coefficient_names().iter().zip(&d.coefficients()) {
-                put(name, &format!("cam{c}.{name}"), *v);
-            }
-        }
-    }
-    (values, stds)
+fn fit_parameters(fit: &RigBundleFit, kind: Added) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
+    let std: BTreeMap<String, f64> =
+        fit.parameter_names.iter().cloned().zip(fit.std.iter().copied()).filter(|(_, s)| s.is_finite()).collect();
+    let m = &fit.model;
+    effect_parameters(kind, (m.shape, m.print_scale.x), |c| m.cameras[c].distortion, &std, |c| format!("cam{c}."))
 }
 
 impl Family for StereoFamily<'_> {
@@ -246,72 +195,18 @@ impl Family for StereoFamily<'_> {
     }
 
     fn candidates(&self, _accepted: &[Variant], _retired: &[Variant]) -> Vec<StereoCandidate> {
-        let current = self.current;
-        let mut cands = Vec::new();
-        for (c, name) in CAMERA_NAMES.iter().enumerate() {
-            if current.lens[c] == Lens::Brown5 {
-                for (lens, what) in
-                    [(Lens::Rational8, "rational radial k4..k6"), (Lens::KannalaBrandt, "Kannala-Brandt fisheye")]
-                {
-                    let mut v = current;
-                    v.lens[c] = lens;
-                    cands.push((format!("lens_distortion of {name} ({what})"), v));
-                }
-            }
-        }
-        if !current.bent {
-            cands.push((
-                "target_nonflatness (bowl, saddle, twist; both cameras)".into(),
-                Variant { bent: true, ..current },
-            ));
-        }
-        if !current.scaled {
-            cands.push((
-                "target_print_scale (x spacing against y; both cameras)".into(),
-                Variant { scaled: true, ..current },
-            ));
-        }
-        cands
+        self.current.candidates(|c, what| format!("lens_distortion of {} ({what})", CAMERA_NAMES[c]), "; both cameras")
     }
 
     fn describe(&self, (label, variant): &StereoCandidate) -> Describe {
-        let (effect, n_params) = match (added(self.current, *variant), variant.lens) {
-            (Added::Shape, _) => ("target_nonflatness", 3),
-            (Added::PrintScale, _) => ("target_print_scale", 1),
-            (Added::Lens(c), lens) if lens[c] == Lens::KannalaBrandt => ("lens_distortion", 4),
-            (Added::Lens(_), _) => ("lens_distortion", 3),
-        };
-        Describe { label: label.clone(), effect: effect.into(), joints: Vec::new(), n_params }
+        variant.describe(self.current, label)
     }
 
     fn screen(&mut self, (_, variant): &StereoCandidate) -> Result<Screened<CrossValidation>> {
-        let cv = match cross_validate(
-            self.rig,
-            self.target,
-            *variant,
-            self.opts.folds,
-            &self.nominal_start,
-            Some(&self.current_cv),
-        ) {
-            Ok(cv) => cv,
-            Err(e) => return Ok(Screened::Unscored { heldout: f64::NAN, why: format!("could not be fitted: {e}") }),
-        };
         // Per pair: difference of mean squared error (before - after) over both images.
-        let d: Vec<f64> = self
-            .current_cv
-            .errors
-            .iter()
-            .zip(&cv.errors)
-            .map(|((a, na), (b, _))| (a - b) / (*na).max(1) as f64)
-            .collect();
-        if d.iter().any(|v| !v.is_finite()) {
-            return Ok(Screened::Unscored {
-                heldout: f64::INFINITY,
-                why: "fails to predict some held-out pairs (their corners leave the fitted lens model's valid field)"
-                    .into(),
-            });
-        }
-        Ok(Screened::Scored { d, heldout: Baseline::of_pooled(&cv.errors).heldout, data: cv })
+        let (rig, start) = (self.rig, &self.nominal_start);
+        let cv = cross_validate(rig, self.target, *variant, self.opts.folds, start, Some(&self.current_cv));
+        Ok(screened(cv, |cv| &cv.errors, &self.current_cv.errors, "pairs"))
     }
 
     fn fit_all(
@@ -321,24 +216,18 @@ impl Family for StereoFamily<'_> {
     ) -> Result<Option<AllFit<Variant, RigBundleFit>>> {
         let start = (&self.current_fit.model, Some(self.current_fit.t_cam0_target.as_slice()));
         let fit = fit_variant(self.rig, &self.all, self.target, *variant, start, true)?;
-        let (parameters, _) = effect_parameters(&fit, added(self.current, *variant));
+        let (parameters, _) = fit_parameters(&fit, variant.added_to(self.current));
         Ok(Some(AllFit { effect: *variant, parameters, overlap_sine: None, data: fit }))
     }
 
     fn plausible(&self, fit: &AllFit<Variant, RigBundleFit>) -> std::result::Result<(), String> {
         let m = &fit.data.model;
-        let ok = match added(self.current, fit.effect) {
-            Added::Shape => {
-                [m.shape.bowl_m, m.shape.saddle_m, m.shape.twist_m].iter().all(|b| b.abs() <= self.opts.max_sag_m)
-            }
-            Added::PrintScale => m.print_scale.x.abs() <= self.opts.max_print_scale,
-            Added::Lens(c) => m.cameras[c].distortion.coefficients().iter().all(|v| v.abs() <= self.opts.max_rational),
-        };
-        if ok {
-            Ok(())
-        } else {
-            Err("implausible size".into())
-        }
+        plausible_size(
+            fit.effect.added_to(self.current),
+            (m.shape, m.print_scale.x),
+            |c| m.cameras[c].distortion,
+            self.opts,
+        )
     }
 
     fn accept(
@@ -350,8 +239,8 @@ impl Family for StereoFamily<'_> {
         let (variant, parameters, fit) = (fit.effect, fit.parameters, fit.data);
         let (before, after, p, m) =
             (decision.heldout_before, decision.heldout_after, decision.p_corrected, decision.candidates_tried);
-        let kind = added(self.current, variant);
-        let (_, stds) = effect_parameters(&fit, kind);
+        let kind = variant.added_to(self.current);
+        let (_, stds) = fit_parameters(&fit, kind);
         self.accepted.push((if let Added::Lens(c) = kind { Some(c) } else { None }, stds.clone()));
         let sd = |name: &str| stds.get(name).copied().unwrap_or(f64::NAN);
         let gain = format!(

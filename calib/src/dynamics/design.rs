@@ -280,31 +280,6 @@ pub fn optimise_trajectory(
     Ok(r)
 }
 
-/// The information `sum_t Y^T Y` (scaled, whitened rows) of any periodic motion over `samples`
-/// instants of `period_s`.
-pub fn motion_information(
-    model: &dyn RowModel,
-    eval: &dyn Fn(f64) -> TrajectorySample,
-    period_s: f64,
-    samples: usize,
-    scale: &[f64],
-    sigma_n: f64,
-) -> Result<DMatrix<f64>> {
-    let n = scale.len();
-    let mut f = DMatrix::zeros(n, n);
-    for k in 0..samples.max(1) {
-        let t = period_s * k as f64 / samples.max(1) as f64;
-        let y = scaled_rows(model, &eval(t), scale, sigma_n)?;
-        f += y.transpose() * y;
-    }
-    Ok(f)
-}
-
-/// Predicted standard deviations (model units) from an information of scaled rows.
-pub fn unscaled_std(information: &DMatrix<f64>, scale: &[f64]) -> Option<Vec<f64>> {
-    predicted_std(information).map(|s| s.iter().zip(scale).map(|(v, h)| v * h).collect())
-}
-
 /// Smooth point-to-point moves through waypoints and back to the first, each coordinate with
 /// the profile `s(tau) = tau - sin(2 pi tau) / (2 pi)` (zero velocity and acceleration at both
 /// ends; peak speed `2 d / T`, peak acceleration `2 pi d / T^2`), all coordinates of a move

@@ -125,17 +125,6 @@ impl SensorModel {
             [self.0 as usize]
     }
 
-    /// The quasi-static model a dynamic one extends (itself for quasi-static models).
-    pub fn quasi_static_part(self) -> SensorModel {
-        match self.0 {
-            6 => SensorModel(0),
-            7 => SensorModel(2),
-            8 => SensorModel(4),
-            9 => SensorModel(5),
-            _ => self,
-        }
-    }
-
     /// A short description.
     pub fn description(self) -> &'static str {
         [

@@ -390,12 +390,7 @@ pub fn ml_cutoff(
     Ok(MlResult { cutoff_hz, fit, curve: tried, pose_covariance: sx })
 }
 
-/// Pose coordinates of a state (for writing and comparing trajectories).
-pub fn coordinates_of(state: &MotionState) -> [f64; 6] {
-    coordinates_from_pose(&state.pose)
-}
-
-/// A state's pose from coordinates (re-exported for symmetry with [`coordinates_of`]).
+/// A state's pose from coordinates.
 pub fn pose_of(x: &[f64; 6]) -> ferrocal_robot::Pose {
     pose_from_coordinates(x)
 }

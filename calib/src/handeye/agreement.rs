@@ -134,19 +134,13 @@ impl MotionAgreement {
     }
 }
 
-/// The median of `v` (NaN when empty).
+/// The median of `v`'s finite values (NaN when there are none).
 pub fn median(v: &[f64]) -> f64 {
-    let mut s: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    let s: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
     if s.is_empty() {
         return f64::NAN;
     }
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
+    ferrocal_vision::calib::median(&s)
 }
 
 /// The rotation angle of `q`, radians in [0, pi] (exact near zero, unlike an arc cosine).

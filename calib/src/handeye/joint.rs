@@ -64,7 +64,7 @@ use crate::frames::exp6;
 use crate::kinematic::correct::Uncertainty;
 use crate::kinematic::{identifiable_candidates, CalibratedModel, KinematicOptions, ParamResult, StateLayout};
 use crate::measurement::{PoseMeasurement, Split};
-use corner::{RigCorner, RobotCorner};
+use corner::RobotCorner;
 #[cfg(test)]
 use ferrocal_robot::Parameterized;
 use maps::{FrameMap, RobotMap};
@@ -310,7 +310,7 @@ fn build(setup: &Setup, state: &State, loss: Loss) -> Result<(Problem, Blocks)> 
                 let name = format!("{}.c{id}", view_key(k, &v.name));
                 match rig {
                     None => p.add_residual(&name, Box::new(r), &[rb, frame, tool, cam], loss),
-                    Some((c, t)) => p.add_residual(&name, Box::new(RigCorner(r)), &[rb, frame, tool, c, t], loss),
+                    Some((c, t)) => p.add_residual(&name, Box::new(r), &[rb, frame, tool, c, t], loss),
                 }
                 .map_err(lsq_error)?;
             }

@@ -20,25 +20,13 @@
 //! Log(R R_reported^T) / σ_r]`, for fits that let the reported flange poses move within their
 //! noise.
 
-use nalgebra::{DMatrix, Isometry3, Matrix2, Matrix3, Matrix3x1, Point2, Point3, Vector3};
+use nalgebra::{DMatrix, Isometry3, Matrix2, Matrix2x3, Matrix3, Matrix3x1, Point2, Point3, Vector3};
 
 use ferrocal_lsq::{LsqError, Residual, Se3};
 use ferrocal_vision::calib::TargetDeformation;
 use ferrocal_vision::camera::{CameraModel, Distortion, Intrinsics};
 
 use super::Mount;
-
-/// The inverse of the SO(3) left Jacobian, `J_l(φ)^-1`.
-fn left_jacobian_inverse(phi: &Vector3<f64>) -> Matrix3<f64> {
-    let t2 = phi.norm_squared();
-    let k = phi.cross_matrix();
-    if t2 < 1e-10 {
-        return Matrix3::identity() - 0.5 * k + k * k / 12.0;
-    }
-    let t = t2.sqrt();
-    let c = 1.0 / t2 - (1.0 + t.cos()) / (2.0 * t * t.sin());
-    Matrix3::identity() - 0.5 * k + c * k * k
-}
 
 /// The camera of parameter vector `v` (the order of [`CameraModel::parameters`]) with the lens
 /// model and image size of `template`.
@@ -57,6 +45,37 @@ pub fn whitening(cov_px2: &Matrix2<f64>) -> Option<Matrix2<f64>> {
     let sym = 0.5 * (cov_px2 + cov_px2.transpose());
     let l = sym.cholesky()?.l();
     l.try_inverse()
+}
+
+/// The Jacobians a residual block is asked for (`Residual::evaluate`'s), with the corner's
+/// `d r / d p_cam` (2 x 3).
+pub(crate) type CornerJacobians<'a> = (&'a mut [Option<DMatrix<f64>>], Matrix2x3<f64>);
+
+/// The reprojection residual of a corner: the camera-frame point `p_cam` projected by `camera`
+/// minus the detected pixel, whitened (`corner`: the detected pixel and `L^-1`), written to
+/// `residuals`. With Jacobians wanted, the camera block's (the fourth, `jacobians[3]`) is
+/// filled and the Jacobians come back with `d r / d p_cam` (2 x 3) for the caller's blocks.
+pub(crate) fn reproject<'a>(
+    camera: &CameraModel,
+    p_cam: &Vector3<f64>,
+    (detected_px, whiten): (&Point2<f64>, &Matrix2<f64>),
+    residuals: &mut [f64],
+    jacobians: Option<&'a mut [Option<DMatrix<f64>>]>,
+) -> ferrocal_lsq::Result<Option<CornerJacobians<'a>>> {
+    let proj = camera.project_with_jacobians(&Point3::from(*p_cam)).map_err(LsqError::model)?;
+    let r = whiten * (proj.pixel - detected_px);
+    residuals[0] = r.x;
+    residuals[1] = r.y;
+    let Some(jacs) = jacobians else { return Ok(None) };
+    fill(&mut jacs[3], (whiten * &proj.d_pixel_d_params).as_slice());
+    Ok(Some((jacs, whiten * proj.d_pixel_d_point)))
+}
+
+/// Copies the column-major slice `m` of a 2 x k block into its Jacobian, when wanted.
+pub(crate) fn fill(j: &mut Option<DMatrix<f64>>, m: &[f64]) {
+    if let Some(j) = j {
+        j.copy_from_slice(m);
+    }
 }
 
 /// The camera-frame point of target point `p0` and its derivatives with respect to the
@@ -220,22 +239,13 @@ impl Residual for ChainCorner {
             }
         };
         let c = chain_point(self.mount, &x, &w, &m, scale, &point);
-        let proj = camera.project_with_jacobians(&Point3::from(c.p_cam)).map_err(LsqError::model)?;
-        let r = self.whiten * (proj.pixel - self.detected_px);
-        residuals[0] = r.x;
-        residuals[1] = r.y;
-        let Some(jacs) = jacobians else { return Ok(()) };
-        let sp = self.whiten * proj.d_pixel_d_point;
-        // Column-major slices of the 2 x k blocks.
-        let fill = |j: &mut Option<DMatrix<f64>>, m: &[f64]| {
-            if let Some(j) = j {
-                j.copy_from_slice(m);
-            }
+        let Some((jacs, sp)) = reproject(&camera, &c.p_cam, (&self.detected_px, &self.whiten), residuals, jacobians)?
+        else {
+            return Ok(());
         };
         fill(&mut jacs[0], (sp * c.d_x).as_slice());
         fill(&mut jacs[1], (sp * c.d_w).as_slice());
         fill(&mut jacs[2], (sp * c.d_robot).as_slice());
-        fill(&mut jacs[3], (self.whiten * &proj.d_pixel_d_params).as_slice());
         let mut k = 4;
         if self.target.scale {
             fill(&mut jacs[k], (sp * c.d_scale).as_slice());
@@ -291,7 +301,7 @@ impl Residual for RobotPosePrior {
         }
         if let Some(jacs) = jacobians {
             if let Some(j) = &mut jacs[0] {
-                let jr = left_jacobian_inverse(&phi) / self.sigma_rad;
+                let jr = ferrocal_lsq::so3::left_jacobian_inverse(&phi) / self.sigma_rad;
                 for i in 0..3 {
                     j[(i, i)] = 1.0 / self.sigma_m;
                     for k in 0..3 {

@@ -181,18 +181,24 @@ impl Problem for KinProblem<'_> {
 }
 
 impl KinProblem<'_> {
+    /// The central difference of the whitened residuals along candidate `col` at `full`, step
+    /// `h`: a numeric column of [`Self::full_jacobian`].
+    fn central_difference(&self, full: &[f64], col: usize, h: f64) -> Result<DVector<f64>> {
+        let mut fp = full.to_vec();
+        fp[col] += h;
+        let rp = self.residuals_of(&self.calibrated(&fp)?)?;
+        fp[col] -= 2.0 * h;
+        let rm = self.residuals_of(&self.calibrated(&fp)?)?;
+        Ok((rp - rm) / (2.0 * h))
+    }
+
     /// Jacobian of the whitened residuals with respect to every candidate at `full`.
     pub(super) fn full_jacobian(&self, full: &[f64]) -> Result<DMatrix<f64>> {
         if self.cost == Cost::Closure {
             let mut jac = DMatrix::zeros(self.n_residuals(), self.layout.len());
             for col in 0..self.layout.len() {
                 let h = 1e-3 * self.layout.scales[col];
-                let mut fp = full.to_vec();
-                fp[col] += h;
-                let rp = self.residuals_of(&self.calibrated(&fp)?)?;
-                fp[col] -= 2.0 * h;
-                let rm = self.residuals_of(&self.calibrated(&fp)?)?;
-                jac.set_column(col, &((rp - rm) / (2.0 * h)));
+                jac.set_column(col, &self.central_difference(full, col, h)?);
             }
             return Ok(jac);
         }
@@ -353,12 +359,7 @@ impl KinProblem<'_> {
         for r in &self.layout.effects {
             for col in r.clone() {
                 let h = 1e-3 * self.layout.scales[col];
-                let mut fp = full.to_vec();
-                fp[col] += h;
-                let rp = self.residuals_of(&self.calibrated(&fp)?)?;
-                fp[col] -= 2.0 * h;
-                let rm = self.residuals_of(&self.calibrated(&fp)?)?;
-                jac.set_column(col, &((rp - rm) / (2.0 * h)));
+                jac.set_column(col, &self.central_difference(full, col, h)?);
             }
         }
         // Numeric columns: model parameters without an analytic form.
@@ -373,12 +374,7 @@ impl KinProblem<'_> {
                 Unit::Radian => 1e-7,
                 _ => 1e-7,
             };
-            let mut fp = full.to_vec();
-            fp[col] += h;
-            let rp = self.residuals_of(&self.calibrated(&fp)?)?;
-            fp[col] -= 2.0 * h;
-            let rm = self.residuals_of(&self.calibrated(&fp)?)?;
-            jac.set_column(col, &((rp - rm) / (2.0 * h)));
+            jac.set_column(col, &self.central_difference(full, col, h)?);
         }
         Ok(jac)
     }

@@ -39,11 +39,6 @@ impl LoadCase {
         Self { mass_kg, com_in_tool_m, force_n: [0.0; 3], self_weight: true }
     }
 
-    /// The payload only (a difference of loaded and unloaded measurements).
-    pub fn payload_difference(mass_kg: f64, com_in_tool_m: [f64; 3]) -> Self {
-        Self { mass_kg, com_in_tool_m, force_n: [0.0; 3], self_weight: false }
-    }
-
     /// The tool wrench at `q` (base axes, about the tool point).
     pub fn wrench(&self, model: &VjmModel, q: &[f64]) -> Result<Wrench> {
         if !(self.mass_kg.is_finite() && self.mass_kg >= 0.0) {

@@ -81,20 +81,6 @@ pub fn fit_matrix(a: &DMatrix<f64>, y: &DVector<f64>, param: &Parameterization, 
     })
 }
 
-/// Prediction errors of a fit on another problem (same complete layout): per 3-row position,
-/// against the measurements and, when known, against the truth (metres).
-pub fn prediction_errors(
-    problem: &LinearProblem,
-    param: &Parameterization,
-    values: &[f64],
-) -> (Vec<f64>, Option<Vec<f64>>) {
-    let a = reduced_regressor(problem, param);
-    let pred = a * DVector::from_column_slice(values);
-    let meas = problem.position_errors_m(&(&problem.y - &pred));
-    let truth = problem.y_true.as_ref().map(|t| problem.position_errors_m(&(t - &pred)));
-    (meas, truth)
-}
-
 /// RMS and maximum of errors.
 pub fn rms_max(e: &[f64]) -> (f64, f64) {
     if e.is_empty() {

@@ -133,14 +133,7 @@ impl HexapodSim {
     pub fn actuator_forces(&self, s: &MotionState) -> Result<Vector6<f64>> {
         let (u, r, l) = self.legs(s)?;
         let (f, m) = support_wrench_base(&self.platform, s, &self.gravity_m_s2);
-        let twist = Vector6::new(
-            s.velocity_m_s.x,
-            s.velocity_m_s.y,
-            s.velocity_m_s.z,
-            s.omega_rad_s.x,
-            s.omega_rad_s.y,
-            s.omega_rad_s.z,
-        );
+        let twist = s.twist();
         let h = 1e-3;
         let grad = Vector6::from_fn(|k, _| {
             let mut tp = twist;

@@ -292,13 +292,7 @@ pub fn measure_steps(poses: &[Vec<f64>], indices: &[usize]) -> PlannedPath {
                 label: None,
             })
             .collect(),
-        order: Vec::new(),
-        travel_s: 0.0,
-        dwell_s: 0.0,
-        nearest_neighbour_s: 0.0,
-        ordered_s: 0.0,
-        detours: 0,
-        checked_segments: 0,
+        ..Default::default()
     }
 }
 

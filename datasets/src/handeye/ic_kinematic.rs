@@ -186,11 +186,6 @@ pub fn ic_positioner_nominal() -> SerialChain {
     )
 }
 
-/// Writes [`ic_positioner_nominal`] as URDF to `out` (atomically, never onto `input`).
-pub fn write_ic_positioner_urdf(out: &Path, input: &Path) -> Result<()> {
-    super::poses::write_atomic(out, ic_positioner_urdf(input)?.as_bytes(), &[input])
-}
-
 /// [`ic_positioner_nominal`] as URDF text, its comment naming `input`.
 pub fn ic_positioner_urdf(input: &Path) -> Result<String> {
     let chain = ic_positioner_nominal();

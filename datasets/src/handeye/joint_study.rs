@@ -98,7 +98,8 @@ pub struct JointStudyConfig {
     pub angle_sigma_mrad: f64,
 }
 
-fn looking_at(eye: Vector3<f64>, at: Vector3<f64>, up: Vector3<f64>) -> Isometry3<f64> {
+/// The camera frame at `eye` looking at `at` (its `z` axis), `up` giving its `-y` side.
+pub(crate) fn looking_at(eye: Vector3<f64>, at: Vector3<f64>, up: Vector3<f64>) -> Isometry3<f64> {
     let z = (at - eye).normalize();
     let x = z.cross(&up).normalize();
     let y = z.cross(&x);
@@ -628,22 +629,17 @@ pub struct JointStudySummary {
     pub joint_all_within_seeds: usize,
 }
 
-pub(crate) fn median(v: &mut [f64]) -> f64 {
+/// Median of a slice (NaN when empty).
+pub(crate) fn median(v: &[f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
+    ferrocal_vision::calib::median(v)
 }
 
 /// Summarises runs.
 pub fn summarise_joint_study(runs: &[JointStudyRun], failed: Vec<(u64, String)>) -> JointStudySummary {
-    let med = |f: &dyn Fn(&JointStudyRun) -> f64| median(&mut runs.iter().map(f).collect::<Vec<_>>());
+    let med = |f: &dyn Fn(&JointStudyRun) -> f64| median(&runs.iter().map(f).collect::<Vec<_>>());
     let frac = |f: &dyn Fn(&JointStudyRun) -> Coverage| {
         let (a, b) = runs.iter().map(f).fold((0, 0), |(a, b), c| (a + c.within_3sigma, b + c.n));
         a as f64 / b.max(1) as f64

@@ -37,7 +37,7 @@
 //! shares), each model's own error: the RMS against the true reflector positions at the
 //! held-out poses, frame refitted the same way.
 
-use nalgebra::{Isometry3, Matrix2, Point2, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix2, Point2, Translation3, UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -53,7 +53,7 @@ use ferrocal_robot::{Kinematics, RobotModel};
 use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
 
 use super::joint_study::{
-    coverage, coverage_raw, draw_truth, median, random_joints, score, Coverage, JointStudyConfig, Score,
+    coverage, coverage_raw, draw_truth, looking_at, median, random_joints, score, Coverage, JointStudyConfig, Score,
 };
 use crate::error::{DatasetError, Result};
 use crate::sim::{Conditions, TrackerConfig, TrueRobot};
@@ -78,14 +78,6 @@ pub struct RigStudyConfig {
     pub base: JointStudyConfig,
     /// Cameras 1, 2, ...
     pub cameras: Vec<RigCameraConfig>,
-}
-
-fn looking_at(eye: Vector3<f64>, at: Vector3<f64>, up: Vector3<f64>) -> Isometry3<f64> {
-    let z = (at - eye).normalize();
-    let x = z.cross(&up).normalize();
-    let y = z.cross(&x);
-    let r = Rotation3::from_basis_unchecked(&[x, y, z]);
-    Isometry3::from_parts(Translation3::from(eye), UnitQuaternion::from_rotation_matrix(&r))
 }
 
 impl RigStudyConfig {
@@ -433,7 +425,7 @@ pub struct RigStudySummary {
 
 /// Summarises runs.
 pub fn summarise_rig_study(runs: &[RigStudyRun], failed: Vec<(u64, String)>) -> RigStudySummary {
-    let med = |f: &dyn Fn(&RigStudyRun) -> f64| median(&mut runs.iter().map(f).collect::<Vec<_>>());
+    let med = |f: &dyn Fn(&RigStudyRun) -> f64| median(&runs.iter().map(f).collect::<Vec<_>>());
     let max = |f: &dyn Fn(&RigStudyRun) -> f64| runs.iter().map(f).fold(f64::NAN, f64::max);
     let (inside, n) = runs.iter().fold((0, 0), |(a, b), r| (a + r.rig_coverage.within_3sigma, b + r.rig_coverage.n));
     RigStudySummary {

@@ -95,11 +95,6 @@ impl Ur10Row {
         quat_from_extrinsic_xyz(r, p, y)
     }
 
-    /// Commanded pose (`Goal` columns), metres.
-    pub fn goal_pose(&self) -> Isometry3<f64> {
-        Isometry3::from_parts(Translation3::from(self.goal_position_m), self.goal_orientation())
-    }
-
     /// Measured T-Mac orientation in the tracker frame (intrinsic X-Y-Z degrees converted).
     pub fn orientation(&self) -> UnitQuaternion<f64> {
         let [a, b, c] = self.euler_xyz_deg.map(f64::to_radians);
@@ -109,11 +104,6 @@ impl Ur10Row {
     /// Measured T-Mac position in the tracker frame, metres.
     pub fn position_m(&self) -> Vector3<f64> {
         self.position_mm / 1000.0
-    }
-
-    /// Measured `T_tracker_tmac`, metres.
-    pub fn t_tracker_tmac(&self) -> Isometry3<f64> {
-        Isometry3::from_parts(Translation3::from(self.position_m()), self.orientation())
     }
 }
 

@@ -3,7 +3,7 @@
 
 use nalgebra::{Point2, Point3};
 
-use super::target::{rect, TargetCorner, TargetGeometry};
+use super::target::{dark_cells, rect, TargetCorner, TargetGeometry};
 use crate::error::{DatasetError, Result};
 use ferrocal_vision::detect::{ArucoDictionary, CharucoBoard, CircleGrid};
 
@@ -43,22 +43,7 @@ pub(super) fn charuco(
         let cell = marker_m / n as f64;
         let o = board.square_centre_m(r, c);
         let (left, top) = (o.x - 0.5 * marker_m, o.y + 0.5 * marker_m);
-        // Black cells merged into horizontal runs.
-        for k in 0..n {
-            let mut l = 0;
-            while l < n {
-                if bits[k * n + l] {
-                    l += 1;
-                    continue;
-                }
-                let start = l;
-                while l < n && !bits[k * n + l] {
-                    l += 1;
-                }
-                let y1 = top - k as f64 * cell;
-                dark.push(rect(left + start as f64 * cell, y1 - cell, left + l as f64 * cell, y1));
-            }
-        }
+        dark_cells(&mut dark, &bits, n, (left, top), cell);
     }
     let corners = board
         .target_points_m()

@@ -513,18 +513,12 @@ pub fn run_seed(settings: &StudySettings, seed: u64, dir: &Path) -> Result<SeedR
     Ok(SeedResult { seed, truth, ours, opencv, ratio })
 }
 
-/// Median of a non-empty slice.
+/// Median of a slice (NaN when empty).
 fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
+    if v.is_empty() {
+        return f64::NAN;
     }
+    ferrocal_vision::calib::median(v)
 }
 
 /// The aggregate over seeds.

@@ -173,6 +173,33 @@ pub(super) fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<Point2<f64>> {
     vec![Point2::new(x0, y0), Point2::new(x1, y0), Point2::new(x1, y1), Point2::new(x0, y1)]
 }
 
+/// The black cells of a `t` x `t` code (`white[k * t + l]`: row `k` from the top, column `l`,
+/// white or not) of cell size `cell` whose top left corner is at `(left, top)`, merged into
+/// horizontal runs, added to `dark`.
+pub(super) fn dark_cells(
+    dark: &mut Vec<Vec<Point2<f64>>>,
+    white: &[bool],
+    t: usize,
+    (left, top): (f64, f64),
+    cell: f64,
+) {
+    for k in 0..t {
+        let mut l = 0;
+        while l < t {
+            if white[k * t + l] {
+                l += 1;
+                continue;
+            }
+            let start = l;
+            while l < t && !white[k * t + l] {
+                l += 1;
+            }
+            let y1 = top - k as f64 * cell;
+            dark.push(rect(left + start as f64 * cell, y1 - cell, left + l as f64 * cell, y1));
+        }
+    }
+}
+
 fn check_length(field: &str, v: f64, allow_zero: bool) -> Result<()> {
     let ok = v.is_finite() && (v > 0.0 || (allow_zero && v == 0.0));
     if ok {
@@ -360,22 +387,7 @@ fn apriltag_board(
         let cells = family.tag_cells(*id)?;
         let left = xc - 0.5 * t as f64 * cell;
         let top = yc + 0.5 * t as f64 * cell;
-        // Black cells, merged into horizontal runs.
-        for k in 0..t {
-            let mut l = 0;
-            while l < t {
-                if cells[k * t + l] {
-                    l += 1;
-                    continue;
-                }
-                let start = l;
-                while l < t && !cells[k * t + l] {
-                    l += 1;
-                }
-                let y1 = top - k as f64 * cell;
-                dark.push(rect(left + start as f64 * cell, y1 - cell, left + l as f64 * cell, y1));
-            }
-        }
+        dark_cells(&mut dark, &cells, t, (left, top), cell);
         let h = 0.5 * tag_size;
         for (index, (x, y)) in
             [(xc - h, yc - h), (xc + h, yc - h), (xc + h, yc + h), (xc - h, yc + h)].into_iter().enumerate()

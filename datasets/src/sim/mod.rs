@@ -25,7 +25,7 @@ use ferrocal_calib::{MeasurementSet, PoseMeasurement};
 use ferrocal_robot::safety::SafetyConfig;
 use ferrocal_robot::{Kinematics, Parameterized, RobotModel};
 use ferrocal_vision::camera::CameraModel;
-use nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -679,14 +679,4 @@ fn board_pose(board: &BoardSection, look_from: &Vector3<f64>, rng: &mut impl ran
     let r =
         facing * UnitQuaternion::from_scaled_axis(axis * tilt) * UnitQuaternion::from_scaled_axis(Vector3::z() * spin);
     Isometry3::from_parts(Translation3::from(c), r)
-}
-
-/// Projects a world point into a camera (for checks and plots).
-pub fn project_world(
-    camera: &CameraModel,
-    t_world_cam: &Isometry3<f64>,
-    p_world: &Point3<f64>,
-) -> Option<nalgebra::Point2<f64>> {
-    let p_cam = t_world_cam.inverse() * p_world;
-    camera.project(&p_cam).ok()
 }

@@ -43,7 +43,7 @@ impl Tf {
 
 /// Rotation by `angle_rad` about unit `axis` (Rodrigues).
 pub fn rot(axis: &Vector3<f64>, angle_rad: f64) -> Matrix3<f64> {
-    let k = Matrix3::new(0.0, -axis.z, axis.y, axis.z, 0.0, -axis.x, -axis.y, axis.x, 0.0);
+    let k = axis.cross_matrix();
     Matrix3::identity() + k * angle_rad.sin() + k * k * (1.0 - angle_rad.cos())
 }
 

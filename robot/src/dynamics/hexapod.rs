@@ -157,14 +157,7 @@ impl HexapodDynamics {
             let m = rot * Vector3::new(yb[(3, c)], yb[(4, c)], yb[(5, c)]);
             wrench.set_column(c, &Vector6::new(f.x, f.y, f.z, m.x, m.y, m.z));
         }
-        let twist = Vector6::new(
-            s.velocity_m_s.x,
-            s.velocity_m_s.y,
-            s.velocity_m_s.z,
-            s.omega_rad_s.x,
-            s.omega_rad_s.y,
-            s.omega_rad_s.z,
-        );
+        let twist = s.twist();
         let mut gb = Vector6::zeros();
         let mut gp = Vector6::zeros();
         for i in 0..6 {

@@ -8,7 +8,7 @@
 //! `pitch' (yaw' z) x e_2 + roll' (yaw' z + pitch' e_2) x e_3` to the same sum over the second
 //! derivatives.
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3, Vector6};
 
 use crate::error::{Result, RobotError};
 use crate::geometry::Pose;
@@ -65,6 +65,12 @@ pub fn gibbs_vector(rotation: &UnitQuaternion<f64>) -> Option<Vector3<f64>> {
 }
 
 impl MotionState {
+    /// The twist `[v, w]`: the flange origin's velocity, then the angular velocity (base frame).
+    pub fn twist(&self) -> Vector6<f64> {
+        let (v, w) = (self.velocity_m_s, self.omega_rad_s);
+        Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
+    }
+
     /// A platform at rest.
     pub fn at_rest(pose: Pose) -> Self {
         Self {

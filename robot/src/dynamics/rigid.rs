@@ -85,25 +85,6 @@ impl RigidBody {
         [self.mass_kg, mc.x, mc.y, mc.z, i[(0, 0)], i[(0, 1)], i[(0, 2)], i[(1, 1)], i[(1, 2)], i[(2, 2)]]
     }
 
-    /// The body of a parameter vector (inverse of [`RigidBody::parameters`]); fails for a
-    /// non-positive mass or a wrong length.
-    pub fn from_parameters(u: &[f64]) -> Result<Self> {
-        if u.len() != 10 {
-            return Err(RobotError::ParameterCount { expected: 10, got: u.len() });
-        }
-        if !(u[0].is_finite() && u[0] > 0.0) {
-            return Err(RobotError::BadParameter {
-                name: "m_kg".into(),
-                value: u[0],
-                reason: "the mass must be positive".into(),
-            });
-        }
-        let c = Vector3::new(u[1], u[2], u[3]) / u[0];
-        let io = Matrix3::new(u[4], u[5], u[6], u[5], u[7], u[8], u[6], u[8], u[9]);
-        let s = skew(&c);
-        Ok(Self { mass_kg: u[0], com_m: c, inertia_com_kgm2: io - s.transpose() * s * u[0] })
-    }
-
     /// This body expressed in another frame: `t_new_old` maps this body's frame into the new one.
     pub fn transformed(&self, t_new_old: &nalgebra::Isometry3<f64>) -> Self {
         let r = t_new_old.rotation.to_rotation_matrix().into_inner();

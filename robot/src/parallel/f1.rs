@@ -273,22 +273,14 @@ impl Kinematics for GantryTauF1 {
     }
 
     fn jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
-        let pose = self.forward(q)?;
-        self.mechanism()?.velocity_jacobian(q, &pose, false)
+        self.mechanism_jacobian(q, false)
     }
 }
 
 impl ParallelRobot for GantryTauF1 {
     fn mechanism(&self) -> Result<Mechanism> {
         self.validate()?;
-        let cart = |i: usize| Stage {
-            joint: i,
-            kind: JointKind::Prismatic,
-            offset_m: Vector3::zeros(),
-            axis: self.guideways[i].v,
-            offset_param: None,
-            axis_param: Some(3 * i),
-        };
+        let cart = |i: usize| Stage::cart(i, self.guideways[i].v, 3 * i);
         let rot = |k: usize, joint: usize| {
             let st = self.stages()[k];
             Stage {

@@ -3,8 +3,8 @@
 use nalgebra::{DMatrix, Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::legs::{cart_root, trilaterate, Carriage, Leg, LegSide, Mechanism, Stage};
-use super::{check_direction, check_positive, check_vector, vec_names, Branch, ParallelRobot};
+use super::legs::{cart_carriages, cart_root, trilaterate, Leg, LegSide, Mechanism};
+use super::{check_direction, check_positive, check_vector, three_cart_joints, vec_names, Branch, ParallelRobot};
 use crate::error::{Result, RobotError};
 use crate::geometry::Pose;
 use crate::kinematics::{check_len, JointKind, JointLimits, Kinematics, Mobility};
@@ -144,21 +144,7 @@ impl Parameterized for GantryTau3 {
 }
 
 impl Kinematics for GantryTau3 {
-    fn dof(&self) -> usize {
-        3
-    }
-
-    fn joint_names(&self) -> Vec<String> {
-        (1..=3).map(|i| format!("cart{i}")).collect()
-    }
-
-    fn joint_kinds(&self) -> Vec<JointKind> {
-        vec![JointKind::Prismatic; 3]
-    }
-
-    fn joint_limits(&self) -> Vec<JointLimits> {
-        self.arms.iter().map(|a| a.limits).collect()
-    }
+    three_cart_joints!(arms);
 
     fn mobility(&self) -> Mobility {
         Mobility::Translation3
@@ -198,27 +184,14 @@ impl Kinematics for GantryTau3 {
     }
 
     fn jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
-        let pose = self.forward(q)?;
-        self.mechanism()?.velocity_jacobian(q, &pose, true)
+        self.mechanism_jacobian(q, true)
     }
 }
 
 impl ParallelRobot for GantryTau3 {
     fn mechanism(&self) -> Result<Mechanism> {
         self.validate()?;
-        let carriages = (0..3)
-            .map(|i| Carriage {
-                name: format!("arm{}", i + 1),
-                stages: vec![Stage {
-                    joint: i,
-                    kind: JointKind::Prismatic,
-                    offset_m: Vector3::zeros(),
-                    axis: self.arms[i].v,
-                    offset_param: None,
-                    axis_param: Some(7 * i + 4),
-                }],
-            })
-            .collect();
+        let carriages = cart_carriages([0, 1, 2].map(|i| self.arms[i].v), |i| 7 * i + 4);
         let legs = self
             .arms
             .iter()

@@ -4,9 +4,10 @@
 use nalgebra::{DMatrix, DVector, Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::legs::{apply_twist, cart_root, solve_square, Carriage, Leg, LegSide, Mechanism, Stage};
+use super::legs::{apply_twist, cart_carriages, cart_root, solve_square, Leg, LegSide, Mechanism};
 use super::{
-    check_direction, check_positive, check_vector, vec_names, Branch, Guideway, Link, ParallelRobot, SolverOptions,
+    check_direction, check_positive, check_vector, three_cart_joints, vec_names, Branch, Guideway, Link, ParallelRobot,
+    SolverOptions,
 };
 use crate::error::{Result, RobotError};
 use crate::geometry::Pose;
@@ -285,21 +286,7 @@ impl Parameterized for GantryTau6 {
 }
 
 impl Kinematics for GantryTau6 {
-    fn dof(&self) -> usize {
-        3
-    }
-
-    fn joint_names(&self) -> Vec<String> {
-        (1..=3).map(|i| format!("cart{i}")).collect()
-    }
-
-    fn joint_kinds(&self) -> Vec<JointKind> {
-        vec![JointKind::Prismatic; 3]
-    }
-
-    fn joint_limits(&self) -> Vec<JointLimits> {
-        self.guideways.iter().map(|g| g.limits).collect()
-    }
+    three_cart_joints!(guideways);
 
     fn mobility(&self) -> Mobility {
         Mobility::Translation3Coupled
@@ -321,27 +308,14 @@ impl Kinematics for GantryTau6 {
     }
 
     fn jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
-        let pose = self.forward(q)?;
-        self.mechanism()?.velocity_jacobian(q, &pose, false)
+        self.mechanism_jacobian(q, false)
     }
 }
 
 impl ParallelRobot for GantryTau6 {
     fn mechanism(&self) -> Result<Mechanism> {
         self.validate()?;
-        let carriages = (0..3)
-            .map(|i| Carriage {
-                name: format!("arm{}", i + 1),
-                stages: vec![Stage {
-                    joint: i,
-                    kind: JointKind::Prismatic,
-                    offset_m: Vector3::zeros(),
-                    axis: self.guideways[i].v,
-                    offset_param: None,
-                    axis_param: Some(3 * i),
-                }],
-            })
-            .collect();
+        let carriages = cart_carriages([0, 1, 2].map(|i| self.guideways[i].v), |i| 3 * i);
         Ok(Mechanism {
             joint_names: self.joint_names(),
             n_params: 51,

@@ -186,8 +186,7 @@ impl Kinematics for Hexapod {
     }
 
     fn jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
-        let pose = self.forward(q)?;
-        self.mechanism()?.velocity_jacobian(q, &pose, false)
+        self.mechanism_jacobian(q, false)
     }
 }
 

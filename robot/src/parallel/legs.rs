@@ -49,6 +49,29 @@ pub struct Stage {
     pub axis_param: Option<usize>,
 }
 
+impl Stage {
+    /// A guideway cart: actuator `joint` moves it by `q axis` from the previous frame's origin;
+    /// `axis.x` is parameter `axis_param` (then `y`, `z`).
+    pub fn cart(joint: usize, axis: Vector3<f64>, axis_param: usize) -> Self {
+        Stage {
+            joint,
+            kind: JointKind::Prismatic,
+            offset_m: Vector3::zeros(),
+            axis,
+            offset_param: None,
+            axis_param: Some(axis_param),
+        }
+    }
+}
+
+/// The carriages `arm1`, `arm2`, `arm3` of a Gantry-Tau with one cart each: cart `i` moves along
+/// `axes[i]`, whose parameters start at `axis_param(i)`.
+pub(crate) fn cart_carriages(axes: [Vector3<f64>; 3], axis_param: impl Fn(usize) -> usize) -> Vec<Carriage> {
+    (0..3)
+        .map(|i| Carriage { name: format!("arm{}", i + 1), stages: vec![Stage::cart(i, axes[i], axis_param(i))] })
+        .collect()
+}
+
 /// A serial carriage carrying the base-side joints of one or more legs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Carriage {

@@ -46,6 +46,30 @@ use crate::error::{Result, RobotError};
 use crate::geometry::Pose;
 use crate::kinematics::{JointLimits, Kinematics};
 
+/// The joints of a Gantry-Tau with three carts, inside an `impl Kinematics`: `dof` 3,
+/// `joint_names` `cart1..cart3`, `joint_kinds` prismatic, and `joint_limits` the `limits` of the
+/// entries of the field `$carts` (one per cart).
+macro_rules! three_cart_joints {
+    ($carts:ident) => {
+        fn dof(&self) -> usize {
+            3
+        }
+
+        fn joint_names(&self) -> Vec<String> {
+            (1..=3).map(|i| format!("cart{i}")).collect()
+        }
+
+        fn joint_kinds(&self) -> Vec<JointKind> {
+            vec![JointKind::Prismatic; 3]
+        }
+
+        fn joint_limits(&self) -> Vec<JointLimits> {
+            self.$carts.iter().map(|c| c.limits).collect()
+        }
+    };
+}
+pub(crate) use three_cart_joints;
+
 /// One of two solutions of a quadratic constraint: the sign in front of its square root.
 ///
 /// For a guideway arm the branch is the sign of `v . (A - B)`: `Minus` means the cart's joint
@@ -186,6 +210,14 @@ pub struct SphericalJointAngles {
 pub trait ParallelRobot: Kinematics {
     /// The model lowered to the common leg description (rebuilt from the model's fields).
     fn mechanism(&self) -> Result<Mechanism>;
+
+    /// The tool's velocity Jacobian at `q` through the mechanism at the forward kinematics' pose
+    /// ([`Mechanism::velocity_jacobian`], `translation_only` as there): every model's
+    /// [`Kinematics::jacobian`].
+    fn mechanism_jacobian(&self, q: &[f64], translation_only: bool) -> Result<DMatrix<f64>> {
+        let pose = self.forward(q)?;
+        self.mechanism()?.velocity_jacobian(q, &pose, translation_only)
+    }
 
     /// Closure residuals `f_k = ||A_k - B_k||^2 - L_k^2` (m^2), one per leg, at joint values `q`
     /// and tool pose `t_base_tool` (for [`Mobility::Translation3`](crate::Mobility) models the

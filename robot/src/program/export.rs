@@ -45,7 +45,7 @@ pub struct ProgramSettings {
     #[serde(default)]
     pub gcode_trigger: Option<String>,
     /// URScript program (function) name.
-    #[serde(default = "default_urscript_name")]
+    #[serde(default = "default_program_name")]
     pub urscript_name: String,
     /// URScript `movej` joint speed, rad/s.
     #[serde(default = "default_urscript_speed")]
@@ -63,7 +63,7 @@ pub struct ProgramSettings {
     #[serde(default)]
     pub urscript_trigger: Option<String>,
     /// KUKA KRL program name (the `DEF` name; the file should carry the same name).
-    #[serde(default = "default_krl_name")]
+    #[serde(default = "default_program_name")]
     pub krl_name: String,
     /// KUKA KRL axis velocity, percent of the maximum (`$VEL_AXIS`), 1-100.
     #[serde(default = "default_krl_velocity")]
@@ -91,7 +91,8 @@ fn default_feed() -> f64 {
 fn default_step() -> f64 {
     5.0
 }
-fn default_urscript_name() -> String {
+/// The URScript and KRL programs' default name.
+fn default_program_name() -> String {
     "ferrocal_plan".into()
 }
 fn default_urscript_speed() -> f64 {
@@ -105,9 +106,6 @@ fn default_urscript_linear_speed() -> f64 {
 }
 fn default_urscript_linear_accel() -> f64 {
     1.2
-}
-fn default_krl_name() -> String {
-    "ferrocal_plan".into()
 }
 fn default_krl_velocity() -> f64 {
     20.0
@@ -126,13 +124,13 @@ impl Default for ProgramSettings {
             gcode_feed_mm_min: default_feed(),
             gcode_max_step_mm: default_step(),
             gcode_trigger: None,
-            urscript_name: default_urscript_name(),
+            urscript_name: default_program_name(),
             urscript_speed_rad_s: default_urscript_speed(),
             urscript_accel_rad_s2: default_urscript_accel(),
             urscript_linear_speed_m_s: default_urscript_linear_speed(),
             urscript_linear_accel_m_s2: default_urscript_linear_accel(),
             urscript_trigger: None,
-            krl_name: default_krl_name(),
+            krl_name: default_program_name(),
             krl_velocity_percent: default_krl_velocity(),
             krl_trigger: None,
         }
@@ -239,19 +237,9 @@ pub fn rapid_module<R: SafetyBody + ?Sized>(
             settings.rapid_zone,
             settings.rapid_tool
         );
-        match after_move(st, dwell_s) {
-            AfterMove::Measure => {
-                n_meas += 1;
-                let _ = writeln!(s, "    WaitTime \\InPos, {dwell_s:.2}; ! measurement {n_meas}");
-                if let Some(t) = &settings.rapid_trigger {
-                    let _ = writeln!(s, "    {t}");
-                }
-            }
-            AfterMove::Dwell => {
-                let _ = writeln!(s, "    WaitTime \\InPos, {dwell_s:.2}; ! dwell");
-            }
-            AfterMove::Nothing => {}
-        }
+        write_after_move(&mut s, st, dwell_s, &mut n_meas, &settings.rapid_trigger, "    ", |w| {
+            format!("    WaitTime \\InPos, {dwell_s:.2}; ! {w}")
+        });
     }
     let _ = writeln!(s, "  ENDPROC");
     let _ = writeln!(s, "ENDMODULE");
@@ -419,19 +407,10 @@ pub fn gcode<R: SafetyBody + ?Sized>(
         if matches!(st.kind, StepKind::Move | StepKind::MoveLinear) {
             let _ = writeln!(s, "(step {}: {})", k + 1, step_label(st).replace(['(', ')'], ""));
         }
-        match after_move(st, dwell_s) {
-            AfterMove::Measure => {
-                n_meas += 1;
-                let _ = writeln!(s, "G4 P{dwell_s:.2} (measurement {n_meas}, pose {})", st.pose.map_or(0, |p| p + 1));
-                if let Some(t) = &settings.gcode_trigger {
-                    let _ = writeln!(s, "{t}");
-                }
-            }
-            AfterMove::Dwell => {
-                let _ = writeln!(s, "G4 P{dwell_s:.2} (dwell)");
-            }
-            AfterMove::Nothing => {}
-        }
+        write_after_move(&mut s, st, dwell_s, &mut n_meas, &settings.gcode_trigger, "", |w| match st.kind {
+            StepKind::Measure => format!("G4 P{dwell_s:.2} ({w}, pose {})", st.pose.map_or(0, |p| p + 1)),
+            _ => format!("G4 P{dwell_s:.2} ({w})"),
+        });
     }
     let _ = writeln!(s, "M2");
     Ok(GcodeProgram { text: s, moves, max_chord_deviation_mm: worst_dev })
@@ -478,6 +457,33 @@ fn after_move(st: &super::PathStep, dwell_s: f64) -> AfterMove {
         StepKind::Measure => AfterMove::Measure,
         StepKind::Move | StepKind::MoveLinear if dwell_s > 0.0 => AfterMove::Dwell,
         _ => AfterMove::Nothing,
+    }
+}
+
+/// Writes what follows the move to `st` (see [`AfterMove`]): the line `wait(what)`, the
+/// language's wait of the dwell time commented `what` (`measurement N`, counted in `n_meas`, or
+/// `dwell`), and after a measurement's wait the trigger statement, if any, indented by `indent`.
+fn write_after_move(
+    s: &mut String,
+    st: &super::PathStep,
+    dwell_s: f64,
+    n_meas: &mut usize,
+    trigger: &Option<String>,
+    indent: &str,
+    wait: impl Fn(&str) -> String,
+) {
+    match after_move(st, dwell_s) {
+        AfterMove::Measure => {
+            *n_meas += 1;
+            let _ = writeln!(s, "{}", wait(&format!("measurement {n_meas}")));
+            if let Some(t) = trigger {
+                let _ = writeln!(s, "{indent}{t}");
+            }
+        }
+        AfterMove::Dwell => {
+            let _ = writeln!(s, "{}", wait("dwell"));
+        }
+        AfterMove::Nothing => {}
     }
 }
 
@@ -549,19 +555,9 @@ pub fn urscript<R: SafetyBody + ?Sized>(
             let _ =
                 writeln!(s, "  movej([{}], a={a:.3}, v={v:.3})  # step {}: {}", q.join(", "), k + 1, step_label(st));
         }
-        match after_move(st, dwell_s) {
-            AfterMove::Measure => {
-                n_meas += 1;
-                let _ = writeln!(s, "  sleep({dwell_s:.2})  # measurement {n_meas}");
-                if let Some(t) = &settings.urscript_trigger {
-                    let _ = writeln!(s, "  {t}");
-                }
-            }
-            AfterMove::Dwell => {
-                let _ = writeln!(s, "  sleep({dwell_s:.2})  # dwell");
-            }
-            AfterMove::Nothing => {}
-        }
+        write_after_move(&mut s, st, dwell_s, &mut n_meas, &settings.urscript_trigger, "  ", |w| {
+            format!("  sleep({dwell_s:.2})  # {w}")
+        });
     }
     let _ = writeln!(s, "end");
     let _ = writeln!(s, "{}()", settings.urscript_name);
@@ -614,19 +610,9 @@ pub fn krl<R: SafetyBody + ?Sized>(
             what.push_str(LINEAR_AS_JOINT);
         }
         let _ = writeln!(s, "PTP {{AXIS: {}}} ; step {}: {what}", words.join(", "), k + 1);
-        match after_move(st, dwell_s) {
-            AfterMove::Measure => {
-                n_meas += 1;
-                let _ = writeln!(s, "WAIT SEC {dwell_s:.2} ; measurement {n_meas}");
-                if let Some(t) = &settings.krl_trigger {
-                    let _ = writeln!(s, "{t}");
-                }
-            }
-            AfterMove::Dwell => {
-                let _ = writeln!(s, "WAIT SEC {dwell_s:.2} ; dwell");
-            }
-            AfterMove::Nothing => {}
-        }
+        write_after_move(&mut s, st, dwell_s, &mut n_meas, &settings.krl_trigger, "", |w| {
+            format!("WAIT SEC {dwell_s:.2} ; {w}")
+        });
     }
     let _ = writeln!(s, "END");
     Ok(s)

@@ -179,8 +179,8 @@ pub struct PathStep {
     pub label: Option<String>,
 }
 
-/// A checked path.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// A checked path (the default: no steps, nothing timed or checked).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PlannedPath {
     /// The steps from home, in order.
     pub steps: Vec<PathStep>,
@@ -651,16 +651,7 @@ mod tests {
     fn program_writers_refuse_bad_settings_by_name() {
         let model = crate::RobotModel::Serial(crate::presets::ur5());
         let step = PathStep { q: vec![0.1; 6], kind: StepKind::Measure, pose: Some(0), dir: vec![0; 6], label: None };
-        let path = PlannedPath {
-            steps: vec![step],
-            order: vec![0],
-            travel_s: 0.0,
-            dwell_s: 0.0,
-            nearest_neighbour_s: 0.0,
-            ordered_s: 0.0,
-            detours: 0,
-            checked_segments: 0,
-        };
+        let path = PlannedPath { steps: vec![step], order: vec![0], ..Default::default() };
         let ok = ProgramSettings::default();
         assert!(urscript(&model, &path, 0.5, &ok, &[]).unwrap().contains("movej([0.1000000"));
         assert!(krl(&model, &path, 0.5, &ok, &[]).unwrap().contains("PTP {AXIS: A1 5.7296"));

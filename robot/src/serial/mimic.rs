@@ -103,11 +103,6 @@ impl SerialChain {
         Ok(self.joints[..pos].iter().filter(|j| j.mimic.is_none()).count())
     }
 
-    /// Checks every mimic joint's coupling (the leader exists, is actuated); names the joint.
-    pub fn check_coupling(&self) -> Result<()> {
-        self.sources().map(|_| ())
-    }
-
     /// The value of every joint of the chain (mimic joints included) for actuated values `q`.
     pub fn all_joint_values(&self, q: &[f64]) -> Result<Vec<f64>> {
         check_len(q, self.dof_actuated())?;

@@ -17,7 +17,7 @@ pub use mimic::Mimic;
 pub use urdf::{parse_urdf, parse_urdf_str, UrdfOptions};
 pub use urdf_write::{to_urdf, UrdfFrames};
 
-use nalgebra::{DMatrix, Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, RobotError};
@@ -286,38 +286,33 @@ impl Default for IkOptions {
 impl SerialChain {
     /// A chain from a standard DH table (`a`, `alpha`, `d`, `theta offset` per joint), all revolute.
     pub fn from_dh(name: &str, a_m: &[f64], alpha_rad: &[f64], d_m: &[f64], theta_offset_rad: &[f64]) -> Self {
-        let joints = (0..a_m.len())
-            .map(|i| Joint {
-                name: format!("joint{}", i + 1),
-                kind: JointKind::Revolute,
-                geometry: JointGeometry::Dh {
-                    a_m: a_m[i],
-                    alpha_rad: alpha_rad[i],
-                    d_m: d_m[i],
-                    theta_offset_rad: theta_offset_rad[i],
-                },
-                limits: JointLimits::UNBOUNDED,
-                inertial: None,
-                correction: [0.0; 6],
-                mimic: None,
-            })
-            .collect();
-        Self::new(name, joints)
+        Self::revolute(name, a_m.len(), |i| JointGeometry::Dh {
+            a_m: a_m[i],
+            alpha_rad: alpha_rad[i],
+            d_m: d_m[i],
+            theta_offset_rad: theta_offset_rad[i],
+        })
     }
 
     /// A chain from a modified DH table, all revolute, beta = 0.
     pub fn from_mdh(name: &str, a_m: &[f64], alpha_rad: &[f64], d_m: &[f64], theta_offset_rad: &[f64]) -> Self {
-        let joints = (0..a_m.len())
+        Self::revolute(name, a_m.len(), |i| JointGeometry::Mdh {
+            a_m: a_m[i],
+            alpha_rad: alpha_rad[i],
+            beta_rad: 0.0,
+            d_m: d_m[i],
+            theta_offset_rad: theta_offset_rad[i],
+        })
+    }
+
+    /// `n` revolute joints `joint1..` with the geometry `geometry(i)` of joint `i`, unbounded,
+    /// without inertia, corrections or coupling.
+    fn revolute(name: &str, n: usize, geometry: impl Fn(usize) -> JointGeometry) -> Self {
+        let joints = (0..n)
             .map(|i| Joint {
                 name: format!("joint{}", i + 1),
                 kind: JointKind::Revolute,
-                geometry: JointGeometry::Mdh {
-                    a_m: a_m[i],
-                    alpha_rad: alpha_rad[i],
-                    beta_rad: 0.0,
-                    d_m: d_m[i],
-                    theta_offset_rad: theta_offset_rad[i],
-                },
+                geometry: geometry(i),
                 limits: JointLimits::UNBOUNDED,
                 inertial: None,
                 correction: [0.0; 6],
@@ -535,11 +530,6 @@ impl SerialChain {
     /// Total mass of the links with inertials.
     pub fn total_mass_kg(&self) -> f64 {
         self.joints.iter().filter_map(|j| j.inertial.as_ref()).map(|i| i.mass_kg).sum()
-    }
-
-    /// Inertia of a link about its centre of mass, as a matrix.
-    pub fn inertia_matrix(inr: &Inertial) -> Matrix3<f64> {
-        Matrix3::from_row_slice(&inr.inertia_kgm2)
     }
 
     /// A reach bound: the largest distance from any joint axis point to the tool over the chain's

@@ -103,15 +103,6 @@ pub fn beam_template(axis: Option<usize>) -> [[bool; 6]; 6] {
     t
 }
 
-/// The compliance `k` expressed in a frame rotated by `r` (the new frame's axes, as columns, in
-/// the old frame): `k' = Ad^T k Ad` with `Ad = diag(r, r)` for frames sharing their origin.
-pub fn rotate_compliance(k: &Matrix6<f64>, r: &nalgebra::Rotation3<f64>) -> Matrix6<f64> {
-    let mut ad = Matrix6::zeros();
-    ad.fixed_view_mut::<3, 3>(0, 0).copy_from(r.matrix());
-    ad.fixed_view_mut::<3, 3>(3, 3).copy_from(r.matrix());
-    ad.transpose() * k * ad
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

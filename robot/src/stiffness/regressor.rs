@@ -17,7 +17,7 @@
 //! rows each, `dp_k = dp - [r_k]x dphi`); rows are weighted by the inverse noise covariance
 //! ([`NoiseModel`]) so that millimetres and milliradians never mix unweighted.
 
-use nalgebra::{DMatrix, Point3, Vector3};
+use nalgebra::{DMatrix, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::skew;
@@ -288,12 +288,6 @@ impl VjmModel {
         let a = self.observation_matrix(q, loading)?;
         let tool = self.chain.frames(q)?.tool;
         Ok(marker_rows(&a, &tool.rotation, markers_in_tool_m))
-    }
-
-    /// The base-frame positions of markers fixed to the tool at `q` (rigid model).
-    pub fn marker_positions(&self, q: &[f64], markers_in_tool_m: &[Vector3<f64>]) -> Result<Vec<Point3<f64>>> {
-        let tool = self.chain.frames(q)?.tool;
-        Ok(markers_in_tool_m.iter().map(|m| tool * Point3::from(*m)).collect())
     }
 }
 

@@ -10,7 +10,7 @@ use ferrocal_vision::calib::corners::SkippedImage;
 use ferrocal_vision::calib::heldout::HeldOut;
 use ferrocal_vision::calib::{CameraCalibration, StereoCalibration};
 use ferrocal_vision::camera::io;
-use ferrocal_vision::camera::DistortionKind;
+use ferrocal_vision::camera::{CameraModel, DistortionKind};
 use ferrocal_vision::detect::Pattern;
 use serde_json::{json, Value};
 
@@ -36,7 +36,6 @@ pub fn model_name(kind: DistortionKind) -> &'static str {
 /// The camera part of the JSON report (`shared/spec/cli.md`) plus extras.
 pub fn camera_json(cal: &CameraCalibration) -> Value {
     let c = &cal.camera;
-    let k = c.intrinsics;
     let per_view: Vec<Value> = cal
         .views
         .iter()
@@ -52,11 +51,9 @@ pub fn camera_json(cal: &CameraCalibration) -> Value {
         .iter()
         .map(|o| json!({"image": o.view, "corner": o.point_id, "residual_px": o.residual_px, "removed": o.removed}))
         .collect();
-    json!({
-        "image_size": [c.image_size.width_px, c.image_size.height_px],
-        "model": model_name(c.distortion.kind()),
-        "fx": k.fx_px, "fy": k.fy_px, "cx": k.cx_px, "cy": k.cy_px,
-        "distortion": c.distortion.coefficients(),
+    with_camera_fields(
+        c,
+        json!({
         "rms_px": cal.rms_px,
         "per_view": per_view,
         "std": {
@@ -77,7 +74,24 @@ pub fn camera_json(cal: &CameraCalibration) -> Value {
             "warnings": cal.summary.warnings,
             "solver_report": cal.summary.solver_report,
         },
-    })
+        }),
+    )
+}
+
+/// A camera's own fields, the same in every camera JSON (image size, lens model, intrinsics,
+/// distortion coefficients), with the object `rest` (the calling command's fields) added.
+pub fn with_camera_fields(c: &CameraModel, rest: Value) -> Value {
+    let k = c.intrinsics;
+    let mut v = json!({
+        "image_size": [c.image_size.width_px, c.image_size.height_px],
+        "model": model_name(c.distortion.kind()),
+        "fx": k.fx_px, "fy": k.fy_px, "cx": k.cx_px, "cy": k.cy_px,
+        "distortion": c.distortion.coefficients(),
+    });
+    if let (Value::Object(m), Value::Object(r)) = (&mut v, rest) {
+        m.extend(r);
+    }
+    v
 }
 
 /// The stereo JSON of `ferrocal camera stereo --json`.

@@ -3,7 +3,7 @@
 //! and the force-sensor variants; their JSON with the verdict ([`diagnose_json`]), the robot
 //! variant's output files ([`robot_outputs`]) and their terminal summaries.
 
-use ferrocal_calib::diagnose::camera::CameraDiagnoseReport;
+use ferrocal_calib::diagnose::camera::{CameraCandidateScore, CameraDiagnoseReport, CameraUnexplained};
 use ferrocal_calib::diagnose::force::ForceDiagnoseReport;
 use std::path::Path;
 
@@ -242,27 +242,42 @@ pub fn camera_section(rep: &CameraDiagnoseReport, folds: usize, attribution: Opt
         "Default model: reprojection RMS {:.4} px on all views, {:.4} px on held-out views (each view held out once over {} folds; its pose alone refitted). Final: {:.4} px held out.",
         rep.nominal.train_rms_px, rep.nominal.heldout_rms_px, folds, rep.final_fit.heldout_rms_px
     ));
-    if let Some(d) = &rep.declined {
+    let findings: Vec<(&str, &str)> = rep.findings.iter().map(|f| (f.effect.as_str(), f.statement.as_str())).collect();
+    image_family_body(&mut s, &rep.declined, &findings, &rep.unexplained, &rep.candidates, "images");
+    s
+}
+
+/// What the camera and stereo sections say after their first line: why the analysis declined,
+/// the findings (effect and statement), that none passed (the default model describes these
+/// `units`), the structure left and every round's candidates.
+pub(crate) fn image_family_body(
+    s: &mut Section,
+    declined: &Option<String>,
+    findings: &[(&str, &str)],
+    unexplained: &CameraUnexplained,
+    candidates: &[Vec<CameraCandidateScore>],
+    units: &str,
+) {
+    if let Some(d) = declined {
         s.text(d.clone());
     }
-    for f in &rep.findings {
-        s.text(format!("{}: {}", f.effect, f.statement));
+    for (effect, statement) in findings {
+        s.text(format!("{effect}: {statement}"));
     }
-    if rep.findings.is_empty() && rep.declined.is_none() && !rep.unexplained.structure_found {
-        s.text("No candidate passes: the default model describes these images.");
+    if findings.is_empty() && declined.is_none() && !unexplained.structure_found {
+        s.text(format!("No candidate passes: the default model describes these {units}."));
     }
-    if rep.unexplained.structure_found {
+    if unexplained.structure_found {
         s.text(format!(
             "Structure no candidate explains remains, depending on {}:",
-            rep.unexplained.depends_on.join(" and ")
+            unexplained.depends_on.join(" and ")
         ));
-        s.pre(rep.unexplained.evidence.join("\n"));
+        s.pre(unexplained.evidence.join("\n"));
     }
-    for (k, round) in rep.candidates.iter().enumerate() {
+    for (k, round) in candidates.iter().enumerate() {
         let rows = round.iter().map(|c| (&c.candidate, c.heldout_rms_px, c.p_value, &c.verdict));
-        candidate_table(&mut s, k, "px", rows);
+        candidate_table(s, k, "px", rows);
     }
-    s
 }
 
 /// The force-sensor variant's section.

@@ -11,7 +11,7 @@ use ferrocal_calib::diagnose::stereo::{diagnose_stereo, StereoDiagnoseReport};
 use ferrocal_datasets::camera::stereo_diagnosis_views;
 use serde_json::json;
 
-use crate::diagnose::{candidate_table, variant_outputs, VariantFiles};
+use crate::diagnose::{image_family_body, variant_outputs, VariantFiles};
 use crate::error::{Context, Result};
 use crate::report::Section;
 use crate::say;
@@ -90,25 +90,7 @@ pub fn stereo_section(rep: &StereoDiagnoseReport, folds: usize, attribution: Opt
         "Default model: reprojection RMS {:.4} px on all views, {:.4} px on held-out pairs (each pair held out once over {} folds; its target pose alone refitted to both images). Final: {:.4} px held out. {}.",
         rep.nominal.train_rms_px, rep.nominal.heldout_rms_px, folds, rep.final_fit.heldout_rms_px, views_line(rep)
     ));
-    if let Some(d) = &rep.declined {
-        s.text(d.clone());
-    }
-    for f in &rep.findings {
-        s.text(format!("{}: {}", f.effect, f.statement));
-    }
-    if rep.findings.is_empty() && rep.declined.is_none() && !rep.unexplained.structure_found {
-        s.text("No candidate passes: the default model describes these image pairs.");
-    }
-    if rep.unexplained.structure_found {
-        s.text(format!(
-            "Structure no candidate explains remains, depending on {}:",
-            rep.unexplained.depends_on.join(" and ")
-        ));
-        s.pre(rep.unexplained.evidence.join("\n"));
-    }
-    for (k, round) in rep.candidates.iter().enumerate() {
-        let rows = round.iter().map(|c| (&c.candidate, c.heldout_rms_px, c.p_value, &c.verdict));
-        candidate_table(&mut s, k, "px", rows);
-    }
+    let findings: Vec<(&str, &str)> = rep.findings.iter().map(|f| (f.effect.as_str(), f.statement.as_str())).collect();
+    image_family_body(&mut s, &rep.declined, &findings, &rep.unexplained, &rep.candidates, "image pairs");
     s
 }

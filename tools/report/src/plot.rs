@@ -1,5 +1,6 @@
 //! SVG plots for the reports (plotters' SVG backend).
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 pub mod scene3d;
@@ -42,6 +43,16 @@ fn range_of(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
+/// The series' names, boxed in the upper right corner of a chart.
+fn draw_legend<'a>(chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<RangedCoordf64, RangedCoordf64>>) {
+    let _ = chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw();
+}
+
 /// A scatter or line plot of one or more series.
 pub fn xy_plot(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> String {
     let mut svg = String::new();
@@ -74,12 +85,7 @@ pub fn xy_plot(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> 
             }
         }
         if series.len() > 1 {
-            let _ = chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .position(SeriesLabelPosition::UpperRight)
-                .draw();
+            draw_legend(&mut chart);
         }
         let _ = root.present();
     }
@@ -129,12 +135,7 @@ pub fn bar_chart(title: &str, y_label: &str, bars: &[(String, String, f64)]) -> 
                 a.label(*name).legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 12, y + 4)], c.filled()));
             }
         }
-        let _ = chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::UpperRight)
-            .draw();
+        draw_legend(&mut chart);
         let _ = root.present();
     }
     svg

@@ -211,18 +211,16 @@ pub fn tracker_line(c: &TrackerComparison) -> String {
 /// data (Apache-2.0) measured image by image as `ferrocal measure --images ... --poses ...` does,
 /// the camera calibrated from the recording's own images and set beside the source's.
 pub fn demo_section(data: &std::path::Path, work: &std::path::Path) -> Result<crate::report::Section> {
-    use crate::handeye::demo::IC_ATTRIBUTION;
-    use crate::report::Section;
+    use crate::handeye::demo::ic_section;
     use ferrocal_calib::check::Check;
     use ferrocal_datasets::handeye::import_ic_handeye;
-    let mut s = Section::new("measure-real", "Real recordings measured image by image (`ferrocal measure --images`)");
-    s.attribution(IC_ATTRIBUTION);
-    let root = data.join("industrial_calibration");
-    if !root.exists() {
-        s.skipped(format!("{} is not present", root.display()));
-        return Ok(s);
-    }
-    std::fs::create_dir_all(work).with_context(|| format!("creating {}", work.display()))?;
+    let (mut s, root) = ic_section(
+        "measure-real",
+        "Real recordings measured image by image (`ferrocal measure --images`)",
+        data,
+        work,
+    )?;
+    let Some(root) = root else { return Ok(s) };
     let mut rows = Vec::new();
     let mut bars = Vec::new();
     let mut verdicts = Vec::new();

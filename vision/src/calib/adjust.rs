@@ -55,6 +55,28 @@ pub struct TargetShape {
     pub twist_m: f64,
 }
 
+/// The target blocks of a bundle that starts from `model`'s shape and print scale: none when
+/// the fit neither estimates (`estimate`: shape, print scale) nor holds a departure from the
+/// nominal target; each block free only in a full fit that estimates it.
+fn target_deformation(
+    target: &PlanarTarget,
+    model: (TargetShape, PrintScale),
+    estimate: (bool, bool),
+    full: bool,
+) -> Result<Option<TargetDeformation>> {
+    let shape = model.0.to_array();
+    let scale = [model.1.x, model.1.y];
+    if !(estimate.0 || estimate.1 || shape != [0.0; 3] || scale != [0.0; 2]) {
+        return Ok(None);
+    }
+    let mut d = TargetDeformation::of_points(&target.points_m)?;
+    d.shape_m = shape;
+    d.scale = scale;
+    d.shape_free = full && estimate.0;
+    d.scale_free = full && estimate.1;
+    Ok(Some(d))
+}
+
 impl TargetShape {
     fn to_array(self) -> [f64; 3] {
         [self.bowl_m, self.saddle_m, self.twist_m]
@@ -230,19 +252,8 @@ pub fn adjust_bundle(
         camera.distortion = camera.distortion.converted(kind);
     }
     let full = spec.mode == BundleMode::Full;
-    let shape = model.shape.to_array();
-    let scale = [model.print_scale.x, model.print_scale.y];
-    let deformed = spec.estimate_shape || spec.estimate_print_scale || shape != [0.0; 3] || scale != [0.0; 2];
-    let deform = if deformed {
-        let mut d = TargetDeformation::of_points(&target.points_m)?;
-        d.shape_m = shape;
-        d.scale = scale;
-        d.shape_free = full && spec.estimate_shape;
-        d.scale_free = full && spec.estimate_print_scale;
-        Some(d)
-    } else {
-        None
-    };
+    let estimate = (spec.estimate_shape, spec.estimate_print_scale);
+    let deform = target_deformation(target, (model.shape, model.print_scale), estimate, full)?;
     let aspect = if spec.fix_aspect { camera.intrinsics.fy_px / camera.intrinsics.fx_px } else { 1.0 };
     let layout = CameraLayout { kind: camera.distortion.kind(), fix_aspect: spec.fix_aspect, aspect, image_size: size };
     let starts: Vec<Isometry3<f64>> = match poses {
@@ -311,8 +322,8 @@ pub fn adjust_bundle(
     let d_out = bundle.deform.unwrap_or(TargetDeformation {
         centre_m: [0.0; 2],
         half_m: 1.0,
-        shape_m: shape,
-        scale,
+        shape_m: model.shape.to_array(),
+        scale: [model.print_scale.x, model.print_scale.y],
         shape_free: false,
         scale_free: false,
     });

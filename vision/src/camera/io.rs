@@ -211,6 +211,22 @@ impl<'a> Doc<'a> {
         Ok((rows, cols, data, e.line))
     }
 
+    /// What the OpenCV and ROS files of one camera share: the intrinsics, the image size and
+    /// the distortion coefficients (a vector) with the line they stand on.
+    fn camera_entries(&self) -> Result<(Intrinsics, ImageSize, Vec<f64>, usize)> {
+        let intrinsics = self.intrinsics()?;
+        let image_size = self.image_size()?;
+        let (rows, cols, coeffs, line) = self.matrix("distortion_coefficients")?;
+        if rows != 1 && cols != 1 && rows * cols != 0 {
+            return Err(perr(
+                self.source_name,
+                line,
+                format!("distortion_coefficients must be a vector, found {rows}x{cols}"),
+            ));
+        }
+        Ok((intrinsics, image_size, coeffs, line))
+    }
+
     fn intrinsics(&self) -> Result<Intrinsics> {
         let (rows, cols, k, line) = self.matrix("camera_matrix")?;
         if rows != 3 || cols != 3 {
@@ -297,16 +313,7 @@ fn distortion_from(
 }
 
 fn opencv_from_doc(doc: &Doc<'_>) -> Result<CameraModel> {
-    let intrinsics = doc.intrinsics()?;
-    let image_size = doc.image_size()?;
-    let (rows, cols, coeffs, line) = doc.matrix("distortion_coefficients")?;
-    if rows != 1 && cols != 1 && rows * cols != 0 {
-        return Err(perr(
-            doc.source_name,
-            line,
-            format!("distortion_coefficients must be a vector, found {rows}x{cols}"),
-        ));
-    }
+    let (intrinsics, image_size, coeffs, line) = doc.camera_entries()?;
     let fisheye = match doc.get("fisheye_model") {
         Some(e) => {
             let s = doc.scalar(e)?;
@@ -331,16 +338,7 @@ pub fn from_ros_yaml(text: &str) -> Result<(CameraModel, String)> {
 }
 
 fn ros_from_doc(doc: &Doc<'_>) -> Result<(CameraModel, String)> {
-    let intrinsics = doc.intrinsics()?;
-    let image_size = doc.image_size()?;
-    let (rows, cols, coeffs, line) = doc.matrix("distortion_coefficients")?;
-    if rows != 1 && cols != 1 && rows * cols != 0 {
-        return Err(perr(
-            doc.source_name,
-            line,
-            format!("distortion_coefficients must be a vector, found {rows}x{cols}"),
-        ));
-    }
+    let (intrinsics, image_size, coeffs, line) = doc.camera_entries()?;
     let model = doc.model_name()?;
     let distortion =
         distortion_from(Some(model.as_deref().unwrap_or("plumb_bob")), false, &coeffs, doc.source_name, line)?;
@@ -351,8 +349,11 @@ fn ros_from_doc(doc: &Doc<'_>) -> Result<(CameraModel, String)> {
     Ok((CameraModel::new(intrinsics, distortion, image_size)?, name))
 }
 
-fn read_text(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).map_err(|source| VisionError::Io { path: path.to_path_buf(), source })
+/// Reads the YAML file `path` and hands its entries (named by the path in errors) to `from_doc`.
+fn read_doc<T>(path: &Path, from_doc: impl Fn(&Doc) -> Result<T>) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|source| VisionError::Io { path: path.to_path_buf(), source })?;
+    let name = path.display().to_string();
+    from_doc(&Doc::parse(&text, &name)?)
 }
 
 fn write_text(path: &Path, text: &str) -> Result<()> {
@@ -366,9 +367,7 @@ pub fn write_opencv_yaml(camera: &CameraModel, path: &Path) -> Result<()> {
 
 /// Reads a camera from an OpenCV FileStorage YAML file.
 pub fn read_opencv_yaml(path: &Path) -> Result<CameraModel> {
-    let text = read_text(path)?;
-    let name = path.display().to_string();
-    opencv_from_doc(&Doc::parse(&text, &name)?)
+    read_doc(path, opencv_from_doc)
 }
 
 /// Writes a camera as ROS `camera_info` YAML.
@@ -378,9 +377,7 @@ pub fn write_ros_yaml(camera: &CameraModel, camera_name: &str, path: &Path) -> R
 
 /// Reads a camera and its name from a ROS `camera_info` YAML file.
 pub fn read_ros_yaml(path: &Path) -> Result<(CameraModel, String)> {
-    let text = read_text(path)?;
-    let name = path.display().to_string();
-    ros_from_doc(&Doc::parse(&text, &name)?)
+    read_doc(path, ros_from_doc)
 }
 
 /// A calibrated stereo pair as the stereo files hold it: both cameras, `p_right = r p_left +
@@ -542,9 +539,7 @@ pub fn write_opencv_stereo_yaml(pair: &StereoPair, path: &Path) -> Result<()> {
 
 /// Reads a stereo pair from an OpenCV FileStorage YAML file.
 pub fn read_opencv_stereo_yaml(path: &Path) -> Result<StereoPair> {
-    let text = read_text(path)?;
-    let name = path.display().to_string();
-    opencv_stereo_from_doc(&Doc::parse(&text, &name)?)
+    read_doc(path, opencv_stereo_from_doc)
 }
 
 /// The OpenCV FileStorage YAML text of one camera of a rig: [`to_opencv_yaml`]'s keys and, for
@@ -633,9 +628,7 @@ pub fn from_ros_camera_info(text: &str) -> Result<RosCameraInfo> {
 
 /// Reads a ROS `camera_info` YAML file with its rectification and projection matrices.
 pub fn read_ros_camera_info(path: &Path) -> Result<RosCameraInfo> {
-    let text = read_text(path)?;
-    let name = path.display().to_string();
-    ros_info_from_doc(&Doc::parse(&text, &name)?)
+    read_doc(path, ros_info_from_doc)
 }
 
 #[cfg(test)]

@@ -317,20 +317,6 @@ pub struct XCornerCandidate {
     pub contrast_dn: f64,
 }
 
-/// The X-corner candidates the chessboard and plate detectors start from (for inspection and
-/// for other grid detectors).
-pub fn xcorner_candidates(img: &GrayImage, options: &DetectOptions) -> Result<Vec<XCornerCandidate>> {
-    let f = GrayF32::from_gray8(img)?;
-    Ok(xcorner::find_xcorners(&f, &options.xcorner(), None)?
-        .into_iter()
-        .map(|c| XCornerCandidate {
-            position_px: Point2::new(c.p.x, c.p.y),
-            directions: c.dirs.map(|d| [d.x, d.y]),
-            contrast_dn: c.contrast,
-        })
-        .collect())
-}
-
 fn tag_detector<'a>(
     slot: &'a mut Option<AprilTagDetector>,
     family: TagFamily,

@@ -16,10 +16,7 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
-/// The skew-symmetric matrix `[v]_x` with `[v]_x w = v x w`.
-pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
+pub use ferrocal_lsq::so3::skew;
 
 /// The rotation of a rotation vector (radians).
 pub fn exp(w: &Vector3<f64>) -> Rotation3<f64> {

@@ -100,19 +100,7 @@ pub(super) fn ranked<F: Family>(
             rejected.push(idx);
             continue;
         }
-        let row = &entries[idx].row;
-        let mut decision = Decision {
-            label: row.label.clone(),
-            p_corrected: row.p_corrected,
-            p_uncorrected: row.p_value,
-            candidates_tried: 0,
-            heldout_before: row.heldout_before,
-            heldout_after: row.heldout_after,
-            relative_std,
-            overlap_sine: fit.overlap_sine,
-            alternatives: Vec::new(),
-            caution: caution.clone(),
-        };
+        let mut decision = Decision::of_row(&entries[idx].row, relative_std, fit.overlap_sine, caution.clone());
         let candidate = entries[idx].candidate.clone();
         let screen = entries[idx].screen.as_ref().expect("checked above");
         confirmed += 1;

@@ -3,15 +3,24 @@
 use super::*;
 
 /// Per pose: held-out squared force error (each pose held out once), and the held-out residual
-/// per pose and sensor.
+/// per pose and sensor, of `model` alone or, with `crosstalk`, of the model plus cross-talk (the
+/// same folds).
 pub(super) fn cross_validate(
     reg: &SensorRegressor,
     model: SensorModel,
     poses: &[Pose],
     y: &DVector<f64>,
     folds: usize,
+    crosstalk: bool,
 ) -> Result<(Vec<f64>, DMatrix<f64>)> {
     let a = regressor(reg, model, poses)?;
+    if crosstalk {
+        let load = load_columns(model);
+        return fold_residuals(poses.len(), folds, y, |train, test| {
+            let fitted = force_crosstalk::fit(&a, y, &load, train);
+            Ok(force_crosstalk::predict(&a, &load, &fitted, test))
+        });
+    }
     fold_residuals(poses.len(), folds, y, |train, test| {
         let fitted =
             fit(&rows_of(&a, train), &vec_of(y, train), &model.names(), &Weighting::Unit, &LinearOptions::default())?;
@@ -44,20 +53,4 @@ pub(super) fn fold_residuals(
         }
     }
     Ok((sse, res))
-}
-
-/// [`cross_validate`] of a model plus cross-talk (the same folds).
-pub(super) fn cross_validate_crosstalk(
-    reg: &SensorRegressor,
-    model: SensorModel,
-    poses: &[Pose],
-    y: &DVector<f64>,
-    folds: usize,
-) -> Result<(Vec<f64>, DMatrix<f64>)> {
-    let a = regressor(reg, model, poses)?;
-    let load = load_columns(model);
-    fold_residuals(poses.len(), folds, y, |train, test| {
-        let fitted = force_crosstalk::fit(&a, y, &load, train);
-        Ok(force_crosstalk::predict(&a, &load, &fitted, test))
-    })
 }

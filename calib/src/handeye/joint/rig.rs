@@ -202,7 +202,7 @@ mod tests {
     use ferrocal_robot::Parameterized;
     use ferrocal_vision::camera::{CameraModel, Distortion, ImageSize, Intrinsics};
 
-    use super::super::corner::{RigCorner, RobotCorner};
+    use super::super::corner::RobotCorner;
     use super::super::maps::{FrameMap, RobotMap};
     use crate::frames::exp6;
     use crate::handeye::residual::whitening;
@@ -252,7 +252,7 @@ mod tests {
                 frame_free: (0..6).collect(),
                 tool_free: (0..6).collect(),
             });
-            let r = RigCorner(RobotCorner {
+            let r = RobotCorner {
                 map: map.clone(),
                 frames,
                 mount,
@@ -261,7 +261,7 @@ mod tests {
                 detected_px: Point2::new(1000.0, 800.0),
                 whiten: whitening(&Matrix2::new(0.04, 0.01, 0.01, 0.09)).unwrap(),
                 camera,
-            });
+            };
             let blocks: Vec<Vec<f64>> =
                 vec![v.clone(), f, t, camera.parameter_values(), Se3::from_isometry(&t_k0).to_vec()];
             let views: Vec<&[f64]> = blocks.iter().map(|b| b.as_slice()).collect();

@@ -42,16 +42,30 @@ struct Run {
     opencv: Option<(String, ChainFigures)>,
 }
 
-/// The section; `data` is `../shared/data`, `work` a folder for the imported poses tables.
-pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result<Section> {
-    let mut s = Section::new("handeye-real", "Hand-eye calibration on real robot-camera recordings");
+/// A demo section on the industrial_calibration recordings (`id`, `title`), with their
+/// attribution, and their folder under `data` with `work` created; no folder (and the section
+/// says it is skipped) when the data is not present.
+pub(crate) fn ic_section(
+    id: &str,
+    title: &str,
+    data: &Path,
+    work: &Path,
+) -> Result<(Section, Option<std::path::PathBuf>)> {
+    let mut s = Section::new(id, title);
     s.attribution(IC_ATTRIBUTION);
     let root = data.join("industrial_calibration");
     if !root.exists() {
         s.skipped(format!("{} is not present", root.display()));
-        return Ok(s);
+        return Ok((s, None));
     }
     std::fs::create_dir_all(work).with_context(|| format!("creating {}", work.display()))?;
+    Ok((s, Some(root)))
+}
+
+/// The section; `data` is `../shared/data`, `work` a folder for the imported poses tables.
+pub fn demo_section(data: &Path, work: &Path, tick: crate::demo::Tick) -> Result<Section> {
+    let (mut s, root) = ic_section("handeye-real", "Hand-eye calibration on real robot-camera recordings", data, work)?;
+    let Some(root) = root else { return Ok(s) };
     let mut rows = Vec::new();
     let mut checks = Vec::new();
     let mut data_json = Vec::new();

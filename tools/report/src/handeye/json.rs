@@ -9,7 +9,7 @@ use ferrocal_calib::Split;
 use nalgebra::Isometry3;
 use serde_json::{json, Value};
 
-use crate::camera::{camera_json, model_name};
+use crate::camera::{camera_json, with_camera_fields};
 
 /// `{"translation_mm": [x, y, z], "rotation_wxyz": [w, x, y, z]}`.
 pub fn transform_json(t: &Isometry3<f64>) -> Value {
@@ -88,7 +88,6 @@ pub fn figures_json(f: &ChainFigures) -> Value {
 /// The camera part: the fields of `camera calibrate` for the camera the chain used.
 pub fn camera_part(r: &HandEyeResult) -> Value {
     let c = &r.camera;
-    let k = c.intrinsics;
     let zeros = vec![0.0; c.n_parameters()];
     let s = r.camera_std.as_ref().unwrap_or(&zeros);
     let per_view: Vec<Value> = r
@@ -98,17 +97,16 @@ pub fn camera_part(r: &HandEyeResult) -> Value {
         .filter(|v| v.split == Split::Train)
         .map(|v| json!({"image": v.name, "rms_px": v.rms_px}))
         .collect();
-    json!({
-        "image_size": [c.image_size.width_px, c.image_size.height_px],
-        "model": model_name(c.distortion.kind()),
-        "fx": k.fx_px, "fy": k.fy_px, "cx": k.cx_px, "cy": k.cy_px,
-        "distortion": c.distortion.coefficients(),
-        "rms_px": r.figures.train_rms_px,
-        "per_view": per_view,
-        "std": {"fx": s[0], "fy": s[1], "cx": s[2], "cy": s[3], "distortion": s[4..].to_vec()},
-        "fixed": r.camera_std.is_none(),
-        "initial_calibration": r.initial_camera.as_ref().map(camera_json),
-    })
+    with_camera_fields(
+        c,
+        json!({
+            "rms_px": r.figures.train_rms_px,
+            "per_view": per_view,
+            "std": {"fx": s[0], "fy": s[1], "cx": s[2], "cy": s[3], "distortion": s[4..].to_vec()},
+            "fixed": r.camera_std.is_none(),
+            "initial_calibration": r.initial_camera.as_ref().map(camera_json),
+        }),
+    )
 }
 
 /// A 6 x 6 matrix as rows.

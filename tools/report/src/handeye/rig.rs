@@ -15,7 +15,7 @@ use serde_json::{json, Value};
 
 use super::json::{figures_json, matrix_rows, std_json, transform_json};
 use super::{handeye_outputs, result_json, HandeyeFiles};
-use crate::camera::model_name;
+use crate::camera::with_camera_fields;
 use crate::error::Result;
 use crate::outputs::Outputs;
 use crate::report::{Provenance, Report};
@@ -51,15 +51,13 @@ fn rig_transform_json(t: &TransformEstimate) -> Value {
 /// A camera with the standard deviations of its parameters (the order of
 /// [`CameraModel::parameters`]).
 fn camera_std_json(c: &CameraModel, s: &[f64]) -> Value {
-    let k = c.intrinsics;
     let sd = |i: usize| s.get(i).copied();
-    json!({
-        "image_size": [c.image_size.width_px, c.image_size.height_px],
-        "model": model_name(c.distortion.kind()),
-        "fx": k.fx_px, "fy": k.fy_px, "cx": k.cx_px, "cy": k.cy_px,
-        "distortion": c.distortion.coefficients(),
-        "std": {"fx": sd(0), "fy": sd(1), "cx": sd(2), "cy": sd(3), "distortion": s.get(4..).unwrap_or(&[]).to_vec()},
-    })
+    with_camera_fields(
+        c,
+        json!({
+            "std": {"fx": sd(0), "fy": sd(1), "cx": sd(2), "cy": sd(3), "distortion": s.get(4..).unwrap_or(&[]).to_vec()},
+        }),
+    )
 }
 
 /// A camera file's `T_camk_cam0` and its difference from the fitted one, as JSON.

@@ -17,9 +17,8 @@ use nalgebra::{Isometry3, Vector2};
 use serde::{Deserialize, Serialize};
 
 use super::super::bundle::{Bundle, CameraLayout, Obs};
-use super::super::deform::TargetDeformation;
 use super::super::views::check_views;
-use super::{start_pose, BundleMode, PrintScale, TargetShape};
+use super::{start_pose, target_deformation, BundleMode, PrintScale, TargetShape};
 use crate::calib::{PlanarTarget, RobustLoss, View};
 use crate::camera::{CameraModel, DistortionKind};
 use crate::error::{Result, VisionError};
@@ -135,19 +134,8 @@ pub fn adjust_rig(
         }
     }
     let full = spec.mode == BundleMode::Full;
-    let shape = [model.shape.bowl_m, model.shape.saddle_m, model.shape.twist_m];
-    let scale = [model.print_scale.x, model.print_scale.y];
-    let deformed = spec.estimate_shape || spec.estimate_print_scale || shape != [0.0; 3] || scale != [0.0; 2];
-    let deform = if deformed {
-        let mut d = TargetDeformation::of_points(&target.points_m)?;
-        d.shape_m = shape;
-        d.scale = scale;
-        d.shape_free = full && spec.estimate_shape;
-        d.scale_free = full && spec.estimate_print_scale;
-        Some(d)
-    } else {
-        None
-    };
+    let estimate = (spec.estimate_shape, spec.estimate_print_scale);
+    let deform = target_deformation(target, (model.shape, model.print_scale), estimate, full)?;
     let layouts: Vec<CameraLayout> = cameras
         .iter()
         .map(|c| CameraLayout { kind: c.distortion.kind(), fix_aspect: false, aspect: 1.0, image_size: c.image_size })

@@ -13,14 +13,8 @@
 
 use std::f64::consts::FRAC_PI_2;
 
+use super::newton::{damped_newton, Solved};
 use super::{Distorted, LensModel, Unprojection};
-
-/// Pixel residual below which the iterative inverse stops.
-pub(super) const UNPROJECT_STOP_PX: f64 = 1e-12;
-/// Pixel residual above which the iterative inverse reports failure.
-pub(super) const UNPROJECT_ACCEPT_PX: f64 = 1e-10;
-/// Maximum Newton iterations of the inverse.
-pub(super) const UNPROJECT_MAX_ITERATIONS: usize = 60;
 
 /// OpenCV's five coefficients `k1 k2 p1 p2 k3` (ROS `plumb_bob`).
 #[derive(Clone, Copy, Debug)]
@@ -166,51 +160,29 @@ pub(super) fn radial_increasing(c: &[f64; 8], a: f64) -> bool {
 fn invert(c: &[f64; 8], target: [f64; 2], f_px: [f64; 2]) -> Result<[f64; 2], Unprojection> {
     let fail = |iterations, residual_px, reason| Unprojection { iterations, residual_px, reason };
     let [fx, fy] = f_px;
-    let eval = |x: f64, y: f64| -> Option<(BrownResult, f64, [f64; 2])> {
-        let b = normalized(c, x, y)?;
+    // The state at a point: the model there and the residual in normalised coordinates.
+    let eval = |x: [f64; 2]| -> Option<((BrownResult, [f64; 2]), f64)> {
+        let b = normalized(c, x[0], x[1])?;
         let r = [b.xd[0] - target[0], b.xd[1] - target[1]];
         let res_px = (fx * r[0]).hypot(fy * r[1]);
-        Some((b, res_px, r))
+        Some(((b, r), res_px))
     };
-    let mut x = target;
-    let (mut b, mut res_px, mut r) = eval(x[0], x[1]).ok_or_else(|| fail(0, f64::NAN, "rational denominator <= 0"))?;
-    let mut iterations = 0;
-    while res_px > UNPROJECT_STOP_PX && iterations < UNPROJECT_MAX_ITERATIONS {
-        iterations += 1;
+    let (start, res_px) = eval(target).ok_or_else(|| fail(0, f64::NAN, "rational denominator <= 0"))?;
+    let direction = |(b, r): &(BrownResult, [f64; 2])| {
         let j = b.j_xy;
         let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
         if det.abs() < 1e-300 || !det.is_finite() {
-            return Err(fail(iterations, res_px, "singular distortion Jacobian"));
+            return Err("singular distortion Jacobian");
         }
-        let dx = (j[1][1] * r[0] - j[0][1] * r[1]) / det;
-        let dy = (-j[1][0] * r[0] + j[0][0] * r[1]) / det;
-        let mut step = 1.0;
-        let mut accepted = false;
-        for _ in 0..40 {
-            let cand = [x[0] - step * dx, x[1] - step * dy];
-            if let Some((nb, nres, nr)) = eval(cand[0], cand[1]) {
-                if nres < res_px || nres <= UNPROJECT_STOP_PX {
-                    x = cand;
-                    b = nb;
-                    res_px = nres;
-                    r = nr;
-                    accepted = true;
-                    break;
-                }
-            }
-            step *= 0.5;
-        }
-        if !accepted {
-            break;
-        }
-    }
-    if res_px > UNPROJECT_ACCEPT_PX || !res_px.is_finite() {
-        return Err(fail(
-            iterations,
-            res_px,
-            "Newton iteration did not reach 1e-10 px (pixel outside the model's invertible region?)",
-        ));
-    }
+        Ok([(j[1][1] * r[0] - j[0][1] * r[1]) / det, (-j[1][0] * r[0] + j[0][0] * r[1]) / det])
+    };
+    let Solved { x, state: (b, _), res_px, iterations } = damped_newton(
+        (target, start, res_px),
+        eval,
+        direction,
+        |x, d, step| [x[0] - step * d[0], x[1] - step * d[1]],
+        "Newton iteration did not reach 1e-10 px (pixel outside the model's invertible region?)",
+    )?;
     // The solution must lie on the branch that contains the principal point: the radial
     // map must increase all the way from the centre to it (checked at 64 radii).
     let a = x[0] * x[0] + x[1] * x[1];

@@ -13,7 +13,7 @@ use std::f64::consts::PI;
 
 use nalgebra::Vector3;
 
-use super::brown::{UNPROJECT_ACCEPT_PX, UNPROJECT_MAX_ITERATIONS, UNPROJECT_STOP_PX};
+use super::newton::{damped_newton, Solved};
 use super::{Distorted, LensModel, Unprojection};
 
 /// OpenCV's fisheye model (ROS `equidistant`).
@@ -134,43 +134,26 @@ fn invert(k: &[f64; 4], xd: [f64; 2], t_d: f64, f_px: [f64; 2]) -> Result<f64, U
     let target = t_d;
     // Pixel length of a unit change of theta_d along the pixel's direction.
     let scale = (f_px[0] * xd[0] / t_d).hypot(f_px[1] * xd[1] / t_d);
-    let mut theta = target.min(3.0);
-    let (mut f, mut df) = theta_d(k, theta);
-    let mut res_px = (f - target).abs() * scale;
-    let mut iterations = 0;
-    while res_px > UNPROJECT_STOP_PX && iterations < UNPROJECT_MAX_ITERATIONS {
-        iterations += 1;
+    // The state at an angle: `theta_d` and its derivative.
+    let eval = |theta: f64| {
+        let (f, df) = theta_d(k, theta);
+        Some(((f, df), (f - target).abs() * scale))
+    };
+    let theta0 = target.min(3.0);
+    let (start, res_px) = eval(theta0).expect("theta_d is always evaluated");
+    let direction = |&(f, df): &(f64, f64)| {
         if df <= 0.0 || !df.is_finite() {
-            return Err(fail(
-                iterations,
-                res_px,
-                "theta_d(theta) is not increasing (beyond a fold of the fisheye model)",
-            ));
+            return Err("theta_d(theta) is not increasing (beyond a fold of the fisheye model)");
         }
-        let delta = (f - target) / df;
-        let mut step = 1.0;
-        let mut accepted = false;
-        for _ in 0..40 {
-            let cand = (theta - step * delta).clamp(0.0, PI);
-            let (nf, ndf) = theta_d(k, cand);
-            let nres = (nf - target).abs() * scale;
-            if nres < res_px || nres <= UNPROJECT_STOP_PX {
-                theta = cand;
-                f = nf;
-                df = ndf;
-                res_px = nres;
-                accepted = true;
-                break;
-            }
-            step *= 0.5;
-        }
-        if !accepted {
-            break;
-        }
-    }
-    if res_px > UNPROJECT_ACCEPT_PX || !res_px.is_finite() {
-        return Err(fail(iterations, res_px, "Newton iteration did not reach 1e-10 px"));
-    }
+        Ok((f - target) / df)
+    };
+    let Solved { x: theta, res_px, iterations, .. } = damped_newton(
+        (theta0, start, res_px),
+        eval,
+        direction,
+        |theta, delta, step| (theta - step * delta).clamp(0.0, PI),
+        "Newton iteration did not reach 1e-10 px",
+    )?;
     let on_branch = (1..=64).all(|i| theta_d(k, theta * i as f64 / 64.0).1 > 0.0);
     if !on_branch || theta >= PI {
         return Err(fail(iterations, res_px, "solution lies beyond a fold of the fisheye model"));

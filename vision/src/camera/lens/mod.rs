@@ -11,6 +11,7 @@
 
 mod brown;
 mod kannala_brandt;
+mod newton;
 mod pinhole;
 
 use nalgebra::Vector3;
