@@ -376,7 +376,7 @@ pub struct ClosedLoopSummary {
 pub fn summarise_closed_loop(runs: Vec<ClosedLoopRun>) -> ClosedLoopSummary {
     let path = |r: &ClosedLoopRun, k: usize| if k == 0 { r.tracker.clone() } else { r.camera.clone() };
     let med =
-        |f: &dyn Fn(&PathResult) -> f64, k: usize| median(&mut runs.iter().map(|r| f(&path(r, k))).collect::<Vec<_>>());
+        |f: &dyn Fn(&PathResult) -> f64, k: usize| median(&runs.iter().map(|r| f(&path(r, k))).collect::<Vec<_>>());
     let cover = |k: usize| {
         let (c, n) = runs.iter().map(|r| path(r, k)).fold((0, 0), |(c, n), p| (c + p.covered, n + p.rows.len()));
         c as f64 / n.max(1) as f64
