@@ -13,22 +13,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut runs = Vec::new();
     for seed in first..first + n {
         let r = run_closed_loop(&config, seed, &dir)?;
-        eprintln!(
-            "seed {seed}: tracker held-out {:.4} landed {:.4} (true frame {:.4}) uncorrected {:.4} covered {}/{}; camera held-out {:.4} landed {:.4} (true frame {:.4}) uncorrected {:.4} covered {}/{}; left out {:.4} mm",
-            r.tracker.held_out_rms_mm,
-            r.tracker.landed_rms_mm,
-            r.tracker.landed_true_rms_mm,
-            r.tracker.uncorrected_rms_mm,
-            r.tracker.covered,
-            r.tracker.rows.len(),
-            r.camera.held_out_rms_mm,
-            r.camera.landed_rms_mm,
-            r.camera.landed_true_rms_mm,
-            r.camera.uncorrected_rms_mm,
-            r.camera.covered,
-            r.camera.rows.len(),
-            r.left_out_rms_mm
-        );
+        eprintln!("{}", r.summary_line());
         for (name, p) in [("tracker", &r.tracker), ("camera", &r.camera)] {
             for x in &p.rows {
                 eprintln!(

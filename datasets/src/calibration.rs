@@ -361,9 +361,16 @@ impl CalibrationRun<'_> {
 /// Reads the calibration file `path`, checks that it was made for `robot` (its model `model`)
 /// and applies it.
 pub fn apply_calibration(robot: &str, model: &RobotModel, path: &Path) -> Result<CalibratedModel> {
+    read_calibration(robot, model, path).map(|(_, cm)| cm)
+}
+
+/// [`apply_calibration`], keeping the file as read (its nominal frames, coverage and
+/// uncertainty).
+pub fn read_calibration(robot: &str, model: &RobotModel, path: &Path) -> Result<(CalibrationFile, CalibratedModel)> {
     let file = CalibrationFile::read(path)?;
     file.check_robot(robot, model).map_err(|e| DatasetError::from(e).context(format!("{}", path.display())))?;
-    file.apply(model).map_err(|e| DatasetError::from(e).context(format!("applying {}", path.display())))
+    let cm = file.apply(model).map_err(|e| DatasetError::from(e).context(format!("applying {}", path.display())))?;
+    Ok((file, cm))
 }
 
 /// A calibrated model scored on a table (`ferrocal evaluate`).

@@ -154,8 +154,7 @@ impl CorrectRun {
 /// and left out; the others are written.
 pub fn correct_run(robot: &str, calibration: &Path, wanted: Wanted, positions_only: bool) -> Result<CorrectRun> {
     let model = RobotModel::load(robot)?;
-    let file = ferrocal_calib::file::CalibrationFile::read(calibration)?;
-    let cm = crate::calibration::apply_calibration(robot, &model, calibration)?;
+    let (file, cm) = crate::calibration::read_calibration(robot, &model, calibration)?;
     let path = wanted.path();
     let program = match wanted {
         Wanted::Program(p) => read_joint_program(p)?,
@@ -373,12 +372,8 @@ impl CorrectRun {
         let path = PlannedPath {
             order: (0..steps.len()).collect(),
             steps,
-            travel_s: 0.0,
             dwell_s: dwell_s * steps_len as f64,
-            nearest_neighbour_s: 0.0,
-            ordered_s: 0.0,
-            detours: 0,
-            checked_segments: 0,
+            ..PlannedPath::default()
         };
         let model = &self.model;
         let mut out = Vec::new();

@@ -22,22 +22,7 @@ fn corrected_programs_land_within_1_2x_of_the_held_out_error_and_their_sigma_cov
     let tmp = tempfile::tempdir().unwrap();
     let runs: Vec<_> = (0..10u64).map(|seed| run_closed_loop(&config, 100 + seed, tmp.path()).unwrap()).collect();
     for r in &runs {
-        eprintln!(
-            "seed {}: left-out physics {:.4} mm; tracker: held-out {:.4}, landed {:.4} (uncorrected {:.4}), covered {}/{}; camera: held-out {:.4}, landed {:.4} (true frame {:.4}, uncorrected {:.4}), covered {}/{}",
-            r.seed,
-            r.left_out_rms_mm,
-            r.tracker.held_out_rms_mm,
-            r.tracker.landed_rms_mm,
-            r.tracker.uncorrected_rms_mm,
-            r.tracker.covered,
-            r.tracker.rows.len(),
-            r.camera.held_out_rms_mm,
-            r.camera.landed_rms_mm,
-            r.camera.landed_true_rms_mm,
-            r.camera.uncorrected_rms_mm,
-            r.camera.covered,
-            r.camera.rows.len()
-        );
+        eprintln!("{}", r.summary_line());
     }
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);

@@ -35,7 +35,9 @@ use ferrocal_lsq::linear::predicted_std;
 /// Names of the six pose coordinates, for messages.
 pub const POSE_COORDINATES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
 
-fn radical_inverse(mut i: usize, base: usize) -> f64 {
+/// The `i`-th element of the van der Corput sequence in `base` (one coordinate of a Halton
+/// sequence).
+pub(crate) fn radical_inverse(mut i: usize, base: usize) -> f64 {
     let mut f = 1.0;
     let mut r = 0.0;
     while i > 0 {

@@ -357,6 +357,30 @@ pub fn run_closed_loop(config: &ClosedLoopConfig, seed: u64, dir: &Path) -> Resu
 
 type TrueRobotRef = super::TrueRobot;
 
+impl ClosedLoopRun {
+    /// One line with the seed's figures, mm.
+    pub fn summary_line(&self) -> String {
+        let path = |name: &str, p: &PathResult| {
+            format!(
+                "{name}: held-out {:.4}, landed {:.4} (true frame {:.4}, uncorrected {:.4}), covered {}/{}",
+                p.held_out_rms_mm,
+                p.landed_rms_mm,
+                p.landed_true_rms_mm,
+                p.uncorrected_rms_mm,
+                p.covered,
+                p.rows.len()
+            )
+        };
+        format!(
+            "seed {}: left-out physics {:.4} mm; {}; {}",
+            self.seed,
+            self.left_out_rms_mm,
+            path("tracker", &self.tracker),
+            path("camera", &self.camera)
+        )
+    }
+}
+
 /// The study over seeds.
 #[derive(Clone, Debug, Serialize)]
 pub struct ClosedLoopSummary {

@@ -30,6 +30,7 @@ use nalgebra::{DMatrix, DVector, Isometry3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::{device_and_tool, start_rms, CalibratedModel};
+use crate::dynamics::design::radical_inverse;
 use crate::error::{CalibError, Result};
 use crate::frames::fit_rigid;
 use crate::measurement::PoseMeasurement;
@@ -151,7 +152,7 @@ impl NominalFrames {
 /// `n` joint vectors spread over the model's limits by a Halton sequence (revolute joints within
 /// one turn, prismatic ones within their limits or 0.5 m), as rows without conditions.
 fn joint_space_sample(cal: &CalibratedModel, n: usize) -> Vec<PoseMeasurement> {
-    const PRIMES: [u32; 12] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37];
+    const PRIMES: [usize; 12] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37];
     let limits = cal.load_model.joint_limits();
     let kinds = cal.load_model.joint_kinds();
     (0..n)
@@ -167,22 +168,12 @@ fn joint_space_sample(cal: &CalibratedModel, n: usize) -> Vec<PoseMeasurement> {
                     };
                     let (lo, hi) = (l.lower.max(-span), l.upper.min(span));
                     let (lo, hi) = if lo < hi { (lo, hi) } else { (l.lower, l.upper) };
-                    lo + (hi - lo) * halton(k as u32 + 1, PRIMES[j % PRIMES.len()])
+                    lo + (hi - lo) * radical_inverse(k + 1, PRIMES[j % PRIMES.len()])
                 })
                 .collect();
             PoseMeasurement::new(format!("sample{k}"), q, Vector3::zeros())
         })
         .collect()
-}
-
-fn halton(mut i: u32, base: u32) -> f64 {
-    let (mut f, mut r) = (1.0, 0.0);
-    while i > 0 {
-        f /= base as f64;
-        r += f * (i % base) as f64;
-        i /= base;
-    }
-    r
 }
 
 /// The region of joint space and of the device frame that a calibration's poses cover.
