@@ -30,6 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{}",
         serde_json::to_string_pretty(&serde_json::json!({
             "median_ratio": s.median_ratio, "coverage": s.coverage, "median_improvement": s.median_improvement,
+            "median_true_improvement": s.median_true_improvement, "median_targets_ratio": s.median_targets_ratio,
         }))?
     );
     Ok(())

@@ -299,7 +299,11 @@ fn correct_row(
                 if command.at_limit.len() > 1 { "their" } else { "its" }
             )
         };
-        format!("no command within the joint limits reaches it ({:.4} mm remain{limits})", command.residual_m * 1e3)
+        format!(
+            "no command within the joint limits reaches it ({:.4} mm remain{limits}; the search ends where the task Jacobian's smallest singular value is {:.2e} m)",
+            command.residual_m * 1e3,
+            command.sigma_min
+        )
     });
     Ok(RowOutcome {
         pose_id: r.pose_id.clone(),

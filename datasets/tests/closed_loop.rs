@@ -15,7 +15,10 @@ use ferrocal_datasets::sim::closed_loop::{run_closed_loop, summarise_closed_loop
 /// draw per seed of its frame's error along the optical axis (about 1 mm at 2 m), shared by
 /// every row: over 10 seeds its coverage is 4 of 10 draws (not the 60-76 %; see
 /// docs/correct.md); asserted here is that its predicted radius is of the right size (the
-/// median true-frame landed RMS within 0.5-2 times the median predicted radius).
+/// median true-frame landed RMS within 0.5-2 times the median predicted radius). Over 40 seeds
+/// (200-239, `cargo run -p ferrocal-datasets --example closed_loop -- 40 200`) the camera's
+/// coverage is 0.56-0.64 (docs/correct.md). The wanted poses are also given as targets
+/// (`correct --targets`, no joints) and land as the program does.
 #[test]
 fn corrected_programs_land_within_1_2x_of_the_held_out_error_and_their_sigma_covers_68_percent() {
     let config = ClosedLoopConfig::ur5();
@@ -32,9 +35,19 @@ fn corrected_programs_land_within_1_2x_of_the_held_out_error_and_their_sigma_cov
     let camera_sigma = median(runs.iter().flat_map(|r| r.camera.rows.iter().map(|x| x.sigma_mm)).collect());
     let s = summarise_closed_loop(runs);
     eprintln!(
-        "median landed / held-out: tracker {:.3}, camera {:.3}; coverage of the 68 % radius: tracker {:.3}, camera {:.3}; median improvement over the uncorrected program: {:.1}x, {:.1}x; camera true-frame landed {camera_true:.4} mm against a predicted radius {camera_sigma:.4} mm",
-        s.median_ratio[0], s.median_ratio[1], s.coverage[0], s.coverage[1], s.median_improvement[0], s.median_improvement[1]
+        "median landed / held-out: tracker {:.3}, camera {:.3}; coverage of the 68 % radius: tracker {:.3}, camera {:.3}; median improvement over the uncorrected program: {:.1}x, {:.1}x (true frame {:.1}x, {:.1}x); camera true-frame landed {camera_true:.4} mm against a predicted radius {camera_sigma:.4} mm; as targets / as a program: {:.3}, {:.3}",
+        s.median_ratio[0], s.median_ratio[1], s.coverage[0], s.coverage[1], s.median_improvement[0], s.median_improvement[1],
+        s.median_true_improvement[0], s.median_true_improvement[1], s.median_targets_ratio[0], s.median_targets_ratio[1]
     );
+    // The same wanted poses as targets without start joints (the branch from the nominal
+    // model's inverse kinematics, the orientation free for the position-only tracker
+    // calibration): every row reached, landing as well as the program within 1.5 times.
+    for r in &s.runs {
+        assert_eq!(r.tracker.targets_unreached + r.camera.targets_unreached, 0, "seed {}", r.seed);
+    }
+    for k in 0..2 {
+        assert!(s.median_targets_ratio[k] <= 1.5, "path {k}: {:?}", s.median_targets_ratio);
+    }
     for k in 0..2 {
         assert!(s.median_ratio[k] <= 1.2, "path {k}: {:?}", s.median_ratio);
         assert!(s.median_improvement[k] > 3.0, "path {k}: {:?}", s.median_improvement);

@@ -56,7 +56,7 @@ use ferrocal_vision::camera::CameraModel;
 use super::evaluate::{chain_figures, Chain, ChainFigures};
 use super::refine::pnp_poses;
 use super::residual::{camera_with, whitening};
-use super::{calibrate_hand_eye, HandEyeData, HandEyeOptions, HandEyeResult, Mount, TransformEstimate};
+use super::{calibrate_hand_eye, HandEyeData, HandEyeOptions, HandEyeResult, HandEyeView, Mount, TransformEstimate};
 use crate::error::{CalibError, Result};
 use crate::file::CalibrationFile;
 #[cfg(test)]
@@ -73,6 +73,7 @@ use nalgebra::{Point2, Point3, Vector3};
 use subspace::Subspace;
 
 mod corner;
+mod lack_of_fit;
 mod maps;
 pub mod rig;
 mod subspace;
@@ -527,7 +528,7 @@ pub(super) fn adjust(
             }
         }
         let covariance = idx.iter().map(|&i| idx.iter().map(|&j| cov.matrix[(i, j)]).collect()).collect();
-        Uncertainty { names, covariance, unmodelled_sigma_m: 0.0 }
+        Uncertainty { names, covariance, unmodelled_sigma_m: 0.0, lack_of_fit_scale: 1.0 }
     };
     let camera = state.camera;
     // 5. The calibrated model and the figures.
@@ -546,15 +547,34 @@ pub(super) fn adjust(
         load_model: model.clone(),
     };
     let fallback = hopts.fallback_corner_sigma_px;
-    let figures_of = |input: &CamInput, camera: &CameraModel, chain: &Chain| -> Result<ChainFigures> {
+    let chain_views = |input: &CamInput| -> Result<Vec<HandEyeView>> {
         let mut views = input.data.views.clone();
         for (v, q) in views.iter_mut().zip(input.joints) {
             v.t_base_flange = calibrated.device_frame.inverse() * calibrated.predict(q)? * x.inverse();
         }
+        Ok(views)
+    };
+    let figures_of = |input: &CamInput, camera: &CameraModel, chain: &Chain| -> Result<ChainFigures> {
+        let views = chain_views(input)?;
         let pnp = pnp_poses(camera, &input.data.target_points_m, &views, fallback);
         Ok(chain_figures(input.data.mount, camera, &input.data.target_points_m, &views, &pnp, chain))
     };
-    let figures = figures_of(&cams[0], &camera, &Chain { x, w, scale: 1.0 })?;
+    let chain0 = Chain { x, w, scale: 1.0 };
+    let figures = figures_of(&cams[0], &camera, &chain0)?;
+    // The landing covariance scaled by what whole views show the model missing.
+    let mut uncertainty = uncertainty;
+    let lack = lack_of_fit::view_lack_of_fit(
+        cams[0].data.mount,
+        &camera,
+        &cams[0].data.target_points_m,
+        &chain_views(&cams[0])?,
+        &chain0,
+        fallback,
+        uncertainty.names.len(),
+    );
+    if let Some((factor, _)) = lack {
+        uncertainty.scale_by_lack_of_fit(factor);
+    }
     let mut others = Vec::new();
     for (k, ((cam_k, t_k0), &(_, rig_id))) in state.others.iter().zip(&b.others).enumerate() {
         let t_k0 = Se3::to_isometry(t_k0);

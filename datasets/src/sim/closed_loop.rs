@@ -36,7 +36,7 @@ use serde::Serialize;
 
 use ferrocal_calib::file::CalibrationFile;
 use ferrocal_calib::handeye::{calibrate_joint, HandEyeData, HandEyeView, JointOptions, Mount};
-use ferrocal_calib::kinematic::correct::Uncertainty;
+use ferrocal_calib::kinematic::correct::{CorrectOptions, Uncertainty};
 use ferrocal_calib::kinematic::{calibrate, KinematicOptions};
 use ferrocal_calib::{PoseMeasurement, Split};
 use ferrocal_robot::Kinematics;
@@ -46,6 +46,10 @@ use super::{Conditions, Effect};
 use crate::correct::{correct_run, Wanted};
 use crate::error::{DatasetError, Result};
 use crate::handeye::joint_study::{draw_cell, draw_poses, median, JointStudyConfig};
+
+/// The smallest singular value a program's command keeps from a singularity, m (see
+/// [`run_closed_loop`]).
+pub const PROGRAM_SIGMA_MIN_M: f64 = 0.02;
 
 /// The study's settings.
 #[derive(Clone, Debug, Serialize)]
@@ -113,10 +117,18 @@ pub struct PathResult {
     pub landed_max_mm: f64,
     /// RMS error of the uncorrected program, mm.
     pub uncorrected_rms_mm: f64,
+    /// RMS error of the uncorrected program in the true device frame, mm.
+    pub uncorrected_true_rms_mm: f64,
     /// Rows whose landed error is within their predicted landing uncertainty.
     pub covered: usize,
     /// Per command.
     pub rows: Vec<LandedRow>,
+    /// The same wanted poses given as targets (`correct --targets`, no start joints: the
+    /// solution branch found from the nominal model's inverse kinematics), landed RMS in the
+    /// true device frame, mm; and the rows so reached.
+    pub targets_landed_true_rms_mm: f64,
+    /// Target rows that no command reached (named by `correct`, not written).
+    pub targets_unreached: usize,
 }
 
 impl PathResult {
@@ -149,6 +161,7 @@ struct Raw {
     at: Vector3<f64>,
     nominal: Vector3<f64>,
     at_true: Vector3<f64>,
+    nominal_true: Vector3<f64>,
     sigma_mm: f64,
     sigma_min_m: f64,
 }
@@ -173,9 +186,58 @@ fn landed(rows: &[Raw], held_out_rms_mm: f64) -> PathResult {
         landed_true_rms_mm: rms(&|r| (r.at_true - r.want).norm() * 1e3),
         landed_max_mm: out.iter().map(|r| r.landed_mm).fold(0.0, f64::max),
         uncorrected_rms_mm: rms(&|r| (r.nominal - r.want).norm() * 1e3),
+        uncorrected_true_rms_mm: rms(&|r| (r.nominal_true - r.want).norm() * 1e3),
         covered: out.iter().filter(|r| r.landed_true_mm <= r.sigma_mm).count(),
         rows: out,
+        targets_landed_true_rms_mm: f64::NAN,
+        targets_unreached: 0,
     }
+}
+
+/// Writes the wanted poses of `run`'s rows to `path` as a targets table (positions in mm, the
+/// orientation when `with_orientation`, no joint columns).
+fn write_targets(path: &Path, run: &crate::correct::CorrectRun, with_orientation: bool) -> Result<()> {
+    let mut s = String::from("pose_id,x_mm,y_mm,z_mm");
+    if with_orientation {
+        s.push_str(",qw,qx,qy,qz");
+    }
+    s.push('\n');
+    for o in &run.rows {
+        let p = o.command.intended.translation.vector * 1e3;
+        s.push_str(&format!("{},{:e},{:e},{:e}", o.pose_id, p.x, p.y, p.z));
+        if with_orientation {
+            let q = o.command.intended.rotation;
+            s.push_str(&format!(",{:e},{:e},{:e},{:e}", q.w, q.i, q.j, q.k));
+        }
+        s.push('\n');
+    }
+    std::fs::write(path, s).map_err(|e| DatasetError::Input(format!("{}: {e}", path.display())))
+}
+
+/// The targets pass of one calibration: `run`'s wanted poses corrected as targets through the
+/// same file, landed on the truth by `land` (position in the true device frame, m).
+fn targets_pass(
+    result: &mut PathResult,
+    run: &crate::correct::CorrectRun,
+    correct: &dyn Fn(&Path) -> Result<crate::correct::CorrectRun>,
+    path: &Path,
+    with_orientation: bool,
+    land: &mut dyn FnMut(&[f64]) -> Result<Vector3<f64>>,
+) -> Result<()> {
+    write_targets(path, run, with_orientation)?;
+    let t = correct(path)?;
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for o in &t.rows {
+        if o.unreached.is_some() {
+            result.targets_unreached += 1;
+            continue;
+        }
+        sum += (land(&o.command.q)? - o.command.intended.translation.vector).norm_squared();
+        n += 1;
+    }
+    result.targets_landed_true_rms_mm = (sum / n.max(1) as f64).sqrt() * 1e3;
+    Ok(())
 }
 
 /// Writes the program `qs` (nominal commands, radians) to `path`.
@@ -204,11 +266,20 @@ pub fn run_closed_loop(config: &ClosedLoopConfig, seed: u64, dir: &Path) -> Resu
         return Err(DatasetError::Config("the closed-loop study's camera path is eye-to-hand".into()));
     }
     let mut cell = draw_cell(cfg, seed)?;
-    // The program: poses like the training ones, away from the wrist singularity (joint 5 within
-    // 0.15 rad of 0 or pi), where no command matches an orientation.
+    // The program: poses like the training ones, away from singularities as a programmer keeps
+    // them (the nominal flange Jacobian's smallest singular value, orientation rows counted at
+    // the correction's 0.1 m per rad, above `PROGRAM_SIGMA_MIN_M`): near one, a command that
+    // matches the orientation may lie far away or nowhere (`correct` names such rows; see
+    // tests/tests/correct.rs).
+    let far_from_singular = |q: &Vec<f64>| {
+        cell.nominal.jacobian(q).is_ok_and(|mut j| {
+            j.rows_mut(3, 3).scale_mut(CorrectOptions::default().orientation_scale_m);
+            j.singular_values().min() > PROGRAM_SIGMA_MIN_M
+        })
+    };
     let program_q: Vec<Vec<f64>> = draw_poses(cfg, &cell.nominal, 4 * config.n_program, &mut cell.rng)?
         .into_iter()
-        .filter(|q| q.get(4).is_none_or(|q5| q5.sin().abs() > 0.15))
+        .filter(far_from_singular)
         .take(config.n_program)
         .collect();
     if program_q.len() < config.n_program {
@@ -254,6 +325,10 @@ pub fn run_closed_loop(config: &ClosedLoopConfig, seed: u64, dir: &Path) -> Resu
             .map_err(|e| DatasetError::Input(format!("{}: {e}", path.display())))?;
         correct_run(&cfg.robot, &path, Wanted::Program(&program), false)
     };
+    let targets_through = |name: &str| {
+        let calibration = dir.join(format!("{name}_{seed}.json"));
+        move |targets: &Path| correct_run(&cfg.robot, &calibration, Wanted::Targets(targets), false)
+    };
 
     // The tracker path.
     let cal = calibrate(&cell.nominal, &train_refs, &KinematicOptions::default()).map_err(fail)?;
@@ -273,11 +348,20 @@ pub fn run_closed_loop(config: &ClosedLoopConfig, seed: u64, dir: &Path) -> Resu
             at: reflector_at(truth, &o.command.q)?,
             nominal: reflector_at(truth, q)?,
             at_true: reflector_at(truth, &o.command.q)?,
+            nominal_true: reflector_at(truth, q)?,
             sigma_mm: o.landing_sigma_mm.unwrap_or(f64::NAN),
             sigma_min_m: o.command.sigma_min,
         });
     }
-    let tracker_result = landed(&rows, held_out);
+    let mut tracker_result = landed(&rows, held_out);
+    targets_pass(
+        &mut tracker_result,
+        &run,
+        &targets_through("tracker_calibration"),
+        &dir.join(format!("tracker_targets_{seed}.csv")),
+        false,
+        &mut |q| reflector_at(truth, q),
+    )?;
 
     // The camera path: corners of the training poses through the true chain and camera.
     let points = cfg.points();
@@ -347,11 +431,20 @@ pub fn run_closed_loop(config: &ClosedLoopConfig, seed: u64, dir: &Path) -> Resu
             at: seen(&o.command.q, false)?,
             nominal: seen(q, false)?,
             at_true: plate_at(&o.command.q)?,
+            nominal_true: plate_at(q)?,
             sigma_mm: o.landing_sigma_mm.unwrap_or(f64::NAN),
             sigma_min_m: o.command.sigma_min,
         });
     }
-    let camera_result = landed(&rows, held_out);
+    let mut camera_result = landed(&rows, held_out);
+    targets_pass(
+        &mut camera_result,
+        &run,
+        &targets_through("camera_calibration"),
+        &dir.join(format!("camera_targets_{seed}.csv")),
+        true,
+        &mut |q| plate_at(q),
+    )?;
     Ok(ClosedLoopRun { seed, tracker: tracker_result, camera: camera_result, left_out_rms_mm })
 }
 
@@ -362,13 +455,16 @@ impl ClosedLoopRun {
     pub fn summary_line(&self) -> String {
         let path = |name: &str, p: &PathResult| {
             format!(
-                "{name}: held-out {:.4}, landed {:.4} (true frame {:.4}, uncorrected {:.4}), covered {}/{}",
+                "{name}: held-out {:.4}, landed {:.4} (true frame {:.4}), uncorrected {:.4} (true frame {:.4}), covered {}/{}; as targets {:.4} ({} unreached)",
                 p.held_out_rms_mm,
                 p.landed_rms_mm,
                 p.landed_true_rms_mm,
                 p.uncorrected_rms_mm,
+                p.uncorrected_true_rms_mm,
                 p.covered,
-                p.rows.len()
+                p.rows.len(),
+                p.targets_landed_true_rms_mm,
+                p.targets_unreached
             )
         };
         format!(
@@ -394,6 +490,12 @@ pub struct ClosedLoopSummary {
     /// Median over seeds of the uncorrected program's RMS over the corrected one's: tracker,
     /// camera.
     pub median_improvement: [f64; 2],
+    /// The same in the true device frame (for the camera, where its frame's own error along
+    /// the optical axis counts).
+    pub median_true_improvement: [f64; 2],
+    /// Median over seeds of the targets pass's landed RMS over the program's, both in the true
+    /// device frame.
+    pub median_targets_ratio: [f64; 2],
 }
 
 /// Summarises runs.
@@ -411,6 +513,14 @@ pub fn summarise_closed_loop(runs: Vec<ClosedLoopRun>) -> ClosedLoopSummary {
         median_improvement: [
             med(&|p| p.uncorrected_rms_mm / p.landed_rms_mm, 0),
             med(&|p| p.uncorrected_rms_mm / p.landed_rms_mm, 1),
+        ],
+        median_true_improvement: [
+            med(&|p| p.uncorrected_true_rms_mm / p.landed_true_rms_mm, 0),
+            med(&|p| p.uncorrected_true_rms_mm / p.landed_true_rms_mm, 1),
+        ],
+        median_targets_ratio: [
+            med(&|p| p.targets_landed_true_rms_mm / p.landed_true_rms_mm, 0),
+            med(&|p| p.targets_landed_true_rms_mm / p.landed_true_rms_mm, 1),
         ],
         runs,
     }

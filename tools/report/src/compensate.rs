@@ -128,10 +128,7 @@ fn outside_rows(t: &ferrocal_calib::verdict::Thresholds, run: &CorrectRun) -> Ve
 
 /// Rows near a singularity (smallest singular value below `singular_m_warn`).
 fn singular_rows(t: &ferrocal_calib::verdict::Thresholds, run: &CorrectRun) -> Vec<String> {
-    run.reached()
-        .filter(|(_, o)| o.command.sigma_min < t.export.singular_m_warn)
-        .map(|(_, o)| o.pose_id.clone())
-        .collect()
+    run.rows.iter().filter(|o| o.command.sigma_min < t.export.singular_m_warn).map(|o| o.pose_id.clone()).collect()
 }
 
 fn id_list(ids: &[String]) -> String {
@@ -222,9 +219,10 @@ pub fn correct_verdict(
     ferrocal_calib::verdict::Verdict::with_next(checks, |c| {
         match c.map(|c| c.name.as_str()) {
         Some("correct.unreached") => format!(
-            "rows {} are not in {}: move them inside the robot's reach, or give a start (q columns) on another solution branch",
+            "rows {} are not in {}: move them inside the robot's reach{}, or give a start (q columns) on another solution branch",
             id_list(&unreached),
-            out.display()
+            out.display(),
+            if unreached.iter().any(|u| singular.contains(u)) { " and away from the singularity" } else { "" }
         ),
         Some("correct.linear_as_joint") => format!(
             "the end points are corrected, but the path between them is not straight in {}: teach those moves as linear on the controller from the corrected end points, or write --urscript (movel)",

@@ -105,6 +105,7 @@ fn the_landing_covariance_grows_with_the_parameters_covariance_and_the_unexplain
         names: vec!["frame.x_m".into(), "offset.q2_rad".into()],
         covariance: vec![vec![1e-8, 0.0], vec![0.0, 1e-8]],
         unmodelled_sigma_m: 0.0,
+        lack_of_fit_scale: 1.0,
     };
     let c = u.landing_covariance(&cm, &row).unwrap();
     // The device frame's x moves the point along the device's x by the same amount.
@@ -120,7 +121,37 @@ fn the_landing_covariance_grows_with_the_parameters_covariance_and_the_unexplain
     let c2 = with_floor.landing_covariance(&cm, &row).unwrap();
     assert!(((c2 - c) - Matrix3::identity() * 1e-8).norm() < 1e-15);
     // A name the model does not have is an error naming it.
-    let bad =
-        Uncertainty { names: vec!["joint9.nothing".into()], covariance: vec![vec![1.0]], unmodelled_sigma_m: 0.0 };
+    let bad = Uncertainty {
+        names: vec!["joint9.nothing".into()],
+        covariance: vec![vec![1.0]],
+        unmodelled_sigma_m: 0.0,
+        lack_of_fit_scale: 1.0,
+    };
     assert!(bad.landing_covariance(&cm, &row).unwrap_err().to_string().contains("joint9.nothing"));
+}
+
+/// A command at the wrist singularity (joint 5 at zero, joints 4 and 6 aligned) through a
+/// calibration that measured orientations: whether or not a command matching the orientation is
+/// found, the row carries a smallest singular value far below the verdict's 0.005 m, and a
+/// command 0.3 rad away from it does not.
+#[test]
+fn a_command_at_the_wrist_singularity_says_so_through_its_singular_value() {
+    let cm = calibrated_ur5();
+    let fit_rows = rows(&[
+        [0.1, -1.2, 1.4, -1.8, -1.5, 0.3],
+        [-0.8, -1.6, 1.9, -0.7, 1.2, -2.0],
+        [0.9, -0.9, 0.8, 0.5, -0.4, 1.0],
+        [1.4, -2.0, 2.1, -2.6, 0.9, 2.5],
+        [-1.1, -0.6, 1.1, 1.7, 2.2, -0.6],
+        [0.4, -1.9, 0.6, -0.2, -2.1, 0.1],
+    ]);
+    let refs: Vec<&PoseMeasurement> = fit_rows.iter().collect();
+    let frames = NominalFrames::fit(&cm, &refs).unwrap();
+    let opts = effective_options(&cm, &CorrectOptions::default());
+    assert!(opts.use_orientation);
+    let at = rows(&[[0.3, -1.1, 1.2, -1.6, 0.0, 0.2], [0.3, -1.1, 1.2, -1.6, 0.3, 0.2]]);
+    let singular = correct_program_row(&cm, &frames, &at[0], &opts).unwrap();
+    let away = correct_program_row(&cm, &frames, &at[1], &opts).unwrap();
+    assert!(singular.sigma_min < 0.005, "{}", singular.sigma_min);
+    assert!(away.reached() && away.sigma_min > 0.005, "{away:?}");
 }

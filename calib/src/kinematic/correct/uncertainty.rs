@@ -30,6 +30,15 @@ pub struct Uncertainty {
     /// Per-axis standard deviation of the position error the calibrated model leaves
     /// unexplained on its own poses beyond their measurement noise, m.
     pub unmodelled_sigma_m: f64,
+    /// The factor the covariance was multiplied by for the lack of fit its measurements show
+    /// beyond their noise (1: none). A joint calibration of robot and camera scales by the
+    /// view-level χ² per degree of freedom when it exceeds 1 (`calib::handeye::joint`).
+    #[serde(default = "one")]
+    pub lack_of_fit_scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 impl Uncertainty {
@@ -52,7 +61,20 @@ impl Uncertainty {
             })
             .sum::<f64>()
             / rows.len().max(1) as f64;
-        Ok(Self { names, covariance, unmodelled_sigma_m: (total - noise).max(0.0).sqrt() })
+        Ok(Self { names, covariance, unmodelled_sigma_m: (total - noise).max(0.0).sqrt(), lack_of_fit_scale: 1.0 })
+    }
+
+    /// Multiplies the covariance by `chi2_per_dof` when it exceeds 1 (a lack of fit beyond the
+    /// measurements' noise), and records the factor.
+    pub fn scale_by_lack_of_fit(&mut self, chi2_per_dof: f64) {
+        if chi2_per_dof.is_finite() && chi2_per_dof > 1.0 {
+            for row in &mut self.covariance {
+                for v in row.iter_mut() {
+                    *v *= chi2_per_dof;
+                }
+            }
+            self.lack_of_fit_scale *= chi2_per_dof;
+        }
     }
 
     /// The covariance as a matrix, checked against the names.
