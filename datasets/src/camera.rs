@@ -90,6 +90,77 @@ impl CameraViews {
         Self { paths, found, skipped, method }
     }
 
+    /// The views of detections made elsewhere ([`crate::import::observations`]) of `pattern`'s
+    /// points, one camera's: each image a view of the points it lists, in the file's order;
+    /// `image_size` is the images' size. An image without points is skipped with the reason; a
+    /// point id the pattern does not have is an error naming the image and the id.
+    pub fn from_observations(
+        obs: &crate::import::observations::Observations,
+        file: &std::path::Path,
+        pattern: &CalibrationPattern,
+        image_size: ImageSize,
+    ) -> Result<Self> {
+        let n_points = pattern.target().points_m.len();
+        let cameras = obs.cameras();
+        if cameras.len() > 1 {
+            return Err(DatasetError::Input(format!(
+                "{}: observations of {} cameras ({}); camera calibrate takes one camera's",
+                file.display(),
+                cameras.len(),
+                cameras.join(", ")
+            )));
+        }
+        let mut slots = Vec::new();
+        let mut skipped = Vec::new();
+        let mut paths = Vec::new();
+        for i in &obs.images {
+            paths.push(PathBuf::from(&i.image));
+            if let Some(id) = i.point_ids.iter().find(|&&id| id >= n_points) {
+                return Err(DatasetError::Input(format!(
+                    "{} (line {}): image '{}' names point {id}, but the pattern {pattern} has points 0 to {}",
+                    file.display(),
+                    i.line,
+                    i.image,
+                    n_points.saturating_sub(1)
+                )));
+            }
+            if i.point_ids.is_empty() {
+                skipped.push(SkippedImage { image: PathBuf::from(&i.image), reason: "no points observed".into() });
+                slots.push(None);
+                continue;
+            }
+            slots.push(Some(View {
+                name: i.image.clone(),
+                image_size,
+                point_ids: i.point_ids.clone(),
+                corners_px: i.corners_px.clone(),
+            }));
+        }
+        let found = PatternViews { slots, skipped: Vec::new(), circle_radii_m: None };
+        Ok(Self { paths, found, skipped, method: CornerMethod::Observations })
+    }
+
+    /// The usable views' detections, as an observations file holds them (`camera` named
+    /// `camera`).
+    pub fn observations(&self, camera: &str) -> crate::import::observations::Observations {
+        use crate::import::observations::{Observations, ObservedImage};
+        let images = self
+            .found
+            .slots
+            .iter()
+            .flatten()
+            .map(|v| ObservedImage {
+                image: v.name.clone(),
+                camera: camera.to_string(),
+                point_ids: v.point_ids.clone(),
+                corners_px: v.corners_px.clone(),
+                sigma_px: vec![None; v.point_ids.len()],
+                line: 0,
+            })
+            .collect();
+        Observations { images }
+    }
+
     /// Calibrates the camera on the views, holding out every `test_every`-th image (the K-th,
     /// 2K-th, ... in order) when given; refused with fewer than [`MIN_VIEWS`] training views.
     pub fn calibrate(

@@ -14,6 +14,7 @@ mod kill;
 mod measure;
 mod mistakes;
 mod motion;
+mod observations;
 mod positioner;
 mod reliability;
 mod verdict;

@@ -20,6 +20,7 @@ pub mod convert;
 pub mod geometry;
 pub mod images;
 pub mod measurements;
+pub mod observations;
 pub mod plausible;
 pub(crate) mod table;
 pub mod units;

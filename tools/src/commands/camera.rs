@@ -95,8 +95,20 @@ impl SolveArgs {
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
     /// Images: files, directories or glob patterns (quoted), any number.
-    #[arg(long, required = true, num_args = 1..)]
+    #[arg(long, required_unless_present = "observations", num_args = 1..)]
     pub images: Vec<PathBuf>,
+    /// Detections made elsewhere instead of images: a CSV of `image, camera, point_id, u_px,
+    /// v_px` (optionally `sigma_px`), the point ids those of `--pattern`'s points, or mrcal's
+    /// corners file (`# filename x y level`, the chessboard's corners in order).
+    #[arg(long, conflicts_with_all = ["images", "compare_opencv"])]
+    pub observations: Option<PathBuf>,
+    /// The size of the observed images, `<width>x<height>` pixels (read from the image files
+    /// when they exist beside the observations file).
+    #[arg(long, value_name = "WxH", requires = "observations")]
+    pub image_size: Option<String>,
+    /// Write the detections the calibration used as an observations CSV to this file.
+    #[arg(long)]
+    pub save_observations: Option<PathBuf>,
     /// Solver settings.
     #[command(flatten)]
     pub solve: SolveArgs,
@@ -184,6 +196,37 @@ fn report_skipped(skipped: &[SkippedImage]) {
     }
 }
 
+/// The views of an observations file; the image size from `size` (`WxH`) or from the first
+/// image file found beside the observations file.
+fn observed_views(file: &Path, size: Option<&str>, pattern: &CalibrationPattern) -> Result<CameraViews> {
+    use ferrocal_vision::camera::ImageSize;
+    let obs = ferrocal_datasets::import::observations::read_observations(file)?;
+    if obs.images.iter().any(|i| i.sigma_px.iter().any(Option::is_some)) {
+        eprintln!(
+            "ferrocal: {}: camera calibrate weighs every point alike; its sigma_px column is not used",
+            file.display()
+        );
+    }
+    let image_size = match size {
+        Some(s) => {
+            let parsed =
+                s.split_once(['x', 'X']).and_then(|(w, h)| Some((w.trim().parse().ok()?, h.trim().parse().ok()?)));
+            match parsed {
+                Some((w, h)) if w > 0 && h > 0 => ImageSize { width_px: w, height_px: h },
+                _ => anyhow::bail!("--image-size '{s}': expected <width>x<height> in pixels, e.g. 640x480"),
+            }
+        }
+        None => match ferrocal_datasets::import::observations::image_size_beside(&obs, file) {
+            Some(size) => size,
+            None => anyhow::bail!(
+                "{}: none of its images is readable beside it to tell their size; give --image-size <width>x<height>",
+                file.display()
+            ),
+        },
+    };
+    Ok(CameraViews::from_observations(&obs, file, pattern, image_size)?)
+}
+
 fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let (pattern, options, corners) = a.solve.options()?;
     let mut skipped = Vec::new();
@@ -195,9 +238,20 @@ fn calibrate(a: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         report: a.report.as_deref(),
         camera_name: &a.camera_name,
     };
-    check_outputs(&files.all(), &paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
-    let found = CameraViews::detect(paths, skipped, &pattern, corners);
+    let mut inputs: Vec<&Path> = paths.iter().map(PathBuf::as_path).collect();
+    inputs.extend(a.observations.as_deref());
+    let mut outputs = files.all();
+    outputs.extend(a.save_observations.as_deref());
+    check_outputs(&outputs, &inputs)?;
+    let found = match &a.observations {
+        Some(file) => observed_views(file, a.image_size.as_deref(), &pattern)?,
+        None => CameraViews::detect(paths, skipped, &pattern, corners),
+    };
     report_skipped(&found.skipped);
+    if let Some(out) = &a.save_observations {
+        let csv = ferrocal_datasets::import::observations::observations_to_csv(&found.observations("camera"));
+        ferrocal_report::report::write_atomic(out, csv.as_bytes())?;
+    }
     let run = found.calibrate(&pattern, &options, a.test_every)?;
     ferrocal_report::camera::print_camera("camera", &run.fit.calibration);
     if let Some(b) = &run.fit.circle_bias {

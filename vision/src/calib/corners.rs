@@ -168,6 +168,8 @@ pub enum CornerMethod {
     /// patterns are still found by the project's detectors).
     #[serde(rename = "opencv")]
     OpenCv(SubpixWindow),
+    /// Detections made elsewhere, read from an observations file (`--observations`).
+    Observations,
 }
 
 impl CornerMethod {
@@ -186,6 +188,7 @@ impl CornerMethod {
         match self {
             CornerMethod::Own => CornerMethod::Own,
             CornerMethod::OpenCv(_) => CornerMethod::OpenCv(window),
+            CornerMethod::Observations => CornerMethod::Observations,
         }
     }
 }
