@@ -154,8 +154,9 @@ fn library_kinds() -> Vec<Arc<dyn EffectKind>> {
 
 static REGISTERED: RwLock<Vec<Arc<dyn EffectKind>>> = RwLock::new(Vec::new());
 
-/// Adds an effect kind from outside the library (a later registration of the same name
-/// replaces the earlier one). A built-in effect's name is refused.
+/// Adds an effect kind from outside the library, for the whole process (a later registration
+/// of the same name replaces the earlier one): from then on lists and JSON may name it and
+/// `diagnose` tests its candidates. A built-in effect's name is refused.
 pub fn register_effect(kind: Arc<dyn EffectKind>) -> Result<()> {
     let name = kind.name();
     if BUILTIN_EFFECTS.contains(&name) || library_kinds().iter().any(|k| k.name() == name) {

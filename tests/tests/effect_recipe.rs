@@ -5,6 +5,7 @@
 //! parses it, JSON writes and reads it, the kinematic fit identifies it jointly with the
 //! geometry, and `diagnose` finds it on a simulated UR5 whose truth carries it (simulated through
 //! the same trait: the calibrated model with the effect predicts the measured points).
+//! The registration is process-wide: no other test of this binary runs the library's diagnose.
 
 use std::sync::Arc;
 
