@@ -15,11 +15,14 @@
 //! | `coupled_transmission:J:K` | joint `J`'s error is proportional to joint `K`'s angle |
 //! | `axis_misalignment:J` | revolute joint `J`'s axis wobbles with its angle (a tilt whose direction turns with the joint) |
 //!
+//! Effects of the registry (`effect_registry`) are spelled as their kind parses them.
+//!
 //! A JSON file may be a `ferrocal diagnose` report (its findings' `spec`), a calibration file
 //! (its `effects`), or an array of effect objects as those carry them.
 
 use std::path::Path;
 
+use crate::effect_registry::{effect_kind, unknown_effect, CustomEffect, BUILTIN_EFFECTS};
 use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
 
@@ -90,9 +93,8 @@ fn parse_item(item: &str) -> std::result::Result<EffectSpec, String> {
             EffectSpec::TimeDrift
         }
         other => {
-            return Err(format!(
-                "unknown effect '{other}' (joint_compliance, backlash, joint_scale_error, periodic_joint_error, thermal_expansion, time_drift, link_compliance, coupled_transmission, axis_misalignment)"
-            ))
+            let kind = effect_kind(other).ok_or_else(|| unknown_effect(other))?;
+            return Ok(EffectSpec::Custom(CustomEffect(kind.parse(&parts[1..])?)));
         }
     };
     let expected = match spec {
@@ -148,7 +150,15 @@ pub fn effects_from_json(value: &serde_json::Value, source: &str) -> Result<Vec<
     specs
         .into_iter()
         .enumerate()
-        .map(|(k, v)| serde_json::from_value(v).map_err(|e| bad(e, &format!("effect {}", k + 1))))
+        .map(|(k, v)| {
+            // An effect nobody defines is named as such (serde would only say no variant matched).
+            if let Some(name) = v.get("effect").and_then(|n| n.as_str()) {
+                if !BUILTIN_EFFECTS.contains(&name) && effect_kind(name).is_none() {
+                    return Err(CalibError::Data(format!("{source}: effect {}: {}", k + 1, unknown_effect(name))));
+                }
+            }
+            serde_json::from_value(v).map_err(|e| bad(e, &format!("effect {}", k + 1)))
+        })
         .collect()
 }
 
@@ -226,6 +236,8 @@ mod tests {
         );
         let cal = serde_json::json!({"effects": [{"spec": {"effect": "backlash", "joint": 3}, "values": [1e-4]}]});
         assert_eq!(effects_from_json(&cal, "cal.json").unwrap(), vec![EffectSpec::Backlash { joint: 3 }]);
+        let unknown = serde_json::json!([{"effect": "gravity", "joint": 2}]);
+        assert!(effects_from_json(&unknown, "e.json").unwrap_err().to_string().contains("unknown effect 'gravity'"));
         let camera = serde_json::json!({"findings": [{"effect": "lens_distortion"}]});
         assert!(effects_from_json(&camera, "cam.json").unwrap_err().to_string().contains("no 'spec'"));
     }

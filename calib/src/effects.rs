@@ -48,6 +48,7 @@ use ferrocal_robot::{JointKind, Kinematics, RobotModel, Unit};
 use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+pub use crate::effect_registry::{CustomEffect, Effect};
 use crate::error::{CalibError, Result};
 use crate::measurement::PoseMeasurement;
 
@@ -106,6 +107,10 @@ pub enum EffectSpec {
         /// Joint (1-based, revolute, of a serial chain).
         joint: usize,
     },
+    /// An effect of the registry ([`crate::effect_registry`]): defined by a type implementing
+    /// [`Effect`], written and read by its own name and settings.
+    #[serde(untagged)]
+    Custom(CustomEffect),
 }
 
 impl EffectSpec {
@@ -121,13 +126,17 @@ impl EffectSpec {
             EffectSpec::LinkCompliance { .. } => "link_compliance",
             EffectSpec::CoupledTransmission { .. } => "coupled_transmission",
             EffectSpec::AxisMisalignment { .. } => "axis_misalignment",
+            EffectSpec::Custom(e) => e.name(),
         }
     }
 
     /// Whether the effect moves the predicted pose rigidly ([`EffectSpec::pose_correction`])
     /// rather than changing joint values or lengths.
     pub fn corrects_pose(&self) -> bool {
-        matches!(self, EffectSpec::LinkCompliance { .. } | EffectSpec::AxisMisalignment { .. })
+        match self {
+            EffectSpec::Custom(e) => e.corrects_pose(),
+            other => matches!(other, EffectSpec::LinkCompliance { .. } | EffectSpec::AxisMisalignment { .. }),
+        }
     }
 
     /// The joint it belongs to (1-based), if any.
@@ -139,6 +148,7 @@ impl EffectSpec {
             | EffectSpec::PeriodicJointError { joint, .. }
             | EffectSpec::CoupledTransmission { joint, .. }
             | EffectSpec::AxisMisalignment { joint } => Some(*joint),
+            EffectSpec::Custom(e) => e.joint(),
             EffectSpec::ThermalExpansion { .. } | EffectSpec::TimeDrift | EffectSpec::LinkCompliance { .. } => None,
         }
     }
@@ -149,6 +159,7 @@ impl EffectSpec {
         match self {
             EffectSpec::LinkCompliance { link } => vec![*link, link + 1],
             EffectSpec::CoupledTransmission { joint, driver } => vec![*joint, *driver],
+            EffectSpec::Custom(e) => e.joints_reported(),
             other => other.joint().into_iter().collect(),
         }
     }
@@ -185,6 +196,7 @@ impl EffectSpec {
                 (format!("joint{joint}.wobble_x_rad"), Unit::Radian),
                 (format!("joint{joint}.wobble_y_rad"), Unit::Radian),
             ],
+            EffectSpec::Custom(e) => e.parameters(kinds),
         }
     }
 
@@ -200,6 +212,7 @@ impl EffectSpec {
             EffectSpec::LinkCompliance { .. } => vec![1e-6],
             EffectSpec::CoupledTransmission { .. } => vec![1e-4],
             EffectSpec::AxisMisalignment { .. } => vec![1e-4, 1e-4],
+            EffectSpec::Custom(e) => e.scales(),
         }
     }
 
@@ -212,6 +225,7 @@ impl EffectSpec {
             },
             EffectSpec::ThermalExpansion { .. } => row.temp_c.is_none().then_some("temperature (temp_c)"),
             EffectSpec::TimeDrift => row.t_s.is_none().then_some("time (t_s)"),
+            EffectSpec::Custom(e) => e.missing_input(row),
             _ => None,
         }
     }
@@ -226,6 +240,9 @@ impl EffectSpec {
                     model.dof()
                 )));
             }
+        }
+        if let EffectSpec::Custom(e) = self {
+            return e.validate(model);
         }
         if let EffectSpec::LinkCompliance { link } = self {
             let RobotModel::Serial(_) = model else {
@@ -295,6 +312,7 @@ impl EffectSpec {
                 dq[joint - 1] += theta[0] * x.sin() + theta[1] * x.cos();
             }
             EffectSpec::CoupledTransmission { joint, driver } => dq[joint - 1] += theta[0] * row.q[driver - 1],
+            EffectSpec::Custom(e) => e.add_joint_delta(model, row, theta, dq)?,
             EffectSpec::ThermalExpansion { .. }
             | EffectSpec::TimeDrift
             | EffectSpec::LinkCompliance { .. }
@@ -327,6 +345,7 @@ impl EffectSpec {
                 let t = pivot.coords - rot * pivot.coords;
                 Ok(Isometry3::from_parts(Translation3::from(t), rot))
             }
+            EffectSpec::Custom(e) => e.pose_correction(model, row, q, theta),
             _ => Ok(Isometry3::identity()),
         }
     }
@@ -338,6 +357,7 @@ impl EffectSpec {
                 1.0 + theta[0] * (row.temp_c.unwrap_or(*reference_temp_c) - reference_temp_c)
             }
             EffectSpec::TimeDrift => 1.0 + theta[0] * row.t_s.unwrap_or(0.0) / 3600.0,
+            EffectSpec::Custom(e) => e.length_scale(row, theta),
             _ => 1.0,
         }
     }

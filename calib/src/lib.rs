@@ -26,6 +26,7 @@ pub mod design;
 pub mod diagnose;
 pub mod dynamics;
 pub mod effect_list;
+pub mod effect_registry;
 pub mod effects;
 pub mod error;
 pub mod export;

@@ -5,6 +5,7 @@ mod cli;
 mod compensate;
 mod correct;
 mod coupled;
+mod effect_recipe;
 mod handeye;
 mod handeye_checks;
 mod handeye_rig;

@@ -40,7 +40,7 @@ use crate::error::{CalibError, Result};
 mod types;
 pub(super) mod variant;
 pub use types::*;
-pub(super) use variant::{effect_parameters, plausible_size, screened, Added, Lens};
+pub(super) use variant::{effect_parameters, plausible_size, screened, Added};
 
 /// A model variant of the one camera.
 type Variant = variant::Variant<1>;
@@ -98,7 +98,7 @@ fn fit_variant(
         model.print_scale = PrintScale::default();
     }
     let spec = BundleSpec {
-        lens: Some(variant.lens[0].kind()),
+        lens: Some(variant.lens[0]),
         estimate_shape: variant.bent,
         estimate_print_scale: variant.scaled,
         mode: BundleMode::Full,
@@ -375,7 +375,9 @@ impl Family for CameraFamily<'_> {
             Added::Lens(_) => {
                 let c = fit.model.camera.distortion.coefficients();
                 let model = match variant.lens[0] {
-                    Lens::KannalaBrandt => "the Kannala-Brandt (fisheye) model".to_string(),
+                    ferrocal_vision::camera::DistortionKind::KannalaBrandt => {
+                        "the Kannala-Brandt (fisheye) model".to_string()
+                    }
                     _ => format!("the rational radial terms (k4 = {:.3}, k5 = {:.3}, k6 = {:.3})", c[5], c[6], c[7]),
                 };
                 ("lens_distortion", format!(

@@ -35,7 +35,6 @@ use nalgebra::{DVector, Isometry3};
 use super::camera::{
     board_width_m, candidate_scores, centred, effect_parameters, plausible_size, print_scale_statement, screened,
     unexplained_structure, vision_error, Added, CameraDiagnoseOptions, CameraFinalFit, CameraFit, CameraUnexplained,
-    Lens,
 };
 use super::engine::{select, AllFit, Baseline, Describe, Family, Policy, Screened, StepStart};
 use super::report::{Decision, Finding, Unit};
@@ -91,7 +90,7 @@ fn fit_variant(
         model.print_scale = Default::default();
     }
     let spec = RigBundleSpec {
-        lenses: variant.lens.iter().map(|l| Some(l.kind())).collect(),
+        lenses: variant.lens.iter().map(|l| Some(*l)).collect(),
         estimate_shape: variant.bent,
         estimate_print_scale: variant.scaled,
         mode: BundleMode::Full,
@@ -267,7 +266,9 @@ impl Family for StereoFamily<'_> {
             Added::Lens(c) => {
                 let d = fit.model.cameras[c].distortion.coefficients();
                 let model = match variant.lens[c] {
-                    Lens::KannalaBrandt => "the Kannala-Brandt (fisheye) model".to_string(),
+                    ferrocal_vision::camera::DistortionKind::KannalaBrandt => {
+                        "the Kannala-Brandt (fisheye) model".to_string()
+                    }
                     _ => format!("the rational radial terms (k4 = {:.3}, k5 = {:.3}, k6 = {:.3})", d[5], d[6], d[7]),
                 };
                 (

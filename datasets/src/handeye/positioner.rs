@@ -326,6 +326,7 @@ pub fn effect_text(e: &ferrocal_calib::effects::EffectSpec) -> String {
         EffectSpec::LinkCompliance { link } => format!("link_compliance:{link}"),
         EffectSpec::ThermalExpansion { reference_temp_c } => format!("thermal_expansion:{reference_temp_c}C"),
         EffectSpec::TimeDrift => "time_drift".into(),
+        EffectSpec::Custom(c) => c.list_item(),
         other => format!("{}:{}", other.name(), other.joint().unwrap_or(0)),
     }
 }

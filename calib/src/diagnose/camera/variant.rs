@@ -11,29 +11,12 @@ use ferrocal_vision::camera::{Distortion, DistortionKind};
 use super::super::engine::{Baseline, Describe, Screened};
 use super::CameraDiagnoseOptions;
 
-/// Lens model of a variant.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(in crate::diagnose) enum Lens {
-    Brown5,
-    Rational8,
-    KannalaBrandt,
-}
-
-impl Lens {
-    pub(in crate::diagnose) fn kind(self) -> DistortionKind {
-        match self {
-            Lens::Brown5 => DistortionKind::Brown5,
-            Lens::Rational8 => DistortionKind::Rational8,
-            Lens::KannalaBrandt => DistortionKind::KannalaBrandt,
-        }
-    }
-}
-
 /// A model variant of `N` cameras: each camera's lens model, whether the target may bend (one
 /// target for all cameras), whether its print may be scaled.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(in crate::diagnose) struct Variant<const N: usize> {
-    pub(in crate::diagnose) lens: [Lens; N],
+    /// Each camera's lens model (`vision::camera`'s list).
+    pub(in crate::diagnose) lens: [DistortionKind; N],
     pub(in crate::diagnose) bent: bool,
     pub(in crate::diagnose) scaled: bool,
 }
@@ -49,7 +32,8 @@ pub(in crate::diagnose) enum Added {
 impl<const N: usize> Variant<N> {
     /// The default model: 5-coefficient Brown for every camera, a flat and nominally printed
     /// target.
-    pub(in crate::diagnose) const NOMINAL: Self = Variant { lens: [Lens::Brown5; N], bent: false, scaled: false };
+    pub(in crate::diagnose) const NOMINAL: Self =
+        Variant { lens: [DistortionKind::Brown5; N], bent: false, scaled: false };
 
     /// What `self` adds to `current` (a lens model: of the last camera whose model differs).
     pub(in crate::diagnose) fn added_to(self, current: Self) -> Added {
@@ -72,10 +56,11 @@ impl<const N: usize> Variant<N> {
     ) -> Vec<(String, Self)> {
         let mut cands = Vec::new();
         for c in 0..N {
-            if self.lens[c] == Lens::Brown5 {
-                for (lens, what) in
-                    [(Lens::Rational8, "rational radial k4..k6"), (Lens::KannalaBrandt, "Kannala-Brandt fisheye")]
-                {
+            if self.lens[c] == DistortionKind::Brown5 {
+                for (lens, what) in [
+                    (DistortionKind::Rational8, "rational radial k4..k6"),
+                    (DistortionKind::KannalaBrandt, "Kannala-Brandt fisheye"),
+                ] {
                     let mut v = self;
                     v.lens[c] = lens;
                     cands.push((lens_label(c, what), v));
@@ -102,7 +87,7 @@ impl<const N: usize> Variant<N> {
         let (effect, n_params) = match self.added_to(current) {
             Added::Shape => ("target_nonflatness", 3),
             Added::PrintScale => ("target_print_scale", 1),
-            Added::Lens(c) if self.lens[c] == Lens::KannalaBrandt => ("lens_distortion", 4),
+            Added::Lens(c) if self.lens[c] == DistortionKind::KannalaBrandt => ("lens_distortion", 4),
             Added::Lens(_) => ("lens_distortion", 3),
         };
         Describe { label: label.to_string(), effect: effect.into(), joints: Vec::new(), n_params }

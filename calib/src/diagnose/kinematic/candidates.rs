@@ -5,7 +5,7 @@ use nalgebra::Vector3;
 
 use super::family::{Cand, Ctx};
 use super::{DiagnoseOptions, Untestable};
-use crate::effects::EffectSpec;
+use crate::effects::{CustomEffect, EffectSpec};
 use crate::error::Result;
 use crate::kinematic::KinematicCalibration;
 use crate::measurement::PoseMeasurement;
@@ -218,6 +218,11 @@ pub(super) fn enumerate_candidates(
         } else {
             cands.push(Cand::Fixed(EffectSpec::TimeDrift));
         }
+    }
+    // The registry's effects: the candidates each kind finds on the recording.
+    for kind in crate::effect_registry::effect_kinds() {
+        let found = kind.candidates(model, &ctx.rows);
+        cands.extend(found.into_iter().map(|e| Cand::Fixed(EffectSpec::Custom(CustomEffect(e)))));
     }
     // Link compliance: serial chains with masses, per link that carries a further joint, when
     // the load moment across the next joint's axis varies over the poses.

@@ -67,6 +67,7 @@ pub(super) fn parameter_map(spec: &EffectSpec, theta: &[f64], kinds: &[JointKind
             m.insert("tilt_amplitude_mrad".into(), t0.hypot(c) * 1e3);
             m.insert("phase_deg".into(), c.atan2(t0).to_degrees());
         }
+        EffectSpec::Custom(e) => m = e.parameter_map(theta, kinds),
     }
     m
 }
@@ -92,6 +93,10 @@ impl Default for Assessment {
 /// of milliradians, links can lead their motors, carbon fibre shrinks when warmed) and the
 /// limits past which the linear model of the effect no longer means anything.
 pub(super) fn assess(spec: &EffectSpec, theta: &[f64], ctx: &Ctx, lin: &Lin, opts: &DiagnoseOptions) -> Assessment {
+    if let EffectSpec::Custom(e) = spec {
+        let p = e.plausibility(theta);
+        return Assessment { possible: p.impossible.map_or(Ok(()), Err), unusual: p.unusual };
+    }
     let b = &opts.bounds;
     let t = theta.first().copied().unwrap_or(0.0);
     let prismatic = spec.joint().is_some_and(|j| ctx.kinds.get(j - 1) == Some(&JointKind::Prismatic));
@@ -245,6 +250,7 @@ pub(super) fn assess(spec: &EffectSpec, theta: &[f64], ctx: &Ctx, lin: &Lin, opt
             1.0,
             ": a machine warming up; record its temperature",
         ),
+        EffectSpec::Custom(_) => {}
     }
     if out.possible.is_ok() && !unusual.is_empty() {
         out.unusual = Some(unusual.join("; "));

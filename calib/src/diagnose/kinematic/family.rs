@@ -64,7 +64,10 @@ impl Ctx<'_> {
     }
 
     pub(super) fn effect_columns(&self, lin: &Lin, spec: &EffectSpec) -> Option<nalgebra::DMatrix<f64>> {
-        lin.effect_columns(spec, self.kinds.len(), &self.rows)
+        match spec {
+            EffectSpec::Custom(e) => lin.custom_columns(&**e, self.model, &self.rows),
+            _ => lin.effect_columns(spec, self.kinds.len(), &self.rows),
+        }
     }
 
     /// The columns of several effects side by side.

@@ -52,6 +52,8 @@ pub(crate) struct Lin {
     pub p0: Vec<Vector3<f64>>,
     /// Per row: position standard deviation.
     pub sigma: Vec<f64>,
+    /// The model's base frame in the device frame.
+    pub frame: Isometry3<f64>,
 }
 
 fn predictions(cm: &CalibratedModel, rows: &[&PoseMeasurement]) -> Result<Vec<Vector3<f64>>> {
@@ -118,7 +120,7 @@ impl Lin {
             }
             wobble.push(per_joint);
         }
-        Ok(Self { n, r, base, dq, ds, tau, bend, wobble, p0, sigma: sigma.to_vec() })
+        Ok(Self { n, r, base, dq, ds, tau, bend, wobble, p0, sigma: sigma.to_vec(), frame: f })
     }
 
     /// The same linearisation with the base columns `drop` removed and the residuals `r` of the
@@ -137,6 +139,7 @@ impl Lin {
             wobble: self.wobble.clone(),
             p0: self.p0.clone(),
             sigma: self.sigma.clone(),
+            frame: self.frame,
         }
     }
 
@@ -188,6 +191,7 @@ impl Lin {
                 }
                 Some(c)
             }
+            EffectSpec::Custom(_) => None,
             _ => {
                 let j = spec.joint()? - 1;
                 if j >= model_kinds {
@@ -205,6 +209,42 @@ impl Lin {
                 Some(c)
             }
         }
+    }
+
+    /// Prediction columns of an effect of the registry (whitened), each parameter at its typical
+    /// size and divided by it: its joint corrections through the joint columns, its length
+    /// factor through the length column, its pose correction (at the readings) moving the
+    /// predicted point.
+    pub fn custom_columns(
+        &self,
+        effect: &dyn crate::effects::Effect,
+        model: &ferrocal_robot::RobotModel,
+        rows: &[&PoseMeasurement],
+    ) -> Option<DMatrix<f64>> {
+        let scales = effect.scales();
+        let nj = self.dq.ncols();
+        let mut c = DMatrix::zeros(3 * self.n, scales.len());
+        for (k, s) in scales.iter().enumerate() {
+            let mut theta = vec![0.0; scales.len()];
+            theta[k] = *s;
+            for (i, row) in rows.iter().enumerate().take(self.n) {
+                let mut dq = vec![0.0; nj];
+                effect.add_joint_delta(model, row, &theta, &mut dq).ok()?;
+                let mut d = self.dq.fixed_view::<3, 1>(3 * i, 0) * 0.0;
+                for (j, v) in dq.iter().enumerate() {
+                    d += self.dq.fixed_view::<3, 1>(3 * i, j) * *v;
+                }
+                d += self.ds.fixed_rows::<3>(3 * i) * (effect.length_scale(row, &theta) - 1.0);
+                if effect.corrects_pose() {
+                    let iso = effect.pose_correction(model, row, &row.q, &theta).ok()?;
+                    let p_base = self.frame.inverse_transform_point(&self.p0[i].into());
+                    let moved = self.frame * (iso * p_base);
+                    d += (moved.coords - self.p0[i]) / self.sigma[i];
+                }
+                c.fixed_view_mut::<3, 1>(3 * i, k).copy_from(&(d / *s));
+            }
+        }
+        Some(c)
     }
 
     /// `dq_j = sum_k theta_k g_k(row)`: the regressors `g_k` of a joint effect for row `i`.

@@ -27,6 +27,7 @@ pub(super) fn telling_input(spec: &EffectSpec, names: &[String]) -> String {
         EffectSpec::LinkCompliance { link } => {
             format!("bending moment on link {link} (between {} and {})", jn(*link), jn(link + 1))
         }
+        EffectSpec::Custom(e) => e.telling_input(names),
     }
 }
 
@@ -47,6 +48,7 @@ pub(super) fn statement(
     let pm = format!("(+-{:.0} %)", (rel_std * 100.0).max(1.0));
     let prismatic = spec.joint().is_some_and(|j| ctx.kinds.get(j - 1) == Some(&JointKind::Prismatic));
     let what = match spec {
+        EffectSpec::Custom(e) => e.statement(theta),
         EffectSpec::JointCompliance { joint } => {
             let tmax = lin.tau.iter().map(|v| v[joint - 1].abs()).fold(0.0, f64::max);
             if prismatic {
@@ -196,6 +198,18 @@ pub(super) fn evidence(
                 format!("tilt of joint {joint}'s axis about its first wobble direction implied by the held-out residual [mrad]"),
             )
         }
+        EffectSpec::Custom(e) => {
+            // The effect's first parameter implied per row, against its joint's angle (or the row).
+            link_col = ctx
+                .effect_columns(lin, spec)
+                .unwrap_or_else(|| nalgebra::DMatrix::zeros(3 * lin.n, e.scales().len().max(1)));
+            let x = match e.joint() {
+                Some(j) => ctx.rows.iter().map(|r| r.q[j - 1].to_degrees()).collect(),
+                None => (1..=ctx.rows.len()).map(|i| i as f64).collect(),
+            };
+            let first = e.parameters(&ctx.kinds).first().map_or_else(String::new, |(n, _)| n.clone());
+            (x, &link_col, 0, 1.0, format!("{first} implied by the held-out residual"))
+        }
         EffectSpec::ThermalExpansion { .. } => (
             ctx.rows.iter().map(|r| r.temp_c.unwrap_or(f64::NAN)).collect(),
             &ds,
@@ -239,6 +253,7 @@ pub(super) fn evidence(
         EffectSpec::ThermalExpansion { .. } => "temperature [C]".into(),
         EffectSpec::LinkCompliance { .. } => format!("{telling} [N m]"),
         EffectSpec::Backlash { .. } => telling.to_string(),
+        EffectSpec::Custom(e) if e.joint().is_none() => telling.to_string(),
         EffectSpec::PeriodicJointError { period_si, .. } => {
             format!("{telling} modulo its period of {} deg (phase in the cycle) [deg]", sig(period_si.to_degrees(), 3))
         }

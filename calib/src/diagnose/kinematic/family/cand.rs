@@ -62,6 +62,10 @@ impl Cand {
                 std::f64::consts::TAU / period_si
             ),
             Cand::Periodic { joint } => format!("periodic_joint_error on joint {joint} (period searched)"),
+            Cand::Fixed(EffectSpec::Custom(e)) => match e.joint() {
+                Some(j) => format!("{} on joint {j}", e.name()),
+                None => e.name().to_string(),
+            },
             Cand::Fixed(EffectSpec::LinkCompliance { link }) => {
                 format!("link_compliance on link {link} (between joints {link} and {})", link + 1)
             }
@@ -81,6 +85,9 @@ impl Cand {
         ) = (self, s)
         {
             return joint == j;
+        }
+        if let (Cand::Fixed(a @ EffectSpec::Custom(_)), b) = (self, s) {
+            return a == b;
         }
         if let (Cand::Fixed(EffectSpec::LinkCompliance { link }), EffectSpec::LinkCompliance { link: l }) = (self, s) {
             return link == l;
