@@ -16,4 +16,5 @@ mod mistakes;
 mod motion;
 mod positioner;
 mod reliability;
+mod trees;
 mod verdict;
