@@ -139,6 +139,10 @@ fn binary_calibrates_a_two_tip_table_and_warns_of_a_missing_branch() {
     let floor = rec.truth_held_out_mm.iter().map(|v| v * v).sum::<f64>().sqrt() / 2f64.sqrt();
     eprintln!("two-tip table through the binary (no sag): held-out RMS {rms:.4} mm, noise {floor:.4} mm");
     assert_eq!(e["n"].as_u64(), Some(30), "15 held-out poses, two hands each");
+    for tip in TIPS {
+        assert_eq!(e["per_tip"][tip]["n"].as_u64(), Some(15), "{e:#}");
+        eprintln!("  {tip}: held-out RMS {:.4} mm", e["per_tip"][tip]["rms_mm"].as_f64().unwrap());
+    }
     assert!(rms < 1.3 * floor, "held-out {rms:.4} mm vs noise {floor:.4} mm");
 
     // The chain to the left hand only (10 actuated joints), the right arm left out.
@@ -161,4 +165,43 @@ fn binary_calibrates_a_two_tip_table_and_warns_of_a_missing_branch() {
             && err.contains("is missing from the table"),
         "{err}"
     );
+}
+
+/// One hand measured while the other arm moves: `diagnose` (default options, noise from the
+/// data) on the whole tree names the torso's joint compliance and comes within 1.1x of the true
+/// model's held-out RMS. The same rows cut to the chain to the hand (10 joints, the URDF's
+/// chain with the moving arm lumped at zero) are printed for comparison: the tool warns there
+/// (see the binary test above) instead of fitting silently.
+#[test]
+fn simulated_two_arm_torso_one_hand_other_arm_moving_diagnose_names_the_torso_compliance() {
+    use ferrocal_calib::diagnose::{diagnose, DiagnoseOptions};
+    let rec = recording(64, 240, Hands::Left, true).unwrap();
+    let tree = ferrocal_robot::serial::parse_urdf_tree_str(&rec.urdf, &[TIPS[0].to_string()]).unwrap();
+    let t0 = std::time::Instant::now();
+    let rep = diagnose(&RobotModel::Serial(tree), &rec.rows, &DiagnoseOptions::default()).unwrap();
+    let found: Vec<(String, Vec<usize>)> = rep.findings.iter().map(|f| (f.effect.clone(), f.joints.clone())).collect();
+    let floor = rec.truth_held_out_mm[0];
+    let held = rep.final_fit.heldout_rms_mm;
+    eprintln!(
+        "two-arm torso (simulated, 240 poses, left hand, right arm moving; {:.0} s): diagnose found {found:?}; held-out {held:.4} mm (geometric {:.4} mm), true model {floor:.4} mm ({:.3}x)",
+        t0.elapsed().as_secs_f64(),
+        rep.nominal.heldout_rms_mm,
+        held / floor
+    );
+    let chain = ferrocal_robot::serial::parse_urdf_str(&rec.urdf, &Default::default()).unwrap();
+    let cut: Vec<PoseMeasurement> = rec
+        .rows
+        .iter()
+        .map(|r| PoseMeasurement { q: r.q[..10].to_vec(), meta: Default::default(), ..r.clone() })
+        .collect();
+    let rep_cut = diagnose(&RobotModel::Serial(chain), &cut, &DiagnoseOptions::default()).unwrap();
+    let found_cut: Vec<(String, Vec<usize>)> =
+        rep_cut.findings.iter().map(|f| (f.effect.clone(), f.joints.clone())).collect();
+    eprintln!(
+        "  the same rows cut to the chain (right arm lumped at zero): found {found_cut:?}; held-out {:.4} mm",
+        rep_cut.final_fit.heldout_rms_mm
+    );
+    assert!(found.contains(&("joint_compliance".to_string(), vec![2])), "the torso pitch's compliance: {found:?}");
+    assert!(found.iter().all(|f| f.0 == "joint_compliance"), "{found:?}");
+    assert!(held <= 1.1 * floor, "held-out {held:.4} mm vs the true model's {floor:.4} mm");
 }
