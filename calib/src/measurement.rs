@@ -157,6 +157,12 @@ impl PoseMeasurement {
             meta: BTreeMap::new(),
         }
     }
+
+    /// The measured link of a tree-shaped robot: the table's `tip` column (kept in
+    /// [`PoseMeasurement::meta`]), when the row names one.
+    pub fn tip(&self) -> Option<&str> {
+        self.meta.get("tip").map(String::as_str).filter(|s| !s.is_empty())
+    }
 }
 
 /// A set of measured poses from one recording.

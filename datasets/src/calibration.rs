@@ -134,14 +134,25 @@ pub fn nominal_stats(model: &RobotModel, train: &[&PoseMeasurement], test: &[&Po
 
 /// Loads a model and a measurement table and checks that they agree; the table's warnings go to
 /// `warn` once they do.
+///
+/// A URDF that is a tree of chains (`docs/trees.md`) is read whole when the table holds every
+/// moving joint of the tree or names its measured links (a `tip` column, or `tip` for the rows
+/// without one); the tips are the links the rows name, in the order they first appear. A table
+/// that holds only the joints of the chain to one tip, of a tree whose other branches move and
+/// carry mass, is read as that chain with a warning that the other branches' motion is missing.
 pub fn load_model_and_rows(
     robot: &str,
     measurements: &Path,
+    tip: Option<&str>,
     warn: &dyn Fn(&str),
 ) -> Result<(RobotModel, Vec<PoseMeasurement>)> {
-    let model = RobotModel::load(robot)
-        .map_err(|e| DatasetError::from(e).context(format!("cannot load robot model '{robot}'")))?;
-    let table = crate::import::read_measurements(measurements)?;
+    let mut table = crate::import::read_measurements(measurements)?;
+    if let Some(tip) = tip {
+        for r in table.set.rows.iter_mut().filter(|r| r.tip().is_none()) {
+            r.meta.insert("tip".into(), tip.to_string());
+        }
+    }
+    let model = crate::trees::load_for_table(robot, measurements, &table.set.rows, table.joint_units.len(), warn)?;
     let n = model.dof();
     if table.joint_units.len() != n {
         return Err(DatasetError::Input(format!(

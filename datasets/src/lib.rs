@@ -53,6 +53,7 @@ pub mod render;
 pub mod safety;
 pub mod sim;
 pub mod stiffsim;
+pub mod trees;
 
 /// The environment variable of the kill tests (`tests/tests/kill.rs`): **test only**, and read
 /// only by builds with the `test-hooks` feature (the end-to-end tests' build; a release build of

@@ -18,4 +18,5 @@ mod motion;
 mod observations;
 mod positioner;
 mod reliability;
+mod trees;
 mod verdict;

@@ -169,6 +169,10 @@ pub enum RobotCommand {
         /// Joint values, comma-separated (degrees for revolute joints, mm for prismatic ones).
         #[arg(long, allow_hyphen_values = true)]
         joints: String,
+        /// The link whose pose to report, of a URDF with several chains: the joint values are
+        /// then every moving joint of the tree, in the URDF's order.
+        #[arg(long)]
+        tip: Option<String>,
     },
     /// Inverse kinematics: joint values for a tool pose.
     Ik {

@@ -72,7 +72,12 @@ impl StateLayout {
                     return false;
                 }
                 match selection {
-                    ModelParams::Default => !serial || p.name.contains(".corr_") || p.name.ends_with(".coupling"),
+                    ModelParams::Default => {
+                        !serial
+                            || p.name.contains(".corr_")
+                            || p.name.ends_with(".coupling")
+                            || (p.name.starts_with("tip") && p.unit == Unit::Metre)
+                    }
                     ModelParams::All => true,
                     ModelParams::None => false,
                     ModelParams::Prefixes { prefixes } => prefixes.iter().any(|x| p.name.starts_with(x.as_str())),

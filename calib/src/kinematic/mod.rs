@@ -48,7 +48,7 @@ mod tests;
 pub use design::design_jacobian;
 pub use layout::StateLayout;
 use model::row_error;
-pub use model::{CalibratedModel, ErrorStats};
+pub use model::{model_for_row, CalibratedModel, ErrorStats};
 pub use outliers::{DroppedRow, OutlierScreen};
 use problem::{whitening_matrices, KinProblem};
 pub use refit::{refit_frame, FrameRefit};
@@ -534,7 +534,7 @@ fn start_frames(
     // Start: register the nominal model's positions to the measurements.
     let mut nominal = Vec::with_capacity(rows.len());
     for r in rows {
-        nominal.push(model.forward(&r.q).map_err(|e| row_error(r, e))?);
+        nominal.push(model_for_row(model, r)?.forward(&r.q).map_err(|e| row_error(r, e))?);
     }
     let nominal_pts: Vec<Point3<f64>> = nominal.iter().map(|t| Point3::from(t.translation.vector)).collect();
     let measured: Vec<Point3<f64>> = rows.iter().map(|r| Point3::from(r.position_m)).collect();
@@ -551,7 +551,7 @@ fn start_frames(
             // from the flange (the rigid registration of flange origins then misses by metres).
             let closed = if use_ori {
                 pose_start(&nominal, rows)
-            } else if matches!(model, RobotModel::Serial(_)) {
+            } else if matches!(model, RobotModel::Serial(c) if !c.is_tree()) {
                 point_start::device_and_point(&nominal, &measured)
             } else {
                 None

@@ -1,5 +1,7 @@
 //! The calibrated model (prediction of measured poses) and error statistics.
 
+use std::borrow::Cow;
+
 use ferrocal_robot::{Kinematics, RobotModel};
 use nalgebra::{Isometry3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -121,7 +123,7 @@ impl CalibratedModel {
     /// approach directions, temperature, time and payload).
     pub fn predict_row(&self, row: &PoseMeasurement) -> Result<Isometry3<f64>> {
         let (q, scale) = self.effective(row)?;
-        let mut t = self.model.forward(&q)? * self.tool;
+        let mut t = model_for_row(&self.model, row)?.forward(&q)? * self.tool;
         for (e, theta) in &self.effects {
             if e.corrects_pose() {
                 t = e.pose_correction(&self.load_model, row, &q, theta)? * t;
@@ -168,6 +170,24 @@ impl CalibratedModel {
     pub fn evaluate(&self, rows: &[&PoseMeasurement]) -> Result<ErrorStats> {
         let (p, o) = self.errors(rows)?;
         Ok(ErrorStats::from_errors(&p, &o))
+    }
+}
+
+/// The model that measures `row`: a tree's with the row's tip ([`PoseMeasurement::tip`]) active,
+/// `model` itself for a row without a tip; a tip on a robot that is not a tree is an error.
+pub fn model_for_row<'a>(model: &'a RobotModel, row: &PoseMeasurement) -> Result<Cow<'a, RobotModel>> {
+    let Some(tip) = row.tip() else { return Ok(Cow::Borrowed(model)) };
+    match model {
+        RobotModel::Serial(c) if c.is_tree() => {
+            if c.tip_names()[c.tree.as_ref().map_or(0, |t| t.active)] == tip {
+                return Ok(Cow::Borrowed(model));
+            }
+            Ok(Cow::Owned(RobotModel::Serial(c.with_tip(tip).map_err(|e| CalibError::Data(e.to_string()))?)))
+        }
+        _ => Err(CalibError::Data(format!(
+            "the row names the tip '{tip}', but the robot model '{}' is not a tree of chains (load its URDF with every branch)",
+            model.name()
+        ))),
     }
 }
 

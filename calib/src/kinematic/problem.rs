@@ -4,7 +4,7 @@
 use ferrocal_robot::{Kinematics, Parameterized, RobotModel, Unit};
 use nalgebra::{DMatrix, DVector, Isometry3, Translation3, UnitQuaternion, Vector3};
 
-use super::{row_error, CalibratedModel, Cost, StateLayout};
+use super::{model_for_row, row_error, CalibratedModel, Cost, StateLayout};
 use crate::effects::EffectSpec;
 use crate::error::{CalibError, Result};
 use crate::frames::exp6;
@@ -263,7 +263,8 @@ impl KinProblem<'_> {
         let compliant = compliance.iter().any(|c| *c != 0.0);
         for (k, row) in self.rows.iter().enumerate() {
             let (qq, scale) = cm.effective(row).map_err(|e| row_error(row, e))?;
-            let t_base_flange = cm.model.forward(&qq).map_err(|e| row_error(row, e))?;
+            let row_model = model_for_row(&cm.model, row)?;
+            let t_base_flange = row_model.forward(&qq).map_err(|e| row_error(row, e))?;
             // The flange-side geometry before the effects' pose corrections and length scale
             // (levers of the joint and correction columns), and the prediction itself.
             let t_dev_tool = cm.device_frame * t_base_flange * cm.tool;
@@ -322,7 +323,7 @@ impl KinProblem<'_> {
                 }
             }
             // Joint offsets: geometric Jacobian of the model's tool point, moved to the target.
-            let mut jg = cm.model.jacobian(&qq).map_err(|e| row_error(row, e))?;
+            let mut jg = row_model.jacobian(&qq).map_err(|e| row_error(row, e))?;
             if compliant {
                 let payload = row.payload_kg.unwrap_or(0.0);
                 let m = crate::effects::equilibrium_sensitivity(&cm.load_model, &qq, &compliance, payload)
@@ -338,11 +339,14 @@ impl KinProblem<'_> {
             // Serial corrections: link `A Exp(c)` with `A` the uncorrected link frame and
             // `Exp(c) = (c_t, exp(c_r))`: dp = R_A dc_t; for the rotation, w = R_A J_l(c_r) dc_r,
             // dp = w x (p - o_link), dw = w.
-            if let Some(chain) = serial {
+            if let (Some(_), RobotModel::Serial(chain)) = (serial, row_model.as_ref()) {
                 if !corr_cols.is_empty() {
                     let fr = chain.frames(&qq).map_err(|e| row_error(row, e))?;
                     for &(col, j, comp) in &corr_cols {
-                        let link = cm.device_frame * fr.links[j];
+                        if !chain.moves_tip(j) {
+                            continue; // a joint of another branch does not move this row's tip
+                        }
+                        let link = cm.device_frame * fr.corrected[j];
                         let (jl, r_c) = &corr_rot[j];
                         let r_a = link.rotation * r_c.inverse();
                         if comp < 3 {

@@ -104,7 +104,7 @@ impl Residual for PointResidual {
 /// The tool-point map of `row` under `cm`: `(s A, s b)` with the base-frame point `s (A t + b)`.
 fn point_map(cm: &CalibratedModel, row: &PoseMeasurement) -> Result<(Matrix3<f64>, Vector3<f64>)> {
     let (q, scale) = cm.effective(row)?;
-    let flange = cm.model.forward(&q)?;
+    let flange = super::model_for_row(&cm.model, row)?.forward(&q)?;
     let mut correction = Isometry3::identity();
     for (e, theta) in &cm.effects {
         if e.corrects_pose() {

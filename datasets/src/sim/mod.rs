@@ -16,6 +16,7 @@ pub mod planning;
 pub mod scenario;
 pub mod session;
 pub mod temperature;
+pub mod torso;
 pub mod tracker;
 pub mod tree;
 

@@ -9,12 +9,16 @@
 
 mod dh_write;
 mod mimic;
+mod tree;
 mod urdf;
+mod urdf_tree;
 mod urdf_write;
 
 pub use dh_write::{MdhRow, MdhTable, PARALLEL_RAD};
 pub use mimic::Mimic;
+pub use tree::{ChainTree, TreeTip};
 pub use urdf::{parse_urdf, parse_urdf_str, UrdfOptions};
+pub use urdf_tree::{parse_urdf_tree, parse_urdf_tree_str, urdf_tree_joint_count};
 pub use urdf_write::{to_urdf, UrdfFrames};
 
 use nalgebra::{DMatrix, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -141,14 +145,19 @@ impl Joint {
         }
     }
 
-    /// `(pre, axis, post * Exp(correction))`.
-    fn split_corrected(&self) -> (Pose, Vector3<f64>, Pose) {
+    /// `(pre, axis, post * Exp(correction))`; with `before_motion` (the joints of a tree,
+    /// `tree.rs`) `(pre * Exp(correction), axis, post)`.
+    fn split_corrected(&self, before_motion: bool) -> (Pose, Vector3<f64>, Pose) {
         let (pre, axis, post) = self.split();
         if self.correction == [0.0; 6] {
             return (pre, axis, post);
         }
         let c = &self.correction;
-        (pre, axis, post * pose_from_vectors(&Vector3::new(c[0], c[1], c[2]), &Vector3::new(c[3], c[4], c[5])))
+        let e = pose_from_vectors(&Vector3::new(c[0], c[1], c[2]), &Vector3::new(c[3], c[4], c[5]));
+        if before_motion {
+            return (pre * e, axis, post);
+        }
+        (pre, axis, post * e)
     }
 
     fn motion(&self, axis: &Vector3<f64>, q: f64) -> Pose {
@@ -233,6 +242,13 @@ pub struct ChainFrames {
     pub flange: Pose,
     /// `T_base_tool`.
     pub tool: Pose,
+    /// Per joint, the joint whose link carries it (`None`: the base); `i - 1` for a chain.
+    pub parent: Vec<Option<usize>>,
+    /// Per joint, the frame whose last factor is the joint's correction `Exp(c)`: the link
+    /// frame of a chain's joint (the correction follows the motion), the frame before the
+    /// motion of a tree's joint (the correction precedes it, so that each branch's first joint
+    /// has its own origin error: one after the branching link's motion could not serve both).
+    pub corrected: Vec<Pose>,
 }
 
 /// An open serial chain of revolute and prismatic joints.
@@ -251,6 +267,9 @@ pub struct SerialChain {
     pub tool: Pose,
     /// Gravity in the base frame, m/s^2.
     pub gravity_m_s2: [f64; 3],
+    /// `Some` for a tree of chains (see `tree.rs`): the joints' parents and the tips.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tree: Option<ChainTree>,
 }
 
 /// Options of the damped-least-squares inverse kinematics.
@@ -331,6 +350,7 @@ impl SerialChain {
             joints,
             tool: Pose::identity(),
             gravity_m_s2: [g.x, g.y, g.z],
+            tree: None,
         }
     }
 
@@ -347,21 +367,29 @@ impl SerialChain {
     pub fn frames(&self, q: &[f64]) -> Result<ChainFrames> {
         let q = &self.all_joint_values(q)?;
         let n = self.joints.len();
-        let mut links = Vec::with_capacity(n);
+        let parent = self.joint_parents();
+        let tree = self.is_tree();
+        let mut links: Vec<Pose> = Vec::with_capacity(n);
         let mut axes = Vec::with_capacity(n);
         let mut axis_points = Vec::with_capacity(n);
-        let mut t = self.base;
-        for (j, qi) in self.joints.iter().zip(q) {
-            let (pre, axis, post) = j.split_corrected();
+        let mut corrected = Vec::with_capacity(if tree { n } else { 0 });
+        for (i, (j, qi)) in self.joints.iter().zip(q).enumerate() {
+            let t = parent[i].map_or(self.base, |p| links[p]);
+            let (pre, axis, post) = j.split_corrected(tree);
             let before = t * pre;
             let a = before.rotation * axis;
             axes.push(a.normalize());
             axis_points.push(Point3::from(before.translation.vector));
-            t = before * j.motion(&axis, *qi) * post;
-            links.push(t);
+            if tree {
+                corrected.push(before);
+            }
+            links.push(before * j.motion(&axis, *qi) * post);
         }
-        let flange = t;
-        Ok(ChainFrames { links, axes, axis_points, flange, tool: flange * self.tool })
+        if !tree {
+            corrected = links.clone();
+        }
+        let flange = links.get(self.tip_joint()).copied().unwrap_or(self.base);
+        Ok(ChainFrames { links, axes, axis_points, flange, tool: flange * self.tool, parent, corrected })
     }
 
     /// Geometric Jacobian of an arbitrary point `p_base` rigidly attached to link `link`
@@ -376,8 +404,10 @@ impl SerialChain {
     ) -> DMatrix<f64> {
         let n = frames.axes.len();
         let mut jac = DMatrix::zeros(6, n);
-        for (i, (z, kind)) in frames.axes.iter().zip(kinds).enumerate().take(link.min(n - 1) + 1) {
-            let z = *z;
+        let mut on_path = Some(link.min(n - 1));
+        while let Some(i) = on_path {
+            on_path = frames.parent[i];
+            let (z, kind) = (frames.axes[i], &kinds[i]);
             match kind {
                 JointKind::Revolute => {
                     let r = p_base - frames.axis_points[i];
@@ -521,7 +551,7 @@ impl SerialChain {
         }
         if payload_kg != 0.0 {
             let p = Point3::from(frames.tool.translation.vector);
-            let jac = Self::point_jacobian(&frames, &kinds, n - 1, &p);
+            let jac = Self::point_jacobian(&frames, &kinds, self.tip_joint(), &p);
             tau += jac.fixed_rows::<3>(0).transpose() * (-g * payload_kg);
         }
         Ok(tau.iter().copied().collect())
@@ -537,7 +567,7 @@ impl SerialChain {
     pub fn reach_bound_m(&self) -> f64 {
         let mut sum = 0.0;
         for j in &self.joints {
-            let (pre, _, post) = j.split_corrected();
+            let (pre, _, post) = j.split_corrected(self.is_tree());
             sum += pre.translation.vector.norm() + post.translation.vector.norm();
         }
         sum + self.tool.translation.vector.norm()
@@ -559,11 +589,12 @@ impl Parameterized for SerialChain {
                 out.push(ParamInfo::new(format!("{prefix}.coupling"), Unit::Dimensionless, m.multiplier));
             }
         }
-        let t = pose_to_vector(&self.tool);
+        let t = pose_to_vector(&self.tool_for_parameters());
         for (k, n) in ["x_m", "y_m", "z_m", "rx_rad", "ry_rad", "rz_rad"].iter().enumerate() {
             let unit = if k < 3 { Unit::Metre } else { Unit::Radian };
             out.push(ParamInfo::new(format!("tool.{n}"), unit, t[k]));
         }
+        self.tip_parameters(&mut out);
         out
     }
 
@@ -582,10 +613,11 @@ impl Parameterized for SerialChain {
                 k += 1;
             }
         }
-        self.tool = pose_from_vectors(
+        let tool = pose_from_vectors(
             &Vector3::new(values[k], values[k + 1], values[k + 2]),
             &Vector3::new(values[k + 3], values[k + 4], values[k + 5]),
         );
+        self.set_tip_parameters(tool, &values[k + 6..]);
         Ok(())
     }
 }
@@ -612,6 +644,9 @@ impl Kinematics for SerialChain {
     }
 
     fn forward(&self, q: &[f64]) -> Result<Pose> {
+        if self.is_tree() {
+            return Ok(self.frames(q)?.tool);
+        }
         let all;
         let q = if self.has_mimic_joints() {
             all = self.all_joint_values(q)?;
@@ -622,7 +657,7 @@ impl Kinematics for SerialChain {
         };
         let mut t = self.base;
         for (j, qi) in self.joints.iter().zip(q) {
-            let (pre, axis, post) = j.split_corrected();
+            let (pre, axis, post) = j.split_corrected(false);
             t = t * pre * j.motion(&axis, *qi) * post;
         }
         Ok(t * self.tool)
@@ -636,7 +671,7 @@ impl Kinematics for SerialChain {
         let frames = self.frames(q)?;
         let p = Point3::from(frames.tool.translation.vector);
         let kinds: Vec<JointKind> = self.joints.iter().map(|j| j.kind).collect();
-        let jac = Self::point_jacobian(&frames, &kinds, self.joints.len().saturating_sub(1), &p);
+        let jac = Self::point_jacobian(&frames, &kinds, self.tip_joint(), &p);
         if !self.has_mimic_joints() {
             return Ok(jac);
         }

@@ -46,18 +46,18 @@ pub fn parse_urdf_str(text: &str, opts: &UrdfOptions) -> Result<SerialChain> {
     parse_urdf_impl(text, PathBuf::from("<string>"), opts)
 }
 
-struct Ctx<'a> {
+pub(super) struct Ctx<'a> {
     file: PathBuf,
     doc: &'a Document<'a>,
 }
 
 impl Ctx<'_> {
-    fn loc(&self, node: Node) -> Location {
+    pub(super) fn loc(&self, node: Node) -> Location {
         let pos = self.doc.text_pos_at(node.range().start);
         Location { file: self.file.clone(), line: pos.row, column: pos.col }
     }
 
-    fn err(&self, node: Node, message: impl Into<String>) -> RobotError {
+    pub(super) fn err(&self, node: Node, message: impl Into<String>) -> RobotError {
         RobotError::Parse { location: self.loc(node), message: message.into() }
     }
 
@@ -109,30 +109,45 @@ fn child<'a, 'i>(node: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
 }
 
 /// A parsed URDF joint before chain extraction.
-struct RawJoint<'a, 'i> {
-    node: Node<'a, 'i>,
-    name: String,
-    kind: Option<JointKind>, // None = fixed
-    parent: String,
-    child: String,
-    origin: Pose,
-    axis: Vector3<f64>,
-    limits: JointLimits,
+pub(super) struct RawJoint<'a, 'i> {
+    pub(super) node: Node<'a, 'i>,
+    pub(super) name: String,
+    pub(super) kind: Option<JointKind>, // None = fixed
+    pub(super) parent: String,
+    pub(super) child: String,
+    pub(super) origin: Pose,
+    pub(super) axis: Vector3<f64>,
+    pub(super) limits: JointLimits,
     /// `<mimic>`: the element, leader name, multiplier, offset.
-    mimic: Option<(Node<'a, 'i>, String, f64, f64)>,
+    pub(super) mimic: Option<(Node<'a, 'i>, String, f64, f64)>,
+}
+
+/// A URDF's links and joints, checked to form one tree.
+pub(super) struct Raw<'a, 'i> {
+    pub(super) robot_name: String,
+    pub(super) root: Node<'a, 'i>,
+    pub(super) links: HashMap<String, Node<'a, 'i>>,
+    pub(super) link_order: Vec<String>,
+    pub(super) inertials: HashMap<String, RawInertial>,
+    pub(super) joints: Vec<RawJoint<'a, 'i>>,
+    /// Per link, the joints it carries.
+    pub(super) children: HashMap<String, Vec<usize>>,
+    /// Per link reachable from the root: (actuated joints above it, the joint that reaches it).
+    pub(super) depth: HashMap<String, (usize, Option<usize>)>,
+    pub(super) root_link: String,
 }
 
 /// A link's inertial in its own frame: mass, com, inertia about com.
 #[derive(Clone, Copy)]
-struct RawInertial {
-    mass: f64,
-    com: Vector3<f64>,
-    inertia: Matrix3<f64>,
+pub(super) struct RawInertial {
+    pub(super) mass: f64,
+    pub(super) com: Vector3<f64>,
+    pub(super) inertia: Matrix3<f64>,
 }
 
 impl RawInertial {
     /// Expressed in a frame F where `t_f_link` maps link coordinates to F.
-    fn transformed(&self, t_f_link: &Pose) -> RawInertial {
+    pub(super) fn transformed(&self, t_f_link: &Pose) -> RawInertial {
         let r = t_f_link.rotation.to_rotation_matrix();
         RawInertial {
             mass: self.mass,
@@ -141,7 +156,7 @@ impl RawInertial {
         }
     }
 
-    fn merged(a: RawInertial, b: RawInertial) -> RawInertial {
+    pub(super) fn merged(a: RawInertial, b: RawInertial) -> RawInertial {
         let m = a.mass + b.mass;
         if m <= 0.0 {
             return a;
@@ -156,6 +171,11 @@ impl RawInertial {
 }
 
 fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<SerialChain> {
+    with_raw(text, file, |ctx, raw| chain_from_raw(ctx, raw, opts))
+}
+
+/// Parses `text`, checks that its joints form one tree and hands the result to `f`.
+pub(super) fn with_raw<T>(text: &str, file: PathBuf, f: impl FnOnce(&Ctx, Raw) -> Result<T>) -> Result<T> {
     let doc = Document::parse(text).map_err(|e| {
         let pos = e.pos();
         RobotError::Parse {
@@ -322,9 +342,9 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
     let root_link = roots[0].clone();
 
     // Children lists, and a walk from the root that also detects cycles.
-    let mut children: HashMap<&str, Vec<usize>> = HashMap::new();
+    let mut children: HashMap<String, Vec<usize>> = HashMap::new();
     for (k, j) in joints.iter().enumerate() {
-        children.entry(j.parent.as_str()).or_default().push(k);
+        children.entry(j.parent.clone()).or_default().push(k);
     }
     // Depth (in actuated joints) of every link reachable from the root.
     let mut depth: HashMap<String, (usize, Option<usize>)> = HashMap::new(); // link -> (actuated count, joint that reaches it)
@@ -350,6 +370,13 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
             message: format!("joint '{}' is not connected to the root link '{root_link}' (a detached loop)", j.name),
         });
     }
+    let raw = Raw { robot_name, root, links, link_order, inertials, joints, children, depth, root_link };
+    f(&ctx, raw)
+}
+
+/// The chain from the root to the chosen tip, the branches off it lumped into it.
+fn chain_from_raw(ctx: &Ctx, raw: Raw, opts: &UrdfOptions) -> Result<SerialChain> {
+    let Raw { robot_name, root, links, link_order, inertials, joints, children, depth, root_link } = raw;
 
     let tip = match &opts.tip_link {
         Some(t) => {
@@ -381,7 +408,7 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
         cur = joints[k].parent.clone();
     }
     path.reverse();
-    check_mimics(&ctx, &joints, &path, &root_link, &tip)?;
+    check_mimics(ctx, &joints, &path, &root_link, &tip)?;
 
     // Each link of the chain carries, besides its own inertial, every branch that hangs on it off
     // the chain (the other arm of a dual-arm torso, a gripper's fingers), lumped at the branch
@@ -469,7 +496,7 @@ fn parse_urdf_impl(text: &str, file: PathBuf, opts: &UrdfOptions) -> Result<Seri
 /// offset); `None` when nothing in it has mass.
 fn subtree_inertial(
     joints: &[RawJoint],
-    children: &HashMap<&str, Vec<usize>>,
+    children: &HashMap<String, Vec<usize>>,
     inertials: &HashMap<String, RawInertial>,
     k: usize,
 ) -> Option<RawInertial> {
@@ -496,7 +523,7 @@ fn subtree_inertial(
 }
 
 /// Every mimic joint on the chain `path` must follow an actuated joint on the same chain.
-fn check_mimics(ctx: &Ctx, joints: &[RawJoint], path: &[usize], root: &str, tip: &str) -> Result<()> {
+pub(super) fn check_mimics(ctx: &Ctx, joints: &[RawJoint], path: &[usize], root: &str, tip: &str) -> Result<()> {
     for &k in path {
         let Some((node, leader, _, _)) = &joints[k].mimic else { continue };
         let name = &joints[k].name;

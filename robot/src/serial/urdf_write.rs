@@ -27,6 +27,12 @@ impl SerialChain {
     /// and the base in the first origin (see the module documentation).
     pub fn to_origin_form(&self, offsets: &[f64]) -> Result<SerialChain> {
         let n = self.dof();
+        if self.is_tree() {
+            return Err(RobotError::Invalid(format!(
+                "'{}' is a tree of chains: writing it back in origin form (URDF, DH) is not supported yet; the calibration file holds its parameters",
+                self.name
+            )));
+        }
         if offsets.len() != n {
             return Err(RobotError::Invalid(format!("{} joint offsets for a chain of {n} joints", offsets.len())));
         }
@@ -36,7 +42,7 @@ impl SerialChain {
         let mut joints = Vec::with_capacity(self.joints.len());
         let mut carry = self.base;
         for (j, off) in self.joints.iter().zip(all.iter()) {
-            let (pre, axis, post) = j.split_corrected();
+            let (pre, axis, post) = j.split_corrected(false);
             let axis = axis.normalize();
             let origin = carry * pre * j.motion(&axis, *off);
             let (roll, pitch, yaw) = origin.rotation.euler_angles();

@@ -340,6 +340,17 @@ pub fn summary_lines(run: &CalibrationRun, model: &str) -> Vec<String> {
 pub fn evaluate_run_json(run: &EvaluateRun) -> Result<(serde_json::Value, ErrorStats)> {
     let (mut out, stats) = evaluate_json(&run.model, &run.scored)?;
     out["rows_scored"] = json!(if run.test_only { "test" } else { "all" });
+    // A tree's table of several tips: each tip's figures too (docs/trees.md).
+    let tips = ferrocal_datasets::trees::tips_of(&run.scored);
+    if tips.len() > 1 {
+        let mut per_tip = serde_json::Map::new();
+        for tip in tips {
+            let rows: Vec<&PoseMeasurement> = run.scored.iter().filter(|r| r.tip() == Some(tip.as_str())).collect();
+            let s = run.model.evaluate(&rows)?;
+            per_tip.insert(tip, json!({"n": s.n, "mean_mm": s.mean_mm, "rms_mm": s.rms_mm, "max_mm": s.max_mm}));
+        }
+        out["per_tip"] = serde_json::Value::Object(per_tip);
+    }
     if let Some(record) = &run.refit {
         out["refit_frame"] = serde_json::to_value(record)?;
     }

@@ -78,6 +78,10 @@ pub struct CalibrateArgs {
     /// `joint_compliance:2,periodic_joint_error:3:180deg,backlash:1` (docs/diagnose.md).
     #[arg(long)]
     pub effects: Option<String>,
+    /// The measured link of a tree-shaped robot (a URDF with several chains), for the rows
+    /// without a `tip` column value.
+    #[arg(long)]
+    pub tip: Option<String>,
 }
 
 /// `ferrocal evaluate`.
@@ -106,6 +110,10 @@ pub struct EvaluateArgs {
     /// `--refit-frame`).
     #[arg(long, default_value_t = 0.02)]
     pub sigma_mm: f64,
+    /// The measured link of a tree-shaped robot (a URDF with several chains), for the rows
+    /// without a `tip` column value.
+    #[arg(long)]
+    pub tip: Option<String>,
 }
 
 pub use ferrocal_datasets::calibration::{check_distinct_poses, check_params, load_model_and_rows};
@@ -120,9 +128,10 @@ pub fn warn(w: &str) {
 pub fn load_with_unit_doubts(
     robot: &str,
     measurements: &Path,
+    tip: Option<&str>,
 ) -> Result<(RobotModel, Vec<ferrocal_calib::PoseMeasurement>, Vec<String>)> {
     let seen = std::cell::RefCell::new(Vec::new());
-    let (model, rows) = load_model_and_rows(robot, measurements, &|w| {
+    let (model, rows) = load_model_and_rows(robot, measurements, tip, &|w| {
         warn(w);
         seen.borrow_mut().push(w.to_string());
     })?;
@@ -164,7 +173,7 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
     let files = CalibrateFiles { out: &args.out, json: args.json.as_deref(), report: args.report.as_deref() };
     let outputs: Vec<&Path> = [Some(files.out), files.json, files.report].into_iter().flatten().collect();
     check_outputs(&outputs, &[args.measurements.as_path(), Path::new(&args.robot)])?;
-    let (model, rows, doubts) = load_with_unit_doubts(&args.robot, &args.measurements)?;
+    let (model, rows, doubts) = load_with_unit_doubts(&args.robot, &args.measurements, args.tip.as_deref())?;
     check_params(&opts.model_params, &model)?;
     check_distinct_poses(&rows, &args.measurements)?;
     let progress = crate::progress::bar(2, "calibrating");
@@ -198,7 +207,7 @@ pub fn run_calibrate(args: &CalibrateArgs, vs: &VerdictSettings) -> Result<ExitC
 pub fn run_evaluate(args: &EvaluateArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let outputs: Vec<&Path> = args.json.as_deref().into_iter().collect();
     check_outputs(&outputs, &[&args.measurements, &args.calibration, Path::new(&args.robot)])?;
-    let (model, rows, doubts) = load_with_unit_doubts(&args.robot, &args.measurements)?;
+    let (model, rows, doubts) = load_with_unit_doubts(&args.robot, &args.measurements, args.tip.as_deref())?;
     let cm = apply_calibration(&args.robot, &model, &args.calibration)?;
     // A table with a split column is scored on its test rows only (shared/spec/cli.md); the
     // frame refit uses the whole table, as the spec says.

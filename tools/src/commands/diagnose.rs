@@ -65,6 +65,10 @@ pub struct DiagnoseArgs {
     /// Data attribution printed in the HTML report (source and licence of the recording).
     #[arg(long)]
     pub attribution: Option<String>,
+    /// The measured link of a tree-shaped robot (a URDF with several chains), for the rows
+    /// without a `tip` column value.
+    #[arg(long)]
+    pub tip: Option<String>,
 }
 
 /// Runs `ferrocal diagnose`.
@@ -93,7 +97,7 @@ pub fn run(args: &DiagnoseArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     };
     let outputs: Vec<&Path> = [Some(files.json), files.out, files.report].into_iter().flatten().collect();
     ferrocal_report::check_outputs(&outputs, &[meas.as_path(), Path::new(robot)])?;
-    let (model, rows, doubts) = super::calibrate::load_with_unit_doubts(robot, meas)?;
+    let (model, rows, doubts) = super::calibrate::load_with_unit_doubts(robot, meas, args.tip.as_deref())?;
     let files = DiagnoseFiles { unit_doubts: &doubts, ..files };
     super::calibrate::check_distinct_poses(&rows, meas)?;
     // The diagnosis reports no steps; a spinner with the elapsed time shows it is alive (on

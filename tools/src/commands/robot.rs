@@ -26,8 +26,14 @@ pub fn run(cmd: RobotCommand, vs: &VerdictSettings) -> Result<ExitCode> {
             ferrocal_report::Outputs::verdict_json(json.as_deref(), || info_json(&model), &v)?.write()?;
             Ok(vs.conclude(&v))
         }
-        RobotCommand::Fk { robot, joints } => {
-            let model = load(&robot)?;
+        RobotCommand::Fk { robot, joints, tip } => {
+            let model = match &tip {
+                None => load(&robot)?,
+                Some(tip) => RobotModel::Serial(
+                    ferrocal_robot::serial::parse_urdf_tree(std::path::Path::new(&robot), std::slice::from_ref(tip))
+                        .with_context(|| format!("cannot load robot model '{robot}' with the tip '{tip}'"))?,
+                ),
+            };
             let q = parse_joints(&joints, &model)?;
             pose_lines(&forward_within_limits(&model, &q, &joints)?).iter().for_each(|l| say!("{l}"));
             Ok(vs.conclude(&verdict::robot_fk(t, q.len(), &limit_margins(&model, &q))))
