@@ -249,6 +249,20 @@ pub fn held_out_corners(camera: &str, own_px: f64, opencv_px: f64) -> Check {
     )
 }
 
+/// The same corners as images and as an observations file give the same camera: `differ`
+/// names the values of the two JSON reports that are not equal to the last digit.
+pub fn same_from_observations(differ: &[&str]) -> Check {
+    Check::from_bool(
+        "the same camera from the observations",
+        differ.is_empty(),
+        if differ.is_empty() {
+            "fx, fy, cx, cy, the RMS, every standard deviation and every view equal to the last digit".to_string()
+        } else {
+            format!("different: {}", differ.join(", "))
+        },
+    )
+}
+
 /// Largest relative error of the mass after the force-sensor diagnosis.
 pub const FORCE_MASS_TOLERANCE: f64 = 0.04;
 

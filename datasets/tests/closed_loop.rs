@@ -17,7 +17,7 @@ use ferrocal_datasets::sim::closed_loop::{run_closed_loop, summarise_closed_loop
 /// docs/correct.md); asserted here is that its predicted radius is of the right size (the
 /// median true-frame landed RMS within 0.5-2 times the median predicted radius). Over 40 seeds
 /// (200-239, `cargo run -p ferrocal-datasets --example closed_loop -- 40 200`) the camera's
-/// coverage is 0.56-0.64 (docs/correct.md). The wanted poses are also given as targets
+/// coverage is 0.56 (docs/correct.md). The wanted poses are also given as targets
 /// (`correct --targets`, no joints) and land as the program does.
 #[test]
 fn corrected_programs_land_within_1_2x_of_the_held_out_error_and_their_sigma_covers_68_percent() {

@@ -136,6 +136,80 @@ pub fn load_recording(
     Ok((HandEyeData { mount, target_points_m: points, views }, skipped))
 }
 
+/// A recording from detections made elsewhere (`handeye --observations`): each observed image
+/// paired with its row of `table` by file name, its points numbered as `pattern`'s calibration
+/// target numbers them, each with the covariance `sigma_px^2 I` when the file gives one. Images
+/// without a row, rows without an image and images without points are listed in the second
+/// result; a point id the target does not have is an error naming the file, line and image.
+pub fn load_observed(
+    obs: &crate::import::observations::Observations,
+    file: &Path,
+    image_size: ImageSize,
+    table: &PosesTable,
+    flange: &[Isometry3<f64>],
+    pattern: &Pattern,
+    mount: Mount,
+) -> Result<(HandEyeData, Vec<Skipped>)> {
+    // Numbered as the calibration target numbers its points, placed in the detector's frame (the
+    // frame the image route's hand-eye transform is in).
+    let points_m = ferrocal_vision::calib::CalibrationPattern::of(pattern)?.detector_points_m();
+    let cameras = obs.cameras();
+    if cameras.len() > 1 {
+        return Err(DatasetError::Input(format!(
+            "{}: observations of {} cameras ({}); handeye --observations takes one camera's",
+            file.display(),
+            cameras.len(),
+            cameras.join(", ")
+        )));
+    }
+    let by_name: HashMap<&str, usize> = table.rows.iter().enumerate().map(|(i, r)| (r.image.as_str(), i)).collect();
+    let mut used = vec![false; table.rows.len()];
+    let mut skipped = Vec::new();
+    let mut views = Vec::new();
+    for i in &obs.images {
+        let name = Path::new(&i.image).file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let Some(&row) = by_name.get(name.as_str()) else {
+            skipped.push(Skipped {
+                what: i.image.clone(),
+                reason: format!("no row of {} names it", table.file.display()),
+            });
+            continue;
+        };
+        used[row] = true;
+        if let Some(id) = i.point_ids.iter().find(|&&id| id >= points_m.len()) {
+            return Err(DatasetError::Input(format!(
+                "{} (line {}): image '{}' names point {id}, but the pattern {pattern} has points 0 to {}",
+                file.display(),
+                i.line,
+                i.image,
+                points_m.len().saturating_sub(1)
+            )));
+        }
+        if i.point_ids.is_empty() {
+            skipped.push(Skipped { what: i.image.clone(), reason: "no points observed".into() });
+            continue;
+        }
+        views.push(HandEyeView {
+            name,
+            split: table.rows[row].split,
+            t_base_flange: flange[row],
+            image_size,
+            point_ids: i.point_ids.clone(),
+            corners_px: i.corners_px.clone(),
+            covariances_px2: i.sigma_px.iter().map(|s| s.map(|s| nalgebra::Matrix2::identity() * (s * s))).collect(),
+        });
+    }
+    for (r, u) in table.rows.iter().zip(&used) {
+        if !u {
+            skipped.push(Skipped {
+                what: format!("{}:{}", table.file.display(), r.line),
+                reason: format!("no image named '{}' among the observations", r.image),
+            });
+        }
+    }
+    Ok((HandEyeData { mount, target_points_m: points_m, views }, skipped))
+}
+
 fn json_number(v: &serde_json::Value, key: &str, path: &Path) -> Result<f64> {
     v.get(key).and_then(serde_json::Value::as_f64).ok_or_else(|| DatasetError::Invalid {
         location: Location::new(path, 1, key),

@@ -18,6 +18,7 @@ use ferrocal_lsq::Loss;
 use ferrocal_robot::RobotModel;
 use ferrocal_vision::calib::corners::SkippedImage;
 use ferrocal_vision::calib::CalibrationOptions;
+use ferrocal_vision::camera::ImageSize;
 use ferrocal_vision::detect::Pattern;
 
 use super::{load_recording, read_camera_file, read_handeye_poses, PosesTable, RobotReading, Skipped};
@@ -52,6 +53,9 @@ pub struct HandEyeRunOptions {
     /// Decide the target's bending and print scale and the lens model on the training images
     /// ([`select_chain_physics`]) before the fit; off: the flat target and the given lens model.
     pub physics: bool,
+    /// Detections made elsewhere instead of `images` (`crate::import::observations`), with the
+    /// images' size when their files are not beside the observations file.
+    pub observations: Option<(PathBuf, Option<ImageSize>)>,
 }
 
 impl HandEyeRunOptions {
@@ -139,8 +143,27 @@ impl HandEyeInput {
         let robot = o.robot.as_deref().map(RobotModel::load).transpose()?;
         let flange = table.flange_poses(robot.as_ref())?;
         let mut skipped_images = Vec::new();
-        let paths = expand_image_specs(&o.images, &mut skipped_images);
-        let (data, skipped) = load_recording(&paths, &table, &flange, &pattern, o.mount)?;
+        let (paths, (data, skipped)) = match &o.observations {
+            Some((file, size)) => {
+                let obs = crate::import::observations::read_observations(file)?;
+                let size = match size {
+                    Some(s) => *s,
+                    None => crate::import::observations::image_size_beside(&obs, file).ok_or_else(|| {
+                        DatasetError::Input(format!(
+                            "{}: none of its images is readable beside it to tell their size; give --image-size <width>x<height>",
+                            file.display()
+                        ))
+                    })?,
+                };
+                let paths = obs.images.iter().map(|i| PathBuf::from(&i.image)).collect();
+                (paths, super::recording::load_observed(&obs, file, size, &table, &flange, &pattern, o.mount)?)
+            }
+            None => {
+                let paths = expand_image_specs(&o.images, &mut skipped_images);
+                let loaded = load_recording(&paths, &table, &flange, &pattern, o.mount)?;
+                (paths, loaded)
+            }
+        };
         Ok(Self { pattern, table, robot, paths, skipped_images, skipped, data, motion: None })
     }
 

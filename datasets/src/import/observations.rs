@@ -193,6 +193,18 @@ fn parse_mrcal_corners(text: &str, path: &Path) -> Result<Observations> {
     Ok(Observations { images })
 }
 
+/// Parses `--image-size`'s `<width>x<height>` (pixels).
+pub fn parse_image_size(text: &str) -> Result<ferrocal_vision::camera::ImageSize> {
+    let parsed: Option<(u32, u32)> =
+        text.split_once(['x', 'X']).and_then(|(w, h)| Some((w.trim().parse().ok()?, h.trim().parse().ok()?)));
+    match parsed {
+        Some((w, h)) if w > 0 && h > 0 => Ok(ferrocal_vision::camera::ImageSize { width_px: w, height_px: h }),
+        _ => Err(DatasetError::Input(format!(
+            "--image-size '{text}': expected <width>x<height> in pixels, e.g. 640x480"
+        ))),
+    }
+}
+
 /// The size of the first of `obs`'s images that is readable as an image file (a relative name
 /// taken beside `file`, then as given).
 pub fn image_size_beside(obs: &Observations, file: &Path) -> Option<ferrocal_vision::camera::ImageSize> {

@@ -23,7 +23,9 @@ use crate::report::{inline_png, Block, Section};
 mod camera;
 pub mod pipeline;
 pub mod story;
-pub use camera::{camera_diagnose, camera_own_corners, camera_real, camera_real_skipped, printed_targets_section};
+pub use camera::{
+    camera_diagnose, camera_observations, camera_own_corners, camera_real, camera_real_skipped, printed_targets_section,
+};
 
 /// Progress of a long step: `(label, position, length)`.
 pub type Tick<'a> = &'a dyn Fn(&str, u64, u64);

@@ -199,7 +199,6 @@ fn report_skipped(skipped: &[SkippedImage]) {
 /// The views of an observations file; the image size from `size` (`WxH`) or from the first
 /// image file found beside the observations file.
 fn observed_views(file: &Path, size: Option<&str>, pattern: &CalibrationPattern) -> Result<CameraViews> {
-    use ferrocal_vision::camera::ImageSize;
     let obs = ferrocal_datasets::import::observations::read_observations(file)?;
     if obs.images.iter().any(|i| i.sigma_px.iter().any(Option::is_some)) {
         eprintln!(
@@ -208,14 +207,7 @@ fn observed_views(file: &Path, size: Option<&str>, pattern: &CalibrationPattern)
         );
     }
     let image_size = match size {
-        Some(s) => {
-            let parsed =
-                s.split_once(['x', 'X']).and_then(|(w, h)| Some((w.trim().parse().ok()?, h.trim().parse().ok()?)));
-            match parsed {
-                Some((w, h)) if w > 0 && h > 0 => ImageSize { width_px: w, height_px: h },
-                _ => anyhow::bail!("--image-size '{s}': expected <width>x<height> in pixels, e.g. 640x480"),
-            }
-        }
+        Some(s) => ferrocal_datasets::import::observations::parse_image_size(s)?,
         None => match ferrocal_datasets::import::observations::image_size_beside(&obs, file) {
             Some(size) => size,
             None => anyhow::bail!(

@@ -30,8 +30,17 @@ pub struct HandeyeArgs {
     /// Images: files, directories or quoted globs. Given once per camera for a rig (two or more
     /// cameras, camera 0 the reference): `--images cam0/ --images cam1/`; each camera's images
     /// are matched to the poses table's rows by file name.
-    #[arg(long, required = true, num_args = 1..)]
+    #[arg(long, required_unless_present = "observations", num_args = 1..)]
     pub images: Vec<PathBuf>,
+    /// Detections made elsewhere instead of images (one camera): a CSV of `image, camera,
+    /// point_id, u_px, v_px` (optionally `sigma_px`), the point ids those of `--pattern`'s points,
+    /// or mrcal's corners file; each image matched to the poses table's rows by file name.
+    #[arg(long, conflicts_with = "images")]
+    pub observations: Option<PathBuf>,
+    /// The size of the observed images, `<width>x<height>` pixels (read from the image files
+    /// when they exist beside the observations file).
+    #[arg(long, value_name = "WxH", requires = "observations")]
+    pub image_size: Option<String>,
     /// `--images` grouped by occurrence, one group per camera (filled by
     /// [`crate::cli::Cli::try_parse_grouped`]; empty: one camera, `images`).
     #[arg(skip)]
@@ -197,6 +206,7 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
     let groups = if a.image_groups.is_empty() { vec![a.images.clone()] } else { a.image_groups.clone() };
     let flat: Vec<PathBuf> = groups.iter().flatten().cloned().collect();
     let mut inputs = run_inputs(poses_path, None, a.robot.as_deref(), &flat);
+    inputs.extend(a.observations.as_deref());
     inputs.extend(a.intrinsics.iter().map(PathBuf::as_path));
     let rig_paths = a.rig_out.as_deref().map(|d| rig_file_paths(d, groups.len())).unwrap_or_default();
     let mut outputs = files.all();
@@ -223,7 +233,17 @@ pub fn run(a: &HandeyeArgs, vs: &VerdictSettings) -> Result<ExitCode> {
         robot_sigma_mm_deg: a.robot_sigma_mm.zip(a.robot_sigma_deg),
         exact_robot_poses: a.exact_robot_poses,
         physics: !a.no_physics,
+        observations: match &a.observations {
+            Some(f) => Some((
+                f.clone(),
+                a.image_size.as_deref().map(ferrocal_datasets::import::observations::parse_image_size).transpose()?,
+            )),
+            None => None,
+        },
     };
+    if a.observations.is_some() && a.rig_out.is_some() {
+        bail!("handeye: --observations takes one camera's detections; a rig (--rig-out) needs --images per camera");
+    }
     if groups.len() > 1 || a.rig_out.is_some() {
         return run_rig(a, vs, &run, &groups, &RigFiles { handeye: files, rig_out: a.rig_out.as_deref() });
     }

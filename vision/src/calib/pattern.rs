@@ -67,6 +67,24 @@ impl CalibrationPattern {
         }
     }
 
+    /// The target's points in the frame the detector reports them in (`Corner::target_m`), in
+    /// the order of [`CalibrationPattern::target`]. The same points for every pattern but the
+    /// chessboard, whose calibration target follows OpenCV (origin at the first corner, x along
+    /// a row, y along a column) while the detector puts the origin at the board's centre, y up:
+    /// the frame a hand-eye transform is expressed in.
+    pub fn detector_points_m(&self) -> Vec<nalgebra::Point3<f64>> {
+        match *self {
+            Self::Chessboard { inner_cols, inner_rows, square_m } => (0..inner_rows)
+                .flat_map(|r| {
+                    (0..inner_cols).map(move |c| {
+                        crate::detect::chessboard::target_point(inner_cols, inner_rows, square_m * 1e3, r, c)
+                    })
+                })
+                .collect(),
+            _ => self.target().points_m,
+        }
+    }
+
     /// The detector's options for calibration: the defaults, with the tags' corners of an
     /// AprilTag board refined by the edge model (sub-pixel, with covariances; the C library's
     /// quad corners are several times less accurate).

@@ -93,6 +93,22 @@ pub fn camera_own_corners(runs: &[(&str, Value, Value)]) -> Section {
     s
 }
 
+/// Detections made elsewhere: the same corners given as images and as an observations file
+/// (`camera calibrate --save-observations`, then `--observations`) give the same camera.
+pub fn camera_observations(images: &Value, observations: &Value) -> Section {
+    let mut s = Section::new("camera-observations", "Real images: the same corners as an observations file");
+    s.attribution(OPENCV_ATTRIBUTION);
+    s.text("The left camera's corners found by the project's detector are saved with --save-observations (image, camera, point_id, u_px, v_px; numbers in their shortest exact form) and the camera is calibrated again from that file alone, as a user whose corners come from another detector would (mrcal's corners files are read too). Both calibrations must agree to the last digit.");
+    let keys = ["fx", "fy", "cx", "cy", "rms_px", "std", "per_view"];
+    let rows =
+        keys[..5].iter().map(|k| vec![k.to_string(), images[k].to_string(), observations[k].to_string()]).collect();
+    s.table("The left camera from its images and from its observations", &["value", "images", "observations"], rows);
+    s.data = json!({"images": images, "observations": observations});
+    let differ: Vec<&str> = keys.iter().copied().filter(|k| images[*k] != observations[*k]).collect();
+    s.check(checks::same_from_observations(&differ));
+    s
+}
+
 /// The real-camera section when the images under `dir` are absent.
 pub fn camera_real_skipped(dir: &Path) -> Section {
     let mut s = Section::new("camera-real", "Real images: the OpenCV stereo sample calibrated");

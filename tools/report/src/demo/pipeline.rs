@@ -156,6 +156,26 @@ fn real_camera_sections(d: &DemoSettings, run: RunCommand) -> Result<Vec<Section
     let mut out_sections =
         vec![camera_real(&read(&left_json)?, &read(&right_json)?, &read(&stereo_json)?), camera_own_corners(&held_out)];
 
+    // Detections made elsewhere: the left camera's own corners saved, then read back instead of
+    // the images.
+    let observations = out.join("left_observations.csv");
+    let from_images = out.join("left_own.json");
+    calibrate("left", &from_images, &["--save-observations", &observations.display().to_string()])?;
+    let from_observations = out.join("left_from_observations.json");
+    let (obs, json) = (observations.display().to_string(), from_observations.display().to_string());
+    run(&strings(&[
+        "camera",
+        "calibrate",
+        "--observations",
+        &obs,
+        "--pattern",
+        pattern,
+        "--fix-aspect",
+        "--json",
+        &json,
+    ]))?;
+    out_sections.push(camera_observations(&read(&from_images)?, &read(&from_observations)?));
+
     // What the default camera model leaves out.
     let mut reports = Vec::new();
     for side in ["left", "right"] {
