@@ -507,7 +507,7 @@ pub(super) fn adjust(
     let (m_w, m_x) = setup.frames.jacobians(&state.frame, &state.tool);
     let world_cov = chart_covariance(&m_w, &setup.frames.frame_free, cov.block(b.frame));
     let hand_eye_cov = chart_covariance(&m_x, &setup.frames.tool_free, cov.block(b.tool));
-    let uncertainty = {
+    let mut uncertainty = {
         const AXES: [&str; 6] = ["x_m", "y_m", "z_m", "rx_rad", "ry_rad", "rz_rad"];
         let mut names = Vec::new();
         let mut idx = Vec::new();
@@ -554,20 +554,19 @@ pub(super) fn adjust(
         }
         Ok(views)
     };
-    let figures_of = |input: &CamInput, camera: &CameraModel, chain: &Chain| -> Result<ChainFigures> {
-        let views = chain_views(input)?;
-        let pnp = pnp_poses(camera, &input.data.target_points_m, &views, fallback);
-        Ok(chain_figures(input.data.mount, camera, &input.data.target_points_m, &views, &pnp, chain))
+    let figures_of = |input: &CamInput, views: &[HandEyeView], camera: &CameraModel, chain: &Chain| {
+        let pnp = pnp_poses(camera, &input.data.target_points_m, views, fallback);
+        chain_figures(input.data.mount, camera, &input.data.target_points_m, views, &pnp, chain)
     };
     let chain0 = Chain { x, w, scale: 1.0 };
-    let figures = figures_of(&cams[0], &camera, &chain0)?;
+    let views0 = chain_views(&cams[0])?;
+    let figures = figures_of(&cams[0], &views0, &camera, &chain0);
     // The landing covariance scaled by what whole views show the model missing.
-    let mut uncertainty = uncertainty;
     let lack = lack_of_fit::view_lack_of_fit(
         cams[0].data.mount,
         &camera,
         &cams[0].data.target_points_m,
-        &chain_views(&cams[0])?,
+        &views0,
         &chain0,
         fallback,
         uncertainty.names.len(),
@@ -588,7 +587,7 @@ pub(super) fn adjust(
             camera: *cam_k,
             camera_std: (0..c_cov.nrows()).map(|i| c_cov[(i, i)].max(0.0).sqrt()).collect(),
             t_cam_cam0: TransformEstimate { transform: t_k0, covariance: Matrix6::from_fn(|i, j| r_cov[(i, j)]) },
-            figures: figures_of(&cams[k + 1], cam_k, &chain)?,
+            figures: figures_of(&cams[k + 1], &chain_views(&cams[k + 1])?, cam_k, &chain),
         });
     }
     let mut params = Vec::new();

@@ -99,15 +99,7 @@ impl Truth {
     }
 
     fn torques_nm(&self, q: &[f64]) -> Vec<f64> {
-        let h = 1e-5;
-        (0..q.len())
-            .map(|k| {
-                let (mut p, mut m) = (q.to_vec(), q.to_vec());
-                p[k] += h;
-                m[k] -= h;
-                (self.energy_j(&p) - self.energy_j(&m)) / (2.0 * h)
-            })
-            .collect()
+        super::tree::energy_gradient(q, |x| self.energy_j(x))
     }
 
     fn equilibrium(&self, q_cmd: &[f64]) -> Option<Vec<f64>> {

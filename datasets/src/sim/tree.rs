@@ -147,15 +147,7 @@ impl TreeRobot {
 
     /// Holding torques of the actuated chain joints, `dV/dq` by central differences (1e-5 rad).
     pub fn torques_nm(&self, q: &[f64]) -> Vec<f64> {
-        let h = 1e-5;
-        (0..q.len())
-            .map(|k| {
-                let (mut p, mut m) = (q.to_vec(), q.to_vec());
-                p[k] += h;
-                m[k] -= h;
-                (self.energy_j(&p) - self.energy_j(&m)) / (2.0 * h)
-            })
-            .collect()
+        energy_gradient(q, |x| self.energy_j(x))
     }
 
     /// The angles where the drives hold the load: `q = q_cmd + offset - C tau(q)`, iterated to
@@ -241,6 +233,20 @@ impl TreeRobot {
         s.push_str("</robot>\n");
         s
     }
+}
+
+/// `dV/dq` of a potential energy `energy_j` (J) at `q` by central differences of 1e-5 rad: the
+/// joint torques that hold the pose, N m.
+pub(crate) fn energy_gradient(q: &[f64], energy_j: impl Fn(&[f64]) -> f64) -> Vec<f64> {
+    let h = 1e-5;
+    (0..q.len())
+        .map(|k| {
+            let (mut p, mut m) = (q.to_vec(), q.to_vec());
+            p[k] += h;
+            m[k] -= h;
+            (energy_j(&p) - energy_j(&m)) / (2.0 * h)
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -122,6 +122,31 @@ pub(super) struct RawJoint<'a, 'i> {
     pub(super) mimic: Option<(Node<'a, 'i>, String, f64, f64)>,
 }
 
+impl RawJoint<'_, '_> {
+    /// The chain's joint of this moving joint of kind `kind`, its origin `origin` (the URDF
+    /// origin with the fixed joints before it folded in).
+    pub(super) fn moving(&self, kind: JointKind, origin: &Pose) -> Joint {
+        let (roll, pitch, yaw) = origin.rotation.euler_angles();
+        Joint {
+            name: self.name.clone(),
+            kind,
+            geometry: JointGeometry::Origin {
+                xyz_m: origin.translation.vector.into(),
+                rpy_rad: [roll, pitch, yaw],
+                axis: self.axis.into(),
+            },
+            limits: self.limits,
+            inertial: None,
+            correction: [0.0; 6],
+            mimic: self.mimic.as_ref().map(|(_, leader, multiplier, offset)| Mimic {
+                leader: leader.clone(),
+                multiplier: *multiplier,
+                offset: *offset,
+            }),
+        }
+    }
+}
+
 /// A URDF's links and joints, checked to form one tree.
 pub(super) struct Raw<'a, 'i> {
     pub(super) robot_name: String,
@@ -454,24 +479,7 @@ fn chain_from_raw(ctx: &Ctx, raw: Raw, opts: &UrdfOptions) -> Result<SerialChain
             Some(kind) => {
                 let origin = pending * j.origin;
                 pending = Isometry3::identity();
-                let (roll, pitch, yaw) = origin.rotation.euler_angles();
-                out_joints.push(Joint {
-                    name: j.name.clone(),
-                    kind,
-                    geometry: JointGeometry::Origin {
-                        xyz_m: origin.translation.vector.into(),
-                        rpy_rad: [roll, pitch, yaw],
-                        axis: j.axis.into(),
-                    },
-                    limits: j.limits,
-                    inertial: None,
-                    correction: [0.0; 6],
-                    mimic: j.mimic.as_ref().map(|(_, leader, multiplier, offset)| Mimic {
-                        leader: leader.clone(),
-                        multiplier: *multiplier,
-                        offset: *offset,
-                    }),
-                });
+                out_joints.push(j.moving(kind, &origin));
                 carried.push(inertials.get(&j.child).copied());
             }
         }

@@ -13,7 +13,7 @@ use nalgebra::Isometry3;
 
 use super::tree::{ChainTree, TreeTip};
 use super::urdf::{check_mimics, with_raw, Ctx, Raw, RawInertial};
-use super::{Inertial, Joint, JointGeometry, Mimic, SerialChain};
+use super::{Inertial, SerialChain};
 use crate::error::{Result, RobotError};
 use crate::geometry::Pose;
 
@@ -77,25 +77,7 @@ fn tree_from_raw(ctx: &Ctx, raw: Raw, tips: &[String]) -> Result<SerialChain> {
             }
         }
         parent.push(p);
-        let origin = fixed * j.origin;
-        let (roll, pitch, yaw) = origin.rotation.euler_angles();
-        joints.push(Joint {
-            name: j.name.clone(),
-            kind: j.kind.expect("moving"),
-            geometry: JointGeometry::Origin {
-                xyz_m: origin.translation.vector.into(),
-                rpy_rad: [roll, pitch, yaw],
-                axis: j.axis.into(),
-            },
-            limits: j.limits,
-            inertial: None,
-            correction: [0.0; 6],
-            mimic: j.mimic.as_ref().map(|(_, leader, multiplier, offset)| Mimic {
-                leader: leader.clone(),
-                multiplier: *multiplier,
-                offset: *offset,
-            }),
-        });
+        joints.push(j.moving(j.kind.expect("moving"), &(fixed * j.origin)));
     }
     // Every link's inertial on the moving joint that carries it.
     let mut carried: Vec<Option<RawInertial>> = vec![None; joints.len()];

@@ -28,6 +28,20 @@ fn rows(qs: &[[f64; 6]]) -> Vec<PoseMeasurement> {
     qs.iter().enumerate().map(|(k, q)| PoseMeasurement::new(format!("{k}"), q.to_vec(), Vector3::zeros())).collect()
 }
 
+/// The nominal frames fitted over six poses spread over the joint space.
+fn frames_of(cm: &CalibratedModel) -> NominalFrames {
+    let fit_rows = rows(&[
+        [0.1, -1.2, 1.4, -1.8, -1.5, 0.3],
+        [-0.8, -1.6, 1.9, -0.7, 1.2, -2.0],
+        [0.9, -0.9, 0.8, 0.5, -0.4, 1.0],
+        [1.4, -2.0, 2.1, -2.6, 0.9, 2.5],
+        [-1.1, -0.6, 1.1, 1.7, 2.2, -0.6],
+        [0.4, -1.9, 0.6, -0.2, -2.1, 0.1],
+    ]);
+    let refs: Vec<&PoseMeasurement> = fit_rows.iter().collect();
+    NominalFrames::fit(cm, &refs).unwrap()
+}
+
 #[test]
 fn the_68_percent_radius_is_the_one_sigma_probability_in_3_d() {
     // Isotropic: the chi distribution with 3 degrees of freedom at 0.6827 is 1.8780.
@@ -47,16 +61,7 @@ fn the_68_percent_radius_is_the_one_sigma_probability_in_3_d() {
 #[test]
 fn a_command_depends_on_its_row_alone_and_reaches_the_nominal_pose() {
     let cm = calibrated_ur5();
-    let fit_rows = rows(&[
-        [0.1, -1.2, 1.4, -1.8, -1.5, 0.3],
-        [-0.8, -1.6, 1.9, -0.7, 1.2, -2.0],
-        [0.9, -0.9, 0.8, 0.5, -0.4, 1.0],
-        [1.4, -2.0, 2.1, -2.6, 0.9, 2.5],
-        [-1.1, -0.6, 1.1, 1.7, 2.2, -0.6],
-        [0.4, -1.9, 0.6, -0.2, -2.1, 0.1],
-    ]);
-    let refs: Vec<&PoseMeasurement> = fit_rows.iter().collect();
-    let frames = NominalFrames::fit(&cm, &refs).unwrap();
+    let frames = frames_of(&cm);
     let program = rows(&[[0.3, -1.1, 1.2, -1.6, -1.57, 0.2], [0.35, -1.15, 1.25, -1.6, -1.57, 0.2]]);
     let opts = effective_options(&cm, &CorrectOptions::default());
     let both = correct_program(&cm, &frames, &program, &opts).unwrap();
@@ -137,16 +142,7 @@ fn the_landing_covariance_grows_with_the_parameters_covariance_and_the_unexplain
 #[test]
 fn a_command_at_the_wrist_singularity_says_so_through_its_singular_value() {
     let cm = calibrated_ur5();
-    let fit_rows = rows(&[
-        [0.1, -1.2, 1.4, -1.8, -1.5, 0.3],
-        [-0.8, -1.6, 1.9, -0.7, 1.2, -2.0],
-        [0.9, -0.9, 0.8, 0.5, -0.4, 1.0],
-        [1.4, -2.0, 2.1, -2.6, 0.9, 2.5],
-        [-1.1, -0.6, 1.1, 1.7, 2.2, -0.6],
-        [0.4, -1.9, 0.6, -0.2, -2.1, 0.1],
-    ]);
-    let refs: Vec<&PoseMeasurement> = fit_rows.iter().collect();
-    let frames = NominalFrames::fit(&cm, &refs).unwrap();
+    let frames = frames_of(&cm);
     let opts = effective_options(&cm, &CorrectOptions::default());
     assert!(opts.use_orientation);
     let at = rows(&[[0.3, -1.1, 1.2, -1.6, 0.0, 0.2], [0.3, -1.1, 1.2, -1.6, 0.3, 0.2]]);
